@@ -1,0 +1,87 @@
+#pragma once
+// Parameters of a DFN cell (+ optional Ramadass side reaction), in SI units.
+// Filled by the built-in `paper` set (paper_cell.cpp) or by the BPX reader (io/bpx_reader.cpp).
+#include <string>
+
+#include "cell/scalar_function.hpp"
+
+namespace bms {
+
+struct ElectrodeParameters {
+  double thickness_m = 0.0;
+  double particle_radius_m = 0.0;
+  double solid_fraction = 0.0;          // active-material volume fraction eps_s
+  double porosity = 0.0;                // electrolyte volume fraction eps_e
+  double transport_efficiency = 0.0;    // eps_e^b: multiplies D_e and kappa
+  double solid_diffusivity_m2_s = 0.0;  // at the reference temperature
+  double max_concentration_mol_m3 = 0.0;
+  double conductivity_eff_s_m = 0.0;    // effective solid conductivity (already corrected)
+  // Exchange current density i0 = i0_coefficient * sqrt(c_e * c_s * (c_max - c_s)) [A/m2],
+  // i.e. i0_coefficient = F k for the paper's eq. 4 with alpha = 0.5, and
+  // F k_norm / (sqrt(c_e0) c_max) for BPX's normalised rate constant.
+  double i0_coefficient = 0.0;
+  double stoich_min = 0.0;  // stoichiometry at 0 % state of charge (BPX)
+  double stoich_max = 1.0;  // stoichiometry at 100 % state of charge (BPX)
+  double stoich_init = 0.5;  // initial stoichiometry used by the simulator
+  double diffusivity_activation_j_mol = 0.0;
+  double rate_activation_j_mol = 0.0;
+  ScalarFunctionPtr ocp_v;                 // open-circuit potential vs stoichiometry
+  ScalarFunctionPtr entropic_v_k;          // dU/dT vs stoichiometry (may be null)
+
+  double surface_area_per_volume_m() const { return 3.0 * solid_fraction / particle_radius_m; }
+};
+
+struct SeparatorParameters {
+  double thickness_m = 0.0;
+  double porosity = 0.0;
+  double transport_efficiency = 0.0;
+};
+
+struct ElectrolyteParameters {
+  double initial_concentration_mol_m3 = 1000.0;
+  double transference_number = 0.0;
+  ScalarFunctionPtr diffusivity_m2_s;     // D_e(c_e)
+  ScalarFunctionPtr conductivity_s_m;     // kappa(c_e)
+  double diffusivity_activation_j_mol = 0.0;
+  double conductivity_activation_j_mol = 0.0;
+};
+
+// Ramadass et al. side reaction in the negative electrode (paper eqs 9-12).
+struct SideReactionParameters {
+  bool enabled = false;
+  double reference_potential_v = 0.4;         // U_sd,ref
+  double exchange_current_a_m2 = 4e-9;        // i_0s
+  double transfer_coefficient = 0.5;          // alpha
+  double molar_mass_kg_mol = 7.3e4;           // M_p (as the paper prints it; see docs)
+  double density_kg_m3 = 2.1e3;               // rho_p
+  double film_conductivity_s_m = 1.0;         // K_p
+  double initial_film_resistance_ohm_m2 = 0.0;  // R_SEI
+};
+
+struct ThermalParameters {
+  double ambient_temperature_k = 298.15;
+  double initial_temperature_k = 298.15;
+  double reference_temperature_k = 298.15;
+  double specific_heat_j_kg_k = 0.0;
+  double density_kg_m3 = 0.0;
+  double volume_m3 = 0.0;
+  double external_area_m2 = 0.0;
+};
+
+struct CellParameters {
+  std::string name;
+  std::string source;  // file or "built-in"
+  double electrode_area_m2 = 0.0;
+  double lower_voltage_v = 0.0;
+  double upper_voltage_v = 0.0;
+  double nominal_capacity_ah = 0.0;
+  double initial_electrolyte_mol_m3 = 1000.0;
+  ElectrodeParameters negative;
+  SeparatorParameters separator;
+  ElectrodeParameters positive;
+  ElectrolyteParameters electrolyte;
+  SideReactionParameters side;
+  ThermalParameters thermal;
+};
+
+}  // namespace bms

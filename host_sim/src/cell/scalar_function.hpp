@@ -1,0 +1,28 @@
+#pragma once
+// A function of one variable (stoichiometry, concentration, ...) with its exact derivative.
+// The truth model's Jacobian is built by forward-mode differentiation, so every functional
+// parameter must provide d/dx exactly, not by finite differences.
+#include <memory>
+
+namespace bms {
+
+class ScalarFunction {
+ public:
+  virtual ~ScalarFunction() = default;
+  virtual double value(double x) const = 0;
+  virtual double derivative(double x) const = 0;
+};
+
+using ScalarFunctionPtr = std::shared_ptr<const ScalarFunction>;
+
+class ConstantFunction final : public ScalarFunction {
+ public:
+  explicit ConstantFunction(double v) : v_(v) {}
+  double value(double) const override { return v_; }
+  double derivative(double) const override { return 0.0; }
+
+ private:
+  double v_;
+};
+
+}  // namespace bms
