@@ -1,0 +1,9 @@
+#pragma once
+#include "cell/cell_parameters.hpp"
+
+namespace bms {
+
+// The paper-reproduction parameter set, built from firmware/include/bms/fw/paper_cell.hpp.
+CellParameters make_paper_cell();
+
+}  // namespace bms

@@ -1,0 +1,235 @@
+#include "sim/cycler.hpp"
+
+#include <chrono>
+#include <cmath>
+
+#include "io/input_error.hpp"
+
+namespace bms {
+
+const char* mode_name(Mode m) {
+  switch (m) {
+    case Mode::rest: return "rest";
+    case Mode::cc_discharge: return "cc_discharge";
+    case Mode::cv_discharge: return "cv_discharge";
+    case Mode::cc_charge: return "cc_charge";
+    case Mode::cv_charge: return "cv_charge";
+  }
+  return "rest";
+}
+
+bool parse_mode(const std::string& s, Mode& out) {
+  for (Mode m : {Mode::rest, Mode::cc_discharge, Mode::cv_discharge, Mode::cc_charge, Mode::cv_charge}) {
+    if (s == mode_name(m)) {
+      out = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+InitialConditions default_initial_conditions(const CellParameters& cell) {
+  InitialConditions ic;
+  ic.stoich_neg = cell.negative.stoich_init;
+  ic.stoich_pos = cell.positive.stoich_init;
+  ic.electrolyte_mol_m3 = cell.initial_electrolyte_mol_m3;
+  ic.r_film_ohm_m2 = cell.side.enabled ? cell.side.initial_film_resistance_ohm_m2 : 0.0;
+  return ic;
+}
+
+namespace {
+
+class Recorder {
+ public:
+  Recorder(const DfnModel& m, double r0, double temperature_k)
+      : m_(m), r0_(r0), temperature_k_(temperature_k) {}
+
+  SampleRecord sample(double t, int cycle, Mode mode, const std::vector<double>& y) const {
+    SampleRecord s{};
+    s.t_s = t;
+    s.cycle = cycle;
+    s.mode = mode;
+    s.current_a = y[m_.idx_current()];
+    s.voltage_v = m_.terminal_voltage_v(y.data());
+    s.r_film_ohm_m2 = y[m_.idx_film()];
+    s.j_s_a_m3 = m_.mean_side_current_a_m2(y.data()) * m_.cell().negative.surface_area_per_volume_m();
+    s.li_loss_ah = m_.lithium_loss_mol(s.r_film_ohm_m2, r0_) * kFaraday_c_mol / 3600.0;
+    s.temperature_k = temperature_k_;
+    s.charge_ah = y[m_.idx_charge()];
+    s.inventory_mol = m_.lithium_inventory_mol(y.data());
+    return s;
+  }
+
+ private:
+  const DfnModel& m_;
+  double r0_, temperature_k_;
+};
+
+std::vector<double> initial_state_of(const DfnModel& model, const SimulationConfig& cfg) {
+  return model.initial_state(cfg.ic.stoich_neg, cfg.ic.stoich_pos, cfg.ic.electrolyte_mol_m3,
+                             cfg.ic.r_film_ohm_m2);
+}
+
+}  // namespace
+
+SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& protocol, const ProgressFn& progress) {
+  if (!(protocol.v_min < protocol.v_max))
+    throw InputError("voltage limits inverted: lower " + std::to_string(protocol.v_min) +
+                     " V must be below upper " + std::to_string(protocol.v_max) + " V");
+  if (!(protocol.current_a > 0.0)) throw InputError("--current-a must be positive (a magnitude)");
+  if (!(cfg.dt_s > 0.0)) throw InputError("--dt must be positive");
+  const auto wall0 = std::chrono::steady_clock::now();
+  DfnModel model(cfg.cell, cfg.mesh, cfg.temperature_k);
+  model.effects() = cfg.effects;
+  DfnSolver solver(model, cfg.solver);
+  Control rest_control{ControlKind::current, 0.0};
+  model.set_control(rest_control);
+  solver.start(0.0, initial_state_of(model, cfg));
+  Recorder rec(model, cfg.ic.r_film_ohm_m2, cfg.temperature_k);
+
+  SimulationResult out;
+  long k = 0;  // output index: t = k * dt
+  const Mode sequence[4] = {Mode::cc_discharge, Mode::cv_discharge, Mode::cc_charge, Mode::cv_charge};
+  out.samples.push_back(rec.sample(0.0, 1, Mode::cc_discharge, solver.y()));
+  for (int cycle = 1; cycle <= protocol.cycles; ++cycle) {
+    CycleSummary cs{};
+    cs.cycle = cycle;
+    cs.r_film_start_ohm_m2 = solver.y()[model.idx_film()];
+    for (Mode mode : sequence) {
+      Control c;
+      StopConditions stop;
+      switch (mode) {
+        case Mode::cc_discharge:
+          c = {ControlKind::current, protocol.current_a};
+          stop.voltage_below_v = protocol.v_min;
+          break;
+        case Mode::cv_discharge:
+          c = {ControlKind::voltage, protocol.v_min};
+          stop.abs_current_below_a = protocol.cv_end_current_a;
+          break;
+        case Mode::cc_charge:
+          c = {ControlKind::current, -protocol.current_a};
+          stop.voltage_above_v = protocol.v_max;
+          break;
+        case Mode::cv_charge:
+          c = {ControlKind::voltage, protocol.v_max};
+          stop.abs_current_below_a = protocol.cv_end_current_a;
+          break;
+        case Mode::rest: break;
+      }
+      stop.min_surface_stoich = 1e-4;
+      solver.switch_control(c, stop);
+      const double t_mode0 = solver.t();
+      const double r_mode0 = solver.y()[model.idx_film()];
+      while (true) {
+        const double tnext = static_cast<double>(k + 1) * cfg.dt_s;
+        const auto res = solver.advance_to(tnext);
+        if (res == DfnSolver::Result::stopped) break;
+        ++k;
+        out.samples.push_back(rec.sample(tnext, cycle, mode, solver.y()));
+        if (solver.t() - t_mode0 > protocol.max_mode_s)
+          throw RuntimeFailure(std::string("mode ") + mode_name(mode) + " did not end within " +
+                               std::to_string(protocol.max_mode_s) + " s: check the voltage limits and current");
+        if (progress && k % 5000 == 0) progress(tnext, cycle, mode);
+      }
+      const auto mi = static_cast<int>(mode);
+      cs.growth_by_mode_ohm_m2[mi] += solver.y()[model.idx_film()] - r_mode0;
+      cs.duration_by_mode_s[mi] += solver.t() - t_mode0;
+      // A particle emptying ends the run: the protocol cannot continue physically.
+      const double v = model.terminal_voltage_v(solver.y().data());
+      if ((mode == Mode::cc_discharge && v > protocol.v_min + 1e-6) ||
+          (mode == Mode::cc_charge && v < protocol.v_max - 1e-6))
+        throw RuntimeFailure(std::string("a particle reached its stoichiometry limit during ") + mode_name(mode) +
+                             " at t = " + std::to_string(solver.t()) + " s before the voltage limit");
+    }
+    cs.r_film_end_ohm_m2 = solver.y()[model.idx_film()];
+    cs.growth_pct = cs.r_film_start_ohm_m2 > 0.0
+                        ? 100.0 * (cs.r_film_end_ohm_m2 - cs.r_film_start_ohm_m2) / cs.r_film_start_ohm_m2
+                        : 0.0;
+    cs.li_loss_ah = model.lithium_loss_mol(cs.r_film_end_ohm_m2, cs.r_film_start_ohm_m2) * kFaraday_c_mol / 3600.0;
+    out.cycles.push_back(cs);
+  }
+  out.sim_s = solver.t();
+  out.stats = solver.stats();
+  out.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  return out;
+}
+
+SimulationResult run_current_profile(const SimulationConfig& cfg, const std::vector<double>& t_s,
+                                     const std::vector<double>& current_a, double v_stop_low,
+                                     double v_stop_high, const ProgressFn& progress) {
+  if (t_s.size() < 2 || t_s.size() != current_a.size()) throw InputError("current profile needs at least 2 samples");
+  const auto wall0 = std::chrono::steady_clock::now();
+  DfnModel model(cfg.cell, cfg.mesh, cfg.temperature_k);
+  model.effects() = cfg.effects;
+  DfnSolver solver(model, cfg.solver);
+  // Time relative to the first sample; the profile interpolates linearly between samples and
+  // treats a large change between two samples as a step (restart with consistent algebraic states).
+  const double t0 = t_s.front();
+  std::vector<double> ts(t_s.size());
+  for (size_t i = 0; i < ts.size(); ++i) ts[i] = t_s[i] - t0;
+  double imax = 0.0;
+  for (double i : current_a) imax = std::max(imax, std::abs(i));
+  const double step_threshold = 0.05 * imax + 1e-3;
+  // Build a profile with vertical steps: duplicate the time point where the current jumps.
+  std::vector<double> pt, pi;
+  std::vector<size_t> restart_at;  // indices into ts where a step occurs (before the sample)
+  pt.push_back(ts[0]);
+  pi.push_back(current_a[0]);
+  for (size_t i = 1; i < ts.size(); ++i) {
+    if (std::abs(current_a[i] - current_a[i - 1]) > step_threshold) {
+      restart_at.push_back(i);
+      // hold the previous value until just before the sample, then step.
+      pt.push_back(ts[i]);
+      pi.push_back(current_a[i - 1]);
+    }
+    pt.push_back(ts[i]);
+    pi.push_back(current_a[i]);
+  }
+  // For a step at ts[i], the model must see the new value from ts[i] on: piecewise linear on
+  // (pt, pi) with duplicated abscissae picks the later value at t >= ts[i] by upper_bound.
+  Control c;
+  c.kind = ControlKind::profile;
+  c.profile_t_s = &pt;
+  c.profile_current_a = &pi;
+  model.set_control(c);
+  StopConditions stop;
+  stop.voltage_below_v = v_stop_low;
+  stop.voltage_above_v = v_stop_high;
+  stop.min_surface_stoich = 1e-4;
+  solver.start(0.0, initial_state_of(model, cfg));
+  solver.switch_control(c, stop);
+  Recorder rec(model, cfg.ic.r_film_ohm_m2, cfg.temperature_k);
+  SimulationResult out;
+  auto mode_of = [](double i) {
+    return i > 1e-6 ? Mode::cc_discharge : (i < -1e-6 ? Mode::cc_charge : Mode::rest);
+  };
+  out.samples.push_back(rec.sample(t_s[0], 1, mode_of(current_a[0]), solver.y()));
+  size_t next_restart = 0;
+  for (size_t i = 1; i < ts.size(); ++i) {
+    const bool step_here = next_restart < restart_at.size() && restart_at[next_restart] == i;
+    DfnSolver::Result res;
+    if (step_here) {
+      res = solver.advance_exactly_to(ts[i]);
+      if (res == DfnSolver::Result::reached) {
+        solver.restart();
+        ++next_restart;
+      }
+    } else {
+      res = solver.advance_to(ts[i]);
+    }
+    if (res == DfnSolver::Result::stopped) {
+      out.note = "model stopped at t = " + std::to_string(solver.t() + t0) +
+                 " s (voltage limit or particle stoichiometry limit) before the end of the profile";
+      break;
+    }
+    out.samples.push_back(rec.sample(t_s[i], 1, mode_of(current_a[i]), solver.y()));
+    if (progress && i % 2000 == 0) progress(t_s[i], 1, mode_of(current_a[i]));
+  }
+  out.sim_s = solver.t();
+  out.stats = solver.stats();
+  out.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  return out;
+}
+
+}  // namespace bms

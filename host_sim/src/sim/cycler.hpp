@@ -1,0 +1,78 @@
+#pragma once
+// Runs the truth model through a cycling protocol (CCCV cycles, or a measured current
+// profile) and samples it on a fixed output grid.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "cell/cell_parameters.hpp"
+#include "dfn/dfn_solver.hpp"
+
+namespace bms {
+
+enum class Mode { rest, cc_discharge, cv_discharge, cc_charge, cv_charge };
+const char* mode_name(Mode m);
+bool parse_mode(const std::string& s, Mode& out);
+
+struct CccvProtocol {
+  int cycles = 5;
+  double current_a = 2.5;           // magnitude for CC charge and discharge
+  double v_min = 2.0, v_max = 3.6;  // from the cell by default
+  double cv_end_current_a = 0.125;  // CV ends when |I| falls below this
+  double max_mode_s = 6.0 * 3600.0; // safety net per mode
+};
+
+struct InitialConditions {
+  double stoich_neg = 0.8408, stoich_pos = 0.1592, electrolyte_mol_m3 = 1266.9;
+  double r_film_ohm_m2 = 0.0;
+};
+
+struct SimulationConfig {
+  CellParameters cell;
+  DfnMesh mesh;
+  SolverSettings solver;
+  double dt_s = 0.2;
+  double temperature_k = 298.15;
+  InitialConditions ic;
+  ModelEffects effects;
+};
+
+struct SampleRecord {
+  double t_s;
+  int cycle;
+  Mode mode;
+  double current_a, voltage_v, r_film_ohm_m2, j_s_a_m3, li_loss_ah, temperature_k;
+  double charge_ah;     // integral of current (discharge positive)
+  double inventory_mol; // lithium in solid + electrolyte
+};
+
+struct CycleSummary {
+  int cycle;
+  double r_film_start_ohm_m2, r_film_end_ohm_m2, growth_pct, li_loss_ah;
+  double growth_by_mode_ohm_m2[5];  // film growth in each mode during this cycle
+  double duration_by_mode_s[5];
+};
+
+struct SimulationResult {
+  std::vector<SampleRecord> samples;
+  std::vector<CycleSummary> cycles;
+  double sim_s = 0.0, wall_s = 0.0;
+  SolverStats stats;
+  std::string note;  // e.g. why a driven run ended early
+};
+
+using ProgressFn = std::function<void(double t_s, int cycle, Mode mode)>;
+
+InitialConditions default_initial_conditions(const CellParameters& cell);
+
+SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& protocol,
+                          const ProgressFn& progress = {});
+
+// Drives the model with current(t) (piecewise linear between samples; steps larger than
+// step_threshold_a restart the integrator) and samples at the profile's times. Stops early,
+// with a note, if the voltage leaves [v_stop_low, v_stop_high] or a particle empties.
+SimulationResult run_current_profile(const SimulationConfig& cfg, const std::vector<double>& t_s,
+                                     const std::vector<double>& current_a, double v_stop_low,
+                                     double v_stop_high, const ProgressFn& progress = {});
+
+}  // namespace bms
