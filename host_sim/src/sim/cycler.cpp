@@ -90,7 +90,6 @@ SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& proto
   SimulationResult out;
   long k = 0;  // output index: t = k * dt
   const Mode sequence[4] = {Mode::cc_discharge, Mode::cv_discharge, Mode::cc_charge, Mode::cv_charge};
-  out.samples.push_back(rec.sample(0.0, 1, Mode::cc_discharge, solver.y()));
   for (int cycle = 1; cycle <= protocol.cycles; ++cycle) {
     CycleSummary cs{};
     cs.cycle = cycle;
@@ -119,6 +118,7 @@ SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& proto
       }
       stop.min_surface_stoich = 1e-4;
       solver.switch_control(c, stop);
+      if (out.samples.empty()) out.samples.push_back(rec.sample(0.0, cycle, mode, solver.y()));
       const double t_mode0 = solver.t();
       const double r_mode0 = solver.y()[model.idx_film()];
       while (true) {

@@ -1,0 +1,13 @@
+#pragma once
+// bmssim subcommands: each registers its options on the CLI app and returns a runner.
+#include <functional>
+
+#include <CLI/CLI.hpp>
+
+namespace bms::app {
+
+using Runner = std::function<int()>;  // returns the process exit code
+
+Runner add_simulate(CLI::App& app);
+
+}  // namespace bms::app

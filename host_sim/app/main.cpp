@@ -1,0 +1,44 @@
+// bmssim: the host simulator and tools (contract: ../shared/contract.md).
+#include <cstdio>
+#include <exception>
+#include <vector>
+
+#include "commands.hpp"
+#include "io/input_error.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "bmssim - battery truth simulator (DFN + Ramadass SEI), RCSI estimator and studies.\n"
+      "Currents are positive on discharge; SI units throughout. Exit codes: 0 ok, 1 runtime failure, "
+      "2 bad input."};
+  app.require_subcommand(1);
+  std::vector<std::pair<CLI::App*, bms::app::Runner>> commands;
+  auto add = [&](auto fn) {
+    const auto before = app.get_subcommands({}).size();
+    auto runner = fn(app);
+    commands.emplace_back(app.get_subcommands({})[before], runner);
+  };
+  add(bms::app::add_simulate);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "bmssim: %s\n", e.what());
+    std::fprintf(stderr, "Run 'bmssim --help' or 'bmssim SUBCOMMAND --help'.\n");
+    return 2;
+  }
+  try {
+    for (auto& [sub, run] : commands)
+      if (sub->parsed()) return run();
+  } catch (const bms::InputError& e) {
+    std::fprintf(stderr, "bmssim: error: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bmssim: failure: %s\n", e.what());
+    return 1;
+  }
+  return 2;
+}

@@ -1,0 +1,44 @@
+#pragma once
+// Options shared by the commands that run the truth model (simulate, hil, studies).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "sim/cycler.hpp"
+#include "sim/measurement.hpp"
+
+namespace bms::app {
+
+struct SimulateOptions {
+  std::string cell = "paper";
+  std::string protocol = "cccv";
+  int cycles = 1;
+  double current_a = 2.5;
+  double dt_s = 0.2;
+  double noise_v_mv = 0.0, noise_i_ma = 0.0;
+  std::uint64_t seed = 1;
+  double ic_error_pct = 0.0;
+  std::vector<std::string> effects;
+  double v_min = -1.0, v_max = -1.0;  // < 0: from the cell
+  double cv_end_current_a = 0.125;
+  int points = 20, radial = 20;
+  double rtol = 1e-6;
+  bool quiet = false;
+};
+
+void register_simulate_options(CLI::App& sub, SimulateOptions& o);
+nlohmann::json options_json(const SimulateOptions& o);
+
+struct SimulateRun {
+  SimulationResult result;
+  Measured measured;
+  CellParameters cell;
+};
+
+// Validates the options (InputError naming the option) and runs the truth model.
+SimulateRun run_simulation(const SimulateOptions& o, const ProgressFn& progress);
+
+}  // namespace bms::app
