@@ -149,14 +149,15 @@ std::vector<std::vector<int>> detect_pattern(DfnModel& m, const std::vector<doub
     c.value = trial == 0 ? 1.0 : 3.3;
     m.set_control(c);
     std::vector<double> y = y0;
-    for (int e = 0; e < m.n_electrode_nodes(); ++e) y[m.idx_j(e)] = 0.3 + 0.1 * u(rng);
-    y[m.idx_current()] = 1.0 + 0.1 * u(rng);
+    // Small currents keep the trial state physical (a steep OCP can overflow otherwise).
+    for (int e = 0; e < m.n_electrode_nodes(); ++e) y[m.idx_j(e)] = 1e-3 * (1.0 + 0.1 * u(rng));
+    y[m.idx_current()] = 1e-2 * (1.0 + 0.1 * u(rng));
     for (int i = 0; i < n; ++i) y[i] *= 1.0 + 1e-3 * u(rng);
     for (int col = 0; col < n; ++col) {
       for (int i = 0; i < n; ++i) yd[i] = Dual<double>{y[i], i == col ? 1.0 : 0.0};
       m.eval_g(0.0, yd.data(), gd.data());
       for (int row = 0; row < n; ++row)
-        if (gd[row].d != 0.0 || row == col) cols[col].push_back(row);
+        if ((std::isfinite(gd[row].d) && gd[row].d != 0.0) || row == col) cols[col].push_back(row);
     }
   }
   (void)saved_frozen;
@@ -294,7 +295,10 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
   if (tout <= t_) return Result::reached;
   // One internal step at a time, then interpolate: far cheaper than IDA_NORMAL's per-call
   // overhead when output is dense (0.2 s) and steps are long.
-  if (exact) check(IDASetStopTime(im.ida, tout), "IDASetStopTime");
+  // IDA may already have stepped past tout; then the interpolated state is used and a
+  // following restart() re-initialises from it.
+  if (exact && im.tn < tout) check(IDASetStopTime(im.ida, tout), "IDASetStopTime");
+  else exact = false;
   const int n = model_.size();
   while (im.tn < tout) {
     realtype tret = im.tn;
