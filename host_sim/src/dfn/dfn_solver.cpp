@@ -22,6 +22,8 @@ struct DfnSolver::Impl {
   void* ida = nullptr;
   N_Vector y = nullptr, yp = nullptr, atol = nullptr, id = nullptr, tmp = nullptr;
   double tn = 0.0;  // time of IDA's internal solution (>= the caller's time)
+  bool root_pending = false;  // a stop condition was found after the time last asked for
+  double root_t = 0.0;
   SUNMatrix jac = nullptr;
   SUNLinearSolver ls = nullptr;
   // Compressed-column pattern of dF/dy + cj dF/dy', and the colour of every column.
@@ -259,6 +261,7 @@ void DfnSolver::consistent_init() {
   update_stats();
   stats_base_ = stats_;
   im.tn = t_;
+  im.root_pending = false;
   check(IDAReInit(im.ida, t_, im.y, im.yp), "IDAReInit");
   int flag = IDACalcIC(im.ida, IDA_YA_YDP_INIT, t_ + 1e-3);
   if (flag < 0) throw RuntimeFailure("IDACalcIC: no consistent state at t = " + std::to_string(t_) +
@@ -300,25 +303,32 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
   if (exact && im.tn < tout) check(IDASetStopTime(im.ida, tout), "IDASetStopTime");
   else exact = false;
   const int n = model_.size();
-  while (im.tn < tout) {
+  while (!im.root_pending && im.tn < tout) {
     realtype tret = im.tn;
     const int flag = IDASolve(im.ida, tout, &tret, im.y, im.yp, IDA_ONE_STEP);
     if (flag < 0) {
       if (exact) IDASetStopTime(im.ida, 1e300);
       throw RuntimeFailure("IDA failed at t = " + std::to_string(tret) + " s (flag " + std::to_string(flag) + ")");
     }
+    if (flag == IDA_ROOT_RETURN) {
+      // IDA's y is the state at the root; its internal step may reach past both.
+      im.root_pending = true;
+      im.root_t = tret;
+      break;
+    }
     im.tn = tret;
     if (flag == IDA_TSTOP_RETURN) im.tn = tout;
-    if (flag == IDA_ROOT_RETURN) {
-      if (exact) IDASetStopTime(im.ida, 1e300);
-      t_ = tret;
-      for (int i = 0; i < n; ++i) y_[i] = NV_Ith_S(im.y, i);
-      update_stats();
-      return Result::stopped;
-    }
+  }
+  if (im.root_pending && im.root_t <= tout) {
+    if (exact) IDASetStopTime(im.ida, 1e300);
+    im.root_pending = false;
+    im.tn = t_ = im.root_t;
+    for (int i = 0; i < n; ++i) y_[i] = NV_Ith_S(im.y, i);
+    update_stats();
+    return Result::stopped;
   }
   if (exact) IDASetStopTime(im.ida, 1e300);  // SUNDIALS 6.4 has no IDAClearStopTime
-  if (im.tn == tout) {
+  if (!im.root_pending && im.tn == tout) {
     for (int i = 0; i < n; ++i) y_[i] = NV_Ith_S(im.y, i);
   } else {
     check(IDAGetDky(im.ida, tout, 0, im.tmp), "IDAGetDky");

@@ -57,6 +57,8 @@ class Recorder {
     s.temperature_k = temperature_k_;
     s.charge_ah = y[m_.idx_charge()];
     s.inventory_mol = m_.lithium_inventory_mol(y.data());
+    s.stoich_neg = m_.mean_stoich(y.data(), true);
+    s.stoich_pos = m_.mean_stoich(y.data(), false);
     return s;
   }
 
@@ -132,6 +134,7 @@ SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& proto
                                std::to_string(protocol.max_mode_s) + " s: check the voltage limits and current");
         if (progress && k % 5000 == 0) progress(tnext, cycle, mode);
       }
+      out.phases.push_back({cycle, mode, t_mode0, solver.t()});
       const auto mi = static_cast<int>(mode);
       cs.growth_by_mode_ohm_m2[mi] += solver.y()[model.idx_film()] - r_mode0;
       cs.duration_by_mode_s[mi] += solver.t() - t_mode0;

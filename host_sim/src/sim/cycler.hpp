@@ -44,6 +44,7 @@ struct SampleRecord {
   double current_a, voltage_v, r_film_ohm_m2, j_s_a_m3, li_loss_ah, temperature_k;
   double charge_ah;     // integral of current (discharge positive)
   double inventory_mol; // lithium in solid + electrolyte
+  double stoich_neg, stoich_pos;  // electrode-average stoichiometries
 };
 
 struct CycleSummary {
@@ -53,8 +54,15 @@ struct CycleSummary {
   double duration_by_mode_s[5];
 };
 
+struct PhaseMark {
+  int cycle;
+  Mode mode;
+  double t_start_s, t_end_s;  // exact switching times (root-found), not grid times
+};
+
 struct SimulationResult {
   std::vector<SampleRecord> samples;
+  std::vector<PhaseMark> phases;
   std::vector<CycleSummary> cycles;
   double sim_s = 0.0, wall_s = 0.0;
   SolverStats stats;
