@@ -9,5 +9,6 @@ namespace bms::app {
 using Runner = std::function<int()>;  // returns the process exit code
 
 Runner add_simulate(CLI::App& app);
+Runner add_validate(CLI::App& app);
 
 }  // namespace bms::app

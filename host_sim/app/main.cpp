@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
     commands.emplace_back(app.get_subcommands({})[before], runner);
   };
   add(bms::app::add_simulate);
+  add(bms::app::add_validate);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -154,7 +154,7 @@ template <typename T>
 T DfnModel::side_current(const T& phis, const T& phie, const T& j, const T& r) const {
   const auto& s = cell_.side;
   const T eta_s = phis - phie - s.reference_potential_v - j * r;
-  return -s.exchange_current_a_m2 * exp(-s.transfer_coefficient * f_rt_ * eta_s);
+  return -s.exchange_current_a_m2 * exp(clamp_between(T(-s.transfer_coefficient * f_rt_) * eta_s, -60.0, 60.0));
 }
 
 template <typename T>
@@ -239,7 +239,9 @@ void DfnModel::eval_g(double t, const T* y, T* g) const {
     const T ocp = apply(*p.ocp_v, c_surf / cmax);
     T eta = phis - phie - ocp;
     if (neg) eta = eta - j * r_film;
-    g[idx_j(e)] = j - (2.0 * i0 * sinh(0.5 * f_rt_ * eta) + js);
+    // Saturating the exponent keeps wild Newton trial states (consistent initialisation after
+    // a large current step) finite; converged states are far inside the limit.
+    g[idx_j(e)] = j - (2.0 * i0 * sinh(clamp_between(T(0.5 * f_rt_) * eta, -60.0, 60.0)) + js);
     if (neg) js_weighted_sum = js_weighted_sum + js * h;
   }
 
@@ -288,7 +290,9 @@ void DfnModel::film_row_jacobian(const double* y, std::vector<std::pair<int, dou
   for (int e = 0; e < mesh_.n_neg; ++e) {
     const double j = y[idx_j(e)];
     const double js = side_current(y[idx_phis(e)], y[idx_phie(e)], j, r);
-    const double w = scale * dx_[e] * (-alpha_f) * js;  // d js / d eta_s = -alpha f js
+    const double arg = -alpha_f * (y[idx_phis(e)] - y[idx_phie(e)] - cell_.side.reference_potential_v - j * r);
+    const bool saturated = arg <= -60.0 || arg >= 60.0;  // as in side_current()
+    const double w = saturated ? 0.0 : scale * dx_[e] * (-alpha_f) * js;  // d js / d eta_s = -alpha f js
     out.emplace_back(idx_phis(e), w);
     out.emplace_back(idx_phie(e), -w);
     out.emplace_back(idx_j(e), -w * r);

@@ -241,6 +241,10 @@ void DfnSolver::start(double t0, const std::vector<double>& y0) {
   check(IDASVtolerances(im.ida, settings_.rtol, im.atol), "IDASVtolerances");
   check(IDASetId(im.ida, im.id), "IDASetId");
   check(IDASetMaxNumSteps(im.ida, settings_.max_steps), "IDASetMaxNumSteps");
+  // Large current steps (0 to 2C at full charge) need more Newton work to become consistent.
+  check(IDASetMaxNumItersIC(im.ida, 50), "IDASetMaxNumItersIC");
+  check(IDASetMaxNumJacsIC(im.ida, 20), "IDASetMaxNumJacsIC");
+  check(IDASetMaxNumStepsIC(im.ida, 20), "IDASetMaxNumStepsIC");
   im.jac = SUNSparseMatrix(n, n, static_cast<sunindextype>(im.rowind.size()), CSC_MAT, im.ctx);
   im.ls = SUNLinSol_KLU(im.y, im.jac, im.ctx);
   if (!im.jac || !im.ls) throw RuntimeFailure("cannot create the KLU sparse solver");
