@@ -11,6 +11,11 @@ class ScalarFunction {
   virtual ~ScalarFunction() = default;
   virtual double value(double x) const = 0;
   virtual double derivative(double x) const = 0;
+  // Both at once: interpreted functions override this to evaluate once.
+  virtual void value_and_derivative(double x, double& v, double& d) const {
+    v = value(x);
+    d = derivative(x);
+  }
 };
 
 using ScalarFunctionPtr = std::shared_ptr<const ScalarFunction>;

@@ -26,7 +26,9 @@ T apply(const ScalarFunction& f, const T& x) {
   if constexpr (std::is_same_v<T, double>) {
     return f.value(x);
   } else {
-    return T{f.value(x.v), f.derivative(x.v) * x.d};
+    double v = 0.0, d = 0.0;
+    f.value_and_derivative(x.v, v, d);
+    return T{v, d * x.d};
   }
 }
 

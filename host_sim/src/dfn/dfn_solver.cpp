@@ -7,6 +7,9 @@
 #include <sunmatrix/sunmatrix_sparse.h>
 
 #include <algorithm>
+#include <map>
+#include <mutex>
+#include <tuple>
 #include <cmath>
 #include <random>
 #include <string>
@@ -137,7 +140,7 @@ namespace {
 
 // Structural pattern of dg/dy: union over a few random states near y0 and both control kinds,
 // found column by column with dual numbers (once per solver).
-std::vector<std::vector<int>> detect_pattern(DfnModel& m, const std::vector<double>& y0) {
+std::vector<std::vector<int>> detect_pattern_uncached(DfnModel& m, const std::vector<double>& y0) {
   const int n = m.size();
   std::vector<std::vector<int>> cols(n);
   std::vector<Dual<double>> yd(n), gd(n);
@@ -171,6 +174,24 @@ std::vector<std::vector<int>> detect_pattern(DfnModel& m, const std::vector<doub
     std::sort(c.begin(), c.end());
     c.erase(std::unique(c.begin(), c.end()), c.end());
   }
+  return cols;
+}
+
+// The pattern depends only on the mesh and on which terms are present, not on the cell's
+// values: computed once per process for each such structure (a solver built many times, as
+// in studies and benchmarks, pays for it once).
+std::vector<std::vector<int>> detect_pattern(DfnModel& m, const std::vector<double>& y0) {
+  static std::mutex mutex;
+  static std::map<std::tuple<int, int, int, int, bool>, std::vector<std::vector<int>>> cache;
+  const auto& mesh = m.mesh();
+  const auto key = std::make_tuple(mesh.n_neg, mesh.n_sep, mesh.n_pos, mesh.n_r, m.side_reaction_enabled());
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (auto it = cache.find(key); it != cache.end()) return it->second;
+  }
+  auto cols = detect_pattern_uncached(m, y0);
+  std::lock_guard<std::mutex> lock(mutex);
+  cache.emplace(key, cols);
   return cols;
 }
 

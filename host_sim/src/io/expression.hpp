@@ -29,6 +29,11 @@ class ExpressionFunction final : public ScalarFunction {
   ValueAndDerivative evaluate(double x) const;
   double value(double x) const override { return evaluate(x).value; }
   double derivative(double x) const override { return evaluate(x).derivative; }
+  void value_and_derivative(double x, double& v, double& d) const override {
+    const auto r = evaluate(x);
+    v = r.value;
+    d = r.derivative;
+  }
 
   const std::string& text() const { return text_; }
 
