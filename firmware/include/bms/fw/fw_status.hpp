@@ -1,0 +1,43 @@
+#pragma once
+// Firmware status bits: one 32-bit word, each module owns a fixed range of bits so that
+// words from several modules can be OR-ed into one diagnostic word without collisions.
+//
+// Bit ranges (allocate new modules in blocks of 8; never renumber a published bit, since
+// status words are logged and stored in non-volatile memory):
+//   bits  0.. 7  state estimation: RCSI estimator and its RLS core (this file, below)
+//   bits  8..31  reserved for other firmware modules (not allocated yet)
+#include <cstdint>
+
+namespace bms::fw {
+
+using StatusWord = std::uint32_t;
+
+enum class FwStatus : StatusWord {
+  kNone = 0u,
+  // --- RCSI / RLS estimator: bits 0..7 -------------------------------------------------
+  // A non-finite input (z, y0_hat) or a non-finite retrospective target u*: the learning
+  // step was skipped (theta and P unchanged).
+  kRejectedNonFinite = 1u << 0,
+  // The estimated subsystem output u_hat was clipped to the configured [min, max] range.
+  kOutputClipped = 1u << 1,
+  // trace(P) exceeded its cap after an update; P was scaled down to the cap.
+  kCovarianceCapped = 1u << 2,
+  // An update produced a non-finite theta or P (or a non-positive gain denominator); the
+  // result was discarded and the last good theta and P were kept.
+  kThetaRestored = 1u << 3,
+  // Call-order violation: update() without a preceding predict() (the call was ignored).
+  kCallOrder = 1u << 4,
+  // Invalid configuration, or a rejected restore()/set_*() argument (nothing was changed).
+  kConfigInvalid = 1u << 5,
+  // theta^T phi was not finite (overflow); the previous u_hat was held instead.
+  kPredictionNonFinite = 1u << 6,
+  // bit 7: spare, reserved for the estimator.
+};
+
+inline constexpr StatusWord kEstimatorStatusMask = 0x000000FFu;
+
+constexpr StatusWord bit(FwStatus s) { return static_cast<StatusWord>(s); }
+
+constexpr bool has_status(StatusWord word, FwStatus s) { return (word & bit(s)) != 0u; }
+
+}  // namespace bms::fw
