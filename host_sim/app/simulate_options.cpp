@@ -24,7 +24,7 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
                  "Initial-condition error P: scales c_e, theta_n, theta_p by (1 + P/100)")->capture_default_str();
   sub.add_option("--effect", o.effects,
                  "Undeclared effect NAME=VALUE (repeatable): contact_resistance (ohm), current_offset (A), "
-                 "current_gain (relative)");
+                 "current_gain (relative), none; hysteresis and thermal are not implemented yet");
   sub.add_option("--v-min", o.v_min, "Lower voltage limit (V); default: the cell's");
   sub.add_option("--v-max", o.v_max, "Upper voltage limit (V); default: the cell's");
   sub.add_option("--cv-end-current-a", o.cv_end_current_a, "CV phases end below this current (A)")->capture_default_str();

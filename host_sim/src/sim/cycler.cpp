@@ -7,17 +7,6 @@
 
 namespace bms {
 
-const char* mode_name(Mode m) {
-  switch (m) {
-    case Mode::rest: return "rest";
-    case Mode::cc_discharge: return "cc_discharge";
-    case Mode::cv_discharge: return "cv_discharge";
-    case Mode::cc_charge: return "cc_charge";
-    case Mode::cv_charge: return "cv_charge";
-  }
-  return "rest";
-}
-
 bool parse_mode(const std::string& s, Mode& out) {
   for (Mode m : {Mode::rest, Mode::cc_discharge, Mode::cv_discharge, Mode::cc_charge, Mode::cv_charge}) {
     if (s == mode_name(m)) {
@@ -116,7 +105,8 @@ SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& proto
           c = {ControlKind::voltage, protocol.v_max};
           stop.abs_current_below_a = protocol.cv_end_current_a;
           break;
-        case Mode::rest: break;
+        case Mode::rest:
+        case Mode::unknown: break;
       }
       stop.min_surface_stoich = 1e-4;
       solver.switch_control(c, stop);
@@ -249,6 +239,16 @@ SimulationResult run_current_profile(const SimulationConfig& cfg, const std::vec
     out.samples.push_back(rec.sample(t_s[i], 1, mode_of(current_a[i]), solver.y()));
     if (progress && i % 2000 == 0) progress(t_s[i], 1, mode_of(current_a[i]));
   }
+  // A driven run is one "cycle" in the summary (contract: cycles[] is never empty).
+  CycleSummary cs{};
+  cs.cycle = 1;
+  cs.r_film_start_ohm_m2 = out.samples.front().r_film_ohm_m2;
+  cs.r_film_end_ohm_m2 = out.samples.back().r_film_ohm_m2;
+  cs.growth_pct = cs.r_film_start_ohm_m2 > 0.0
+                      ? 100.0 * (cs.r_film_end_ohm_m2 - cs.r_film_start_ohm_m2) / cs.r_film_start_ohm_m2
+                      : 0.0;
+  cs.li_loss_ah = out.samples.back().li_loss_ah - out.samples.front().li_loss_ah;
+  out.cycles.push_back(cs);
   out.sim_s = solver.t();
   out.stats = solver.stats();
   out.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();

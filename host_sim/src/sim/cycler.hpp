@@ -5,13 +5,14 @@
 #include <string>
 #include <vector>
 
+#include "bms/fw/operating_mode.hpp"
 #include "cell/cell_parameters.hpp"
 #include "dfn/dfn_solver.hpp"
 
 namespace bms {
 
-enum class Mode { rest, cc_discharge, cv_discharge, cc_charge, cv_charge };
-const char* mode_name(Mode m);
+using Mode = fw::Mode;  // one numbering with the firmware and the CAN protocol
+using fw::mode_name;
 bool parse_mode(const std::string& s, Mode& out);
 
 struct CccvProtocol {

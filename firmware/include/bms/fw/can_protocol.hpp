@@ -26,6 +26,8 @@
 
 #include "bms/fw/can_crc.hpp"
 
+#include "bms/fw/operating_mode.hpp"
+
 namespace bms::fw::can {
 
 // ---------------------------------------------------------------------------------------
@@ -182,27 +184,8 @@ constexpr int message_index(std::uint32_t can_id) {
 // ---------------------------------------------------------------------------------------
 // Values
 
-/// Operating mode; numbering shared with the DBC (VAL_) and the contract's mode strings.
-enum class Mode : std::uint8_t {
-  rest = 0,
-  cc_discharge = 1,
-  cv_discharge = 2,
-  cc_charge = 3,
-  cv_charge = 4,
-  unknown = 15,
-};
-
-constexpr const char* mode_name(Mode m) {
-  switch (m) {
-    case Mode::rest: return "rest";
-    case Mode::cc_discharge: return "cc_discharge";
-    case Mode::cv_discharge: return "cv_discharge";
-    case Mode::cc_charge: return "cc_charge";
-    case Mode::cv_charge: return "cv_charge";
-    case Mode::unknown: return "unknown";
-  }
-  return "unknown";
-}
+using fw::Mode;
+using fw::mode_name;
 
 constexpr Mode mode_from_raw(std::uint64_t raw) { return raw <= 4u ? static_cast<Mode>(raw) : Mode::unknown; }
 
