@@ -78,16 +78,25 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
   const int nr = mesh.n_r;
   shell_vol_.resize(2 * nr);
   face_r2_.resize(2 * (nr + 1));
+  // Shells are finer towards the surface, where the concentration gradient is steepest:
+  // face i sits at R f(i/n) with f(s) = s + b s (1 - s), so the surface shell is (1 - b)
+  // times and the centre shell (1 + b) times the uniform width.
+  constexpr double kSurfaceRefinement = 0.6;
+  center_dist_.resize(2 * (nr - 1));
+  surface_half_.resize(2);
   for (int side = 0; side < 2; ++side) {
     const double radius = side == 0 ? cell.negative.particle_radius_m : cell.positive.particle_radius_m;
+    std::vector<double> face(nr + 1);
     for (int i = 0; i <= nr; ++i) {
-      const double r = radius * i / nr;
-      face_r2_[side * (nr + 1) + i] = r * r;
+      const double u = static_cast<double>(i) / nr;
+      face[i] = radius * (u + kSurfaceRefinement * u * (1.0 - u));
+      face_r2_[side * (nr + 1) + i] = face[i] * face[i];
     }
-    for (int i = 0; i < nr; ++i) {
-      const double r0 = radius * i / nr, r1 = radius * (i + 1) / nr;
-      shell_vol_[side * nr + i] = (r1 * r1 * r1 - r0 * r0 * r0) / 3.0;
-    }
+    for (int i = 0; i < nr; ++i)
+      shell_vol_[side * nr + i] = (face[i + 1] * face[i + 1] * face[i + 1] - face[i] * face[i] * face[i]) / 3.0;
+    for (int i = 0; i + 1 < nr; ++i)
+      center_dist_[side * (nr - 1) + i] = 0.5 * (face[i + 2] - face[i]);
+    surface_half_[side] = 0.5 * (face[nr] - face[nr - 1]);
   }
 
   mass_.assign(n_, 0.0);
@@ -222,20 +231,22 @@ void DfnModel::eval_g(double t, const T* y, T* g) const {
     // Particle: finite volumes in r; molar flux out of the surface from the intercalation part.
     const int side = neg ? 0 : 1;
     const double ds = p.solid_diffusivity_m2_s;
-    const double dr = p.particle_radius_m / nr;
     const T phis = y[idx_phis(e)], phie = y[idx_phie(k)];
     T js = T(0.0);
     if (neg && side_on) js = side_current(phis, phie, j, r_film);
     const T flux_out = (j - js) / kFaraday_c_mol;
     for (int r = 0; r < nr; ++r) {
       const T c = y[idx_cs(e, r)];
-      const T in_right = r + 1 < nr ? face_r2_[side * (nr + 1) + r + 1] * ds * (y[idx_cs(e, r + 1)] - c) / dr
+      const T in_right = r + 1 < nr ? face_r2_[side * (nr + 1) + r + 1] * ds * (y[idx_cs(e, r + 1)] - c) /
+                                          center_dist_[side * (nr - 1) + r]
                                     : -face_r2_[side * (nr + 1) + nr] * flux_out;
-      const T in_left = r > 0 ? face_r2_[side * (nr + 1) + r] * ds * (c - y[idx_cs(e, r - 1)]) / dr : T(0.0);
+      const T in_left = r > 0 ? face_r2_[side * (nr + 1) + r] * ds * (c - y[idx_cs(e, r - 1)]) /
+                                    center_dist_[side * (nr - 1) + r - 1]
+                              : T(0.0);
       g[idx_cs(e, r)] = in_right - in_left;
     }
     const double cmax = p.max_concentration_mol_m3;
-    const T c_surf = clamp_between(y[idx_cs(e, nr - 1)] - 0.5 * dr * flux_out / ds, 1e-6 * cmax, (1.0 - 1e-6) * cmax);
+    const T c_surf = clamp_between(y[idx_cs(e, nr - 1)] - surface_half_[side] * flux_out / ds, 1e-6 * cmax, (1.0 - 1e-6) * cmax);
     const T ce = clamp_above(y[idx_ce(k)], 1e-3);
     const T i0 = p.i0_coefficient * sqrt(ce * c_surf * (cmax - c_surf));
     const T ocp = apply(*p.ocp_v, c_surf / cmax);

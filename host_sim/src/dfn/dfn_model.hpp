@@ -102,6 +102,8 @@ class DfnModel {
   int nx_, ne_, cs_end_, n_;
   std::vector<double> dx_, eps_, te_, a_;  // per x cell (a_ = 0 in separator)
   std::vector<double> shell_vol_, face_r2_;  // per electrode (2 x n_r, n_r + 1)
+  std::vector<double> center_dist_;          // per electrode, n_r - 1 distances between shell centres
+  std::vector<double> surface_half_;         // per electrode, centre of the last shell to the surface
   std::vector<double> mass_, atol_scale_;
   Control control_;
   ModelEffects effects_;
