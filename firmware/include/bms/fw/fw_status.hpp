@@ -2,7 +2,7 @@
 // Firmware status bits: one 32-bit word, each module owns a fixed range of bits so that
 // words from several modules can be OR-ed into one diagnostic word without collisions.
 //
-// Bit ranges (allocate new modules in blocks of 8; never renumber a published bit, since
+// Bit ranges (allocate further modules in blocks of 8; never renumber a published bit, since
 // status words are logged and stored in non-volatile memory):
 //   bits  0.. 7  state estimation: RCSI estimator and its RLS core (this file, below)
 //   bits  8..31  reserved for other firmware modules (not allocated yet)

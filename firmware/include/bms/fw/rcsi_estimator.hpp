@@ -23,7 +23,7 @@
 //   4. est.update(z, y0_hat);       learns from u*(k-D), then stores u_hat(k), y0_hat(k)
 // D is the number of ticks between the u_hat a z first depends on and that z:
 //   D = 0  the y_hat of step 2 already depends on u_hat(k) (direct feedthrough: a DFN that
-//          solves its algebraic equations with the new film drop j*R_film at the same instant);
+//          solves its algebraic equations with the updated film drop j*R_film at the same instant);
 //   D = 1  the y_hat of step 2 depends only on u_hat(k-1) (paper eqs 17-18: x_hat(k+1) uses
 //          u_hat(k) and y_hat(k) = h(x_hat(k)); the paper uses D = 1).
 // Why predict comes first: it is the one order that is valid for both D = 0 and D >= 1
@@ -40,7 +40,7 @@
 //
 // Resets: reset() restores theta(0) and P(0) only (paper: at the start of every charging
 // cycle); the signal history (the film resistance itself) is continuous and kept.
-// reset_history() restarts the history (new cell, power-up without a saved state).
+// reset_history() restarts the history (a different cell, power-up without a saved state).
 //
 // Firmware rules: fixed-size Eigen only, no heap, no exceptions, no RTTI, no globals.
 #include <cmath>

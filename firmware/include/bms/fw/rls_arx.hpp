@@ -44,7 +44,7 @@ class RlsArxFit {
 
   explicit RlsArxFit(const Config& config) : rls_(config) {}
 
-  // Feed the recorded u(k), y0(k) in time order. Once Nc samples are known, every new u(k)
+  // Feed the recorded u(k), y0(k) in time order. Once Nc samples are known, every further u(k)
   // is regressed on phi(k-1). A non-finite sample is rejected (kRejectedNonFinite) and
   // restarts the regressor window, so no regression ever uses it.
   StatusWord add_sample(Scalar u, Scalar y0) {
