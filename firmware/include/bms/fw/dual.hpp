@@ -4,6 +4,7 @@
 // Jacobians (host DAE solver, firmware Newton step) are exact and cannot drift from the model.
 // Header-only, no heap, usable on the target.
 #include <cmath>
+#include <type_traits>
 
 namespace bms::fw {
 
@@ -15,6 +16,10 @@ struct Dual {
   constexpr Dual() = default;
   constexpr Dual(S value) : v(value), d(S(0)) {}  // NOLINT: implicit from constants is intended
   constexpr Dual(S value, S deriv) : v(value), d(deriv) {}
+  // T(0.0911) in code templated on T must mean what float(0.0911) means: a deliberate
+  // rounding of a literal, not a silent narrowing.
+  template <typename U, typename = std::enable_if_t<std::is_arithmetic<U>::value && !std::is_same<U, S>::value>>
+  constexpr explicit Dual(U value) : v(static_cast<S>(value)), d(S(0)) {}
 
   constexpr Dual& operator+=(const Dual& o) { v += o.v; d += o.d; return *this; }
   constexpr Dual& operator-=(const Dual& o) { v -= o.v; d -= o.d; return *this; }

@@ -5,7 +5,8 @@
 // Bit ranges (allocate further modules in blocks of 8; never renumber a published bit, since
 // status words are logged and stored in non-volatile memory):
 //   bits  0.. 7  state estimation: RCSI estimator and its RLS core (this file, below)
-//   bits  8..31  reserved for other firmware modules (not allocated yet)
+//   bits  8..15  the tick (bms/fw/bms_core.hpp): input validation and the main-system model
+//   bits 16..31  reserved for other firmware modules (not allocated yet)
 #include <cstdint>
 
 namespace bms::fw {
@@ -32,7 +33,25 @@ enum class FwStatus : StatusWord {
   // theta^T phi was not finite (overflow); the previous u_hat was held instead.
   kPredictionNonFinite = 1u << 6,
   // bit 7: spare, reserved for the estimator.
+  // --- Tick: bits 8..15 ----------------------------------------------------------------
+  // The sample was rejected (state kept): a measurement was NaN or infinite.
+  kSampleNonFinite = 1u << 8,
+  // The sample was rejected: voltage outside the plausible range (default 0..5 V).
+  kVoltageOutOfRange = 1u << 9,
+  // The sample was rejected: |current| above its limit, or a current step between two
+  // ticks larger than any the cell can carry.
+  kCurrentImplausible = 1u << 10,
+  // No valid measurement for more than the allowed number of ticks: estimation frozen.
+  kMeasurementStale = 1u << 11,
+  // The voltage-driven (CV) model step hit its Newton iteration cap.
+  kModelNotConverged = 1u << 12,
+  // The model produced a non-finite state; the tick was not committed.
+  kModelInvalid = 1u << 13,
+  // A saved state was rejected on restore (layout or content).
+  kRestoreRejected = 1u << 14,
 };
+
+inline constexpr StatusWord kTickRejectMask = (1u << 8) | (1u << 9) | (1u << 10);
 
 inline constexpr StatusWord kEstimatorStatusMask = 0x000000FFu;
 

@@ -1,0 +1,278 @@
+#pragma once
+// The firmware's tick: one call per 0.2 s with the measured voltage and current, returning
+// the film-resistance estimate and status. Owns the main-system model, the mode detector
+// and the RCSI estimator; no heap, no exceptions, no globals (the HAL owns the rest).
+//
+// Per tick:
+//   1. validate the sample (finite, voltage and current plausible, no impossible step);
+//      a rejected or missing sample keeps every state and counts towards staleness;
+//   2. debounced operating mode (bms/fw/mode_detector.hpp);
+//   3. constant-current charge only: at its start the estimator's theta and P are reset
+//      (paper) and its history restarts from the film resistance held so far; then
+//      u_hat(k) = predict() is the film resistance the model uses this tick. In every other
+//      mode the held film resistance is used and nothing is learned (not identifiable);
+//   4. the model steps: voltage-driven in CV (debounced and confirmed by this sample's
+//      class), current-driven otherwise;
+//   5. z = y_hat - y; in CC charge the estimator learns from z (RcsiEstimator::update).
+// The model answers within the same tick to the u_hat it was given (the film drop is
+// algebraic), so the default delay is D = 0 (see bms/fw/rcsi_estimator.hpp).
+//
+// MainModel is any type with the ReducedCell interface (init is the caller's business):
+//   ModelTickResult<Scalar> step_current(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s);
+//   ModelTickResult<Scalar> step_voltage(Scalar voltage_v, Scalar r_film_ohm_m2, Scalar dt_s);
+//   Scalar li_loss_ah() const;  State state() const;  bool restore(const State&);
+// The host runs the same core with the full DFN as MainModel (the paper's setting).
+#include <cmath>
+#include <cstdint>
+
+#include "bms/fw/fw_status.hpp"
+#include "bms/fw/mode_detector.hpp"
+#include "bms/fw/operating_mode.hpp"
+#include "bms/fw/rcsi_estimator.hpp"
+#include "bms/fw/reduced_cell.hpp"
+
+namespace bms::fw {
+
+template <typename Scalar>
+struct TickInput {
+  Scalar voltage_v;
+  Scalar current_a;  // positive = discharge
+  bool present;      // false: no measurement arrived for this tick
+};
+
+template <typename Scalar, int Nc>
+struct TickOutput {
+  Mode mode;
+  bool rcsi_active;            // the estimator learned in this tick
+  Scalar r_film_est_ohm_m2;    // u_hat in use (held outside CC charge)
+  Scalar z_v;                  // y_hat - y of this tick (0 when the sample was not used)
+  Scalar model_voltage_v;
+  Scalar model_current_a;
+  Scalar j_side_a_m3;          // y0_hat
+  Scalar li_loss_ah;           // lithium lost to the side reaction (model)
+  Scalar theta[2 * Nc];
+  StatusWord status;           // bits raised in this tick (estimator bits 0..7, tick 8..15)
+  std::uint32_t tick;          // committed ticks
+  std::uint8_t newton_iterations;
+};
+
+template <typename Scalar = double, typename MainModel = ReducedCell<Scalar>, int Nc = 1, int D = 0>
+class BmsCore {
+ public:
+  using Estimator = RcsiEstimator<Scalar, Nc, D>;
+  using Detector = ModeDetector<Scalar>;
+  using Output = TickOutput<Scalar, Nc>;
+  using ModelState = typename MainModel::State;
+
+  struct Config {
+    typename Estimator::Config estimator = default_estimator();
+    typename Detector::Config detector{};
+    Scalar dt_s = Scalar(0.2);
+    // Paper: constant H = 0.01. When true, H = dV/dR_film of the model at the start of each
+    // CC charge (about 0.88 V per ohm m2 for the paper cell at 2.5 A).
+    bool markov_from_model = false;
+    Scalar voltage_min_v = Scalar(0);
+    Scalar voltage_max_v = Scalar(5);
+    Scalar current_limit_a = Scalar(20);       // about 9C for the paper cell
+    Scalar current_step_limit_a = Scalar(20);  // between two accepted samples
+    std::uint16_t stale_limit_ticks = 2;       // more missing ticks than this: frozen + fault bit
+  };
+
+  static typename Estimator::Config default_estimator() {
+    typename Estimator::Config c;
+    c.markov_v_per_ohm_m2 = Scalar(0.01);
+    c.p0_u = Scalar(5e-7);
+    c.p0_y0 = Scalar(5e-7);
+    c.theta0 = Estimator::Vector::Zero();
+    c.theta0(0) = Scalar(1);  // hold the film at a charge start (u_hat(k) = u_hat(k-1))
+    c.r_film_init_ohm_m2 = Scalar(PaperCellTraits::kInitialFilmOhmM2);
+    c.r_film_min_ohm_m2 = Scalar(0);
+    c.r_film_max_ohm_m2 = Scalar(1);
+    return c;
+  }
+
+  struct State {
+    std::uint32_t layout_tag;
+    std::uint32_t ticks;
+    std::uint32_t stale_ticks;
+    std::uint32_t flags;  // bit 0: previous tick was CC charge, bit 1: a sample was accepted
+    Scalar r_held_ohm_m2;
+    Scalar last_current_a;
+    Scalar last_j_side_a_m3;
+    typename Detector::State detector;
+    typename Estimator::State estimator;
+    ModelState model;
+  };
+  static constexpr std::uint32_t kLayoutTag =
+      (0x42u << 24) | (static_cast<std::uint32_t>(sizeof(State) & 0xFFFFu) << 8) |
+      static_cast<std::uint32_t>(sizeof(Scalar));
+
+  BmsCore(const Config& config, MainModel& model)
+      : config_(config), model_(model), detector_(config.detector), estimator_(config.estimator) {
+    r_held_ = config.estimator.r_film_init_ohm_m2;
+    last_j_side_ = config.estimator.j_side_init_a_m3;
+  }
+
+  Output tick(const TickInput<Scalar>& in) {
+    StatusWord st = 0u;
+    if (!in.present) return held_output(raise_stale(st));
+    st |= validate(in);
+    if ((st & kTickRejectMask) != 0u) return held_output(raise_stale(st));
+    stale_ticks_ = 0;
+    have_sample_ = true;
+    last_current_ = in.current_a;
+
+    const Mode mode = detector_.update(in.voltage_v, in.current_a);
+    const bool cc_charge = mode == Mode::cc_charge;
+    if (cc_charge && !prev_cc_charge_) {
+      estimator_.reset_history(r_held_, last_j_side_);
+      estimator_.reset();
+    }
+    const Scalar u = cc_charge ? estimator_.predict() : r_held_;
+
+    const Mode raw = detector_.raw_mode();
+    const bool voltage_driven = (raw == Mode::cv_charge || raw == Mode::cv_discharge) && raw == mode;
+    const ModelTickResult<Scalar> r = voltage_driven ? model_.step_voltage(in.voltage_v, u, config_.dt_s)
+                                                     : model_.step_current(in.current_a, u, config_.dt_s);
+    Output out = base_output(mode);
+    if (!r.valid) {
+      st |= bit(FwStatus::kModelInvalid);
+      if (cc_charge) st |= estimator_.advance_without_learning(last_j_side_);
+      prev_cc_charge_ = cc_charge;
+      out.status = st;
+      return out;
+    }
+    if (!r.converged) st |= bit(FwStatus::kModelNotConverged);
+    const Scalar z = r.voltage_v - in.voltage_v;
+    bool active = false;
+    if (cc_charge) {
+      if (config_.markov_from_model && !prev_cc_charge_) {
+        estimator_.set_markov_parameter(r.markov_v_per_ohm_m2);
+      }
+      st |= estimator_.update(z, r.j_side_a_m3);
+      active = estimator_.theta_updated();
+      r_held_ = u;
+    }
+    prev_cc_charge_ = cc_charge;
+    last_j_side_ = r.j_side_a_m3;
+    ++ticks_;
+    out = base_output(mode);
+    out.rcsi_active = active;
+    out.r_film_est_ohm_m2 = u;
+    out.z_v = z;
+    out.model_voltage_v = r.voltage_v;
+    out.model_current_a = r.current_a;
+    out.j_side_a_m3 = r.j_side_a_m3;
+    out.newton_iterations = r.newton_iterations;
+    out.status = st;
+    status_ |= st;
+    return out;
+  }
+
+  State save() const {
+    State s{};
+    s.layout_tag = kLayoutTag;
+    s.ticks = ticks_;
+    s.stale_ticks = stale_ticks_;
+    s.flags = (prev_cc_charge_ ? 1u : 0u) | (have_sample_ ? 2u : 0u);
+    s.r_held_ohm_m2 = r_held_;
+    s.last_current_a = last_current_;
+    s.last_j_side_a_m3 = last_j_side_;
+    s.detector = detector_.state();
+    s.estimator = estimator_.save();
+    s.model = model_.state();
+    return s;
+  }
+
+  // All or nothing: a rejected image changes nothing but the sticky kRestoreRejected bit.
+  bool restore(const State& s) {
+    const bool header_ok = s.layout_tag == kLayoutTag && (s.flags & ~3u) == 0u &&
+                           std::isfinite(s.r_held_ohm_m2) && std::isfinite(s.last_current_a) &&
+                           std::isfinite(s.last_j_side_a_m3);
+    Detector d = detector_;
+    Estimator e = estimator_;
+    const ModelState model_backup = model_.state();
+    const bool ok = header_ok && d.restore(s.detector) && e.restore(s.estimator) && model_.restore(s.model);
+    if (!ok) {
+      model_.restore(model_backup);
+      status_ |= bit(FwStatus::kRestoreRejected);
+      return false;
+    }
+    detector_ = d;
+    estimator_ = e;
+    ticks_ = s.ticks;
+    stale_ticks_ = s.stale_ticks;
+    prev_cc_charge_ = (s.flags & 1u) != 0u;
+    have_sample_ = (s.flags & 2u) != 0u;
+    r_held_ = s.r_held_ohm_m2;
+    last_current_ = s.last_current_a;
+    last_j_side_ = s.last_j_side_a_m3;
+    return true;
+  }
+
+  const Estimator& estimator() const { return estimator_; }
+  const Detector& detector() const { return detector_; }
+  const MainModel& model() const { return model_; }
+  StatusWord status() const { return status_ | estimator_.status(); }
+  Scalar r_film_ohm_m2() const { return r_held_; }
+  const Config& config() const { return config_; }
+
+ private:
+  StatusWord validate(const TickInput<Scalar>& in) const {
+    if (!std::isfinite(in.voltage_v) || !std::isfinite(in.current_a)) return bit(FwStatus::kSampleNonFinite);
+    StatusWord st = 0u;
+    if (in.voltage_v < config_.voltage_min_v || in.voltage_v > config_.voltage_max_v) {
+      st |= bit(FwStatus::kVoltageOutOfRange);
+    }
+    if (std::fabs(in.current_a) > config_.current_limit_a ||
+        (have_sample_ && std::fabs(in.current_a - last_current_) > config_.current_step_limit_a)) {
+      st |= bit(FwStatus::kCurrentImplausible);
+    }
+    return st;
+  }
+
+  StatusWord raise_stale(StatusWord st) {
+    if (stale_ticks_ < 0xFFFFFFFFu) ++stale_ticks_;
+    if (stale_ticks_ > config_.stale_limit_ticks) st |= bit(FwStatus::kMeasurementStale);
+    status_ |= st;
+    return st;
+  }
+
+  Output base_output(Mode mode) const {
+    Output o{};
+    o.mode = mode;
+    o.rcsi_active = false;
+    o.r_film_est_ohm_m2 = r_held_;
+    o.z_v = Scalar(0);
+    o.model_voltage_v = Scalar(0);
+    o.model_current_a = last_current_;
+    o.j_side_a_m3 = last_j_side_;
+    o.li_loss_ah = model_.li_loss_ah();
+    for (int i = 0; i < 2 * Nc; ++i) o.theta[i] = estimator_.theta()(i);
+    o.tick = ticks_;
+    o.newton_iterations = 0;
+    o.status = 0u;
+    return o;
+  }
+
+  Output held_output(StatusWord st) const {
+    Output o = base_output(detector_.mode());
+    o.status = st;
+    return o;
+  }
+
+  Config config_;
+  MainModel& model_;
+  Detector detector_;
+  Estimator estimator_;
+  Scalar r_held_ = Scalar(0);
+  Scalar last_current_ = Scalar(0);
+  Scalar last_j_side_ = Scalar(0);
+  std::uint32_t ticks_ = 0u;
+  std::uint32_t stale_ticks_ = 0u;
+  bool prev_cc_charge_ = false;
+  bool have_sample_ = false;
+  StatusWord status_ = 0u;
+};
+
+}  // namespace bms::fw

@@ -1,0 +1,428 @@
+#pragma once
+// Reduced-order DFN for the firmware: the main-system model of RCSI (issue 3).
+//
+// What is kept from the truth DFN (host_sim/src/dfn/dfn_model.cpp), in the same finite-volume
+// form so the two can be compared term by term:
+//   - electrolyte concentration on a coarse x mesh (Nn + Ns + Np cells, concentration-
+//     dependent D_e and kappa, diffusion potential), electrolyte potential from the ionic
+//     current;
+//   - one particle per electrode on NrN / NrP shells refined towards the surface, with the
+//     truth's surface extrapolation;
+//   - Butler-Volmer kinetics per electrolyte cell (local c_e) with the film drop j R_film,
+//     the Ramadass side reaction inside it, and the lithium it consumes (eq. 10): the
+//     intercalation flux is j - j_s, so lithium leaves the cyclable inventory.
+// What is reduced: the reaction current density is uniform within each electrode (single-
+// particle assumption: the solid potential is taken as the mean over the electrode's cells
+// of phi_e + U + eta + j R_film). The film resistance is an input (no eqs 11-12).
+//
+// Time stepping: backward Euler over one tick. Particles and electrolyte are linear in the
+// new state once D_e is taken at the start of the tick, so each is one tridiagonal solve;
+// the kinetics are closed-form (asinh) with a fixed number of side-reaction fixed-point
+// passes. Current-driven (CC, rest) costs one evaluation. Voltage-driven (CV) solves
+// V(I) = V_measured by Newton on the current with an exact derivative (dual numbers), capped
+// at kMaxNewtonIterations: every tick has a fixed worst case.
+//
+// Firmware rules: compile-time sizes, no heap, no exceptions, no RTTI, no globals.
+#include <cmath>
+#include <cstdint>
+#include <type_traits>
+
+#include "bms/fw/dual.hpp"
+#include "bms/fw/paper_cell.hpp"
+
+namespace bms::fw {
+
+inline constexpr double kFaradayC_mol = 96485.33212;
+inline constexpr double kGasJ_molK = 8.314462618;
+
+// Compile-time mesh of the reduced model.
+template <int Nn = 3, int Ns = 1, int Np = 3, int NrN = 16, int NrP = 2>
+struct ReducedMesh {
+  static_assert(Nn >= 1 && Ns >= 1 && Np >= 1 && NrN >= 1 && NrP >= 1, "mesh sizes must be >= 1");
+  static constexpr int kNeg = Nn, kSep = Ns, kPos = Np, kShellsNeg = NrN, kShellsPos = NrP;
+  static constexpr int kCells = Nn + Ns + Np;
+};
+
+// The paper cell as the reduced model sees it. Numbers come from bms/fw/paper_cell.hpp (one
+// source of truth with the host simulator).
+struct PaperCellTraits {
+  static constexpr double kAreaM2 = paper::kElectrodeArea_m2;
+  static constexpr double kTemperatureK = paper::kTemperature_k;
+  static constexpr double kTransference = paper::kTransference;
+  static constexpr double kElectrolyteInitMolM3 = paper::kElectrolyteInit_mol_m3;
+  static constexpr double kSeparatorThicknessM = paper::kSeparatorThickness_m;
+  static constexpr double kSeparatorPorosity = paper::kSeparatorPorosity;
+  static constexpr double kBruggeman = paper::kBruggeman;
+  static constexpr paper::Electrode kNeg = paper::kNegative;
+  static constexpr paper::Electrode kPos = paper::kPositive;
+  static constexpr double kSideRefPotentialV = paper::kSideRefPotential_v;
+  static constexpr double kSideExchangeAM2 = paper::kSideExchange_a_m2;
+  static constexpr double kSideAlpha = paper::kSideAlpha;
+  static constexpr double kInitialFilmOhmM2 = paper::kInitialFilm_ohm_m2;
+  static constexpr double kUpperVoltageV = paper::kUpperVoltage_v;
+  static constexpr double kLowerVoltageV = paper::kLowerVoltage_v;
+  template <typename T> static T ocp_neg_v(T x) { return paper::ocp_negative_v(x); }
+  template <typename T> static T ocp_pos_v(T x) { return paper::ocp_positive_v(x); }
+  template <typename T> static T electrolyte_diffusivity_m2_s(T c) {
+    return paper::electrolyte_diffusivity_m2_s(c);
+  }
+  template <typename T> static T electrolyte_conductivity_s_m(T c) {
+    return paper::electrolyte_conductivity_s_m(c);
+  }
+};
+
+// Result of one model tick.
+template <typename Scalar>
+struct ModelTickResult {
+  Scalar voltage_v;                 // model terminal voltage y_hat
+  Scalar current_a;                 // applied (CC) or solved (CV) current, positive = discharge
+  Scalar j_side_a_m3;               // y0_hat: mean volumetric side-reaction current (negative)
+  Scalar markov_v_per_ohm_m2;       // dV/dR_film at this tick (= -j_n)
+  std::uint8_t newton_iterations;   // CV only
+  bool converged;                   // CV Newton met its tolerance (CC: always true)
+  bool valid;                       // false: state left unchanged (non-finite trial)
+};
+
+template <typename Scalar = double, typename Cell = PaperCellTraits, typename Mesh = ReducedMesh<>>
+class ReducedCell {
+  static_assert(std::is_floating_point<Scalar>::value, "Scalar must be a floating-point type");
+
+ public:
+  static constexpr int kNn = Mesh::kNeg, kNs = Mesh::kSep, kNp = Mesh::kPos;
+  static constexpr int kNx = Mesh::kCells;
+  static constexpr int kNrN = Mesh::kShellsNeg, kNrP = Mesh::kShellsPos;
+  static constexpr int kNumStates = kNrN + kNrP + kNx + 2;  // + lithium lost, charge
+  static constexpr int kMaxNewtonIterations = 8;
+  static constexpr int kSidePasses = 2;  // j_s / j is about 1e-5: two passes reach round-off
+  static constexpr double kSurfaceRefinement = 0.6;  // as the truth's shells
+
+  // Plain-old-data state (saved to NVM with the estimator's state).
+  struct State {
+    Scalar cs_neg_mol_m3[kNrN];
+    Scalar cs_pos_mol_m3[kNrP];
+    Scalar ce_mol_m3[kNx];
+    Scalar li_loss_mol;
+    Scalar charge_c;        // integral of current, discharge positive
+    Scalar current_a;       // last applied current (Newton start in CV)
+    Scalar j_side_a_m2;     // last mean side-reaction current density (fixed-point start)
+  };
+  static_assert(std::is_trivially_copyable<State>::value, "State must be trivially copyable");
+
+  ReducedCell() { build_geometry(); }
+
+  // Uniform state at rest with the given stoichiometries and electrolyte concentration.
+  void init(Scalar stoich_neg, Scalar stoich_pos, Scalar ce_mol_m3) {
+    for (int i = 0; i < kNrN; ++i) s_.cs_neg_mol_m3[i] = stoich_neg * Scalar(Cell::kNeg.max_concentration_mol_m3);
+    for (int i = 0; i < kNrP; ++i) s_.cs_pos_mol_m3[i] = stoich_pos * Scalar(Cell::kPos.max_concentration_mol_m3);
+    for (int k = 0; k < kNx; ++k) s_.ce_mol_m3[k] = ce_mol_m3;
+    s_.li_loss_mol = Scalar(0);
+    s_.charge_c = Scalar(0);
+    s_.current_a = Scalar(0);
+    s_.j_side_a_m2 = Scalar(0);
+  }
+  void init_default() {
+    init(Scalar(Cell::kNeg.stoich_init), Scalar(Cell::kPos.stoich_init), Scalar(Cell::kElectrolyteInitMolM3));
+  }
+
+  const State& state() const { return s_; }
+  bool restore(const State& s) {
+    const Scalar* p = reinterpret_cast<const Scalar*>(&s);
+    for (unsigned i = 0; i < sizeof(State) / sizeof(Scalar); ++i) {
+      if (!std::isfinite(p[i])) return false;
+    }
+    s_ = s;
+    return true;
+  }
+
+  // One tick driven by current [A], positive = discharge.
+  ModelTickResult<Scalar> step_current(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s) {
+    Trial<Scalar> t;
+    evaluate(current_a, r_film_ohm_m2, dt_s, t);
+    ModelTickResult<Scalar> r{t.voltage_v, current_a, t.j_side_a_m3, -t.j_neg_a_m2, 0, true, false};
+    r.valid = commit(t, current_a, dt_s);
+    return r;
+  }
+
+  // One tick driven by terminal voltage [V] (constant-voltage phases): finds the current.
+  ModelTickResult<Scalar> step_voltage(Scalar voltage_v, Scalar r_film_ohm_m2, Scalar dt_s) {
+    using D = Dual<Scalar>;
+    Scalar current = s_.current_a;
+    bool converged = false;
+    std::uint8_t it = 0;
+    Trial<D> td;
+    while (it < kMaxNewtonIterations) {
+      ++it;
+      evaluate(D(current, Scalar(1)), r_film_ohm_m2, dt_s, td);
+      const Scalar residual = td.voltage_v.v - voltage_v;
+      const Scalar slope = td.voltage_v.d;  // dV/dI < 0 for a physical cell
+      if (!std::isfinite(residual) || !std::isfinite(slope) || slope >= Scalar(0)) break;
+      Scalar delta = -residual / slope;
+      // A Newton step larger than the cell could carry is a wild iterate: limit it.
+      const Scalar max_step = Scalar(kMaxNewtonStepA);
+      if (delta > max_step) delta = max_step;
+      if (delta < -max_step) delta = -max_step;
+      current += delta;
+      if (std::fabs(residual) < Scalar(kVoltageToleranceV)) {
+        converged = true;
+        break;
+      }
+    }
+    Trial<Scalar> t;
+    evaluate(current, r_film_ohm_m2, dt_s, t);
+    ModelTickResult<Scalar> r{t.voltage_v, current, t.j_side_a_m3, -t.j_neg_a_m2, it, converged, false};
+    r.valid = commit(t, current, dt_s);
+    return r;
+  }
+
+  // Terminal voltage of the current state at a given current, without advancing (dt -> 0 is
+  // not meaningful for backward Euler, so this evaluates a tick without committing it).
+  Scalar peek_voltage(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s) const {
+    Trial<Scalar> t;
+    evaluate(current_a, r_film_ohm_m2, dt_s, t);
+    return t.voltage_v;
+  }
+
+  Scalar li_loss_ah() const { return s_.li_loss_mol * Scalar(kFaradayC_mol / 3600.0); }
+  Scalar mean_stoich_neg() const { return mean_shell(s_.cs_neg_mol_m3, vol_n_, kNrN) / Scalar(Cell::kNeg.max_concentration_mol_m3); }
+  Scalar mean_stoich_pos() const { return mean_shell(s_.cs_pos_mol_m3, vol_p_, kNrP) / Scalar(Cell::kPos.max_concentration_mol_m3); }
+
+  static constexpr double kVoltageToleranceV = 1e-9;
+  static constexpr double kMaxNewtonStepA = 20.0;
+
+ private:
+  template <typename T>
+  struct Trial {
+    T cs_neg[kNrN];
+    T cs_pos[kNrP];
+    T ce[kNx];
+    T voltage_v;
+    T j_side_a_m3;   // volumetric, mean over the anode
+    T j_side_a_m2;   // pore-wall, mean over the anode
+    T j_neg_a_m2;    // total pore-wall current density of the anode
+  };
+
+  static constexpr double f_rt() { return kFaradayC_mol / (kGasJ_molK * Cell::kTemperatureK); }
+  static constexpr double a_neg() { return 3.0 * Cell::kNeg.solid_fraction / Cell::kNeg.particle_radius_m; }
+  static constexpr double a_pos() { return 3.0 * Cell::kPos.solid_fraction / Cell::kPos.particle_radius_m; }
+
+  static Scalar mean_shell(const Scalar* c, const Scalar* vol, int n) {
+    Scalar sum = Scalar(0), v = Scalar(0);
+    for (int i = 0; i < n; ++i) {
+      sum += c[i] * vol[i];
+      v += vol[i];
+    }
+    return sum / v;
+  }
+
+  static void shells(double radius, int n, Scalar* vol, Scalar* cond_r2_over_d, Scalar& outer_r2,
+                     Scalar& surface_half) {
+    // Face i at R f(i/n), f(s) = s + b s (1 - s): finer shells towards the surface.
+    double face[16 + 1];
+    for (int i = 0; i <= n; ++i) {
+      const double u = static_cast<double>(i) / n;
+      face[i] = radius * (u + kSurfaceRefinement * u * (1.0 - u));
+    }
+    for (int i = 0; i < n; ++i) vol[i] = Scalar((face[i + 1] * face[i + 1] * face[i + 1] - face[i] * face[i] * face[i]) / 3.0);
+    for (int i = 0; i + 1 < n; ++i) {
+      const double dist = 0.5 * (face[i + 2] - face[i]);
+      cond_r2_over_d[i] = Scalar(face[i + 1] * face[i + 1] / dist);
+    }
+    outer_r2 = Scalar(face[n] * face[n]);
+    surface_half = Scalar(0.5 * (face[n] - face[n - 1]));
+  }
+
+  void build_geometry() {
+    static_assert(kNrN <= 16 && kNrP <= 16, "at most 16 shells per particle");
+    shells(Cell::kNeg.particle_radius_m, kNrN, vol_n_, g_n_, r2_n_, half_n_);
+    shells(Cell::kPos.particle_radius_m, kNrP, vol_p_, g_p_, r2_p_, half_p_);
+    for (int k = 0; k < kNx; ++k) {
+      double dx, eps, a;
+      if (k < kNn) {
+        dx = Cell::kNeg.thickness_m / kNn; eps = Cell::kNeg.porosity; a = a_neg();
+      } else if (k < kNn + kNs) {
+        dx = Cell::kSeparatorThicknessM / kNs; eps = Cell::kSeparatorPorosity; a = 0.0;
+      } else {
+        dx = Cell::kPos.thickness_m / kNp; eps = Cell::kPos.porosity; a = a_pos();
+      }
+      dx_[k] = Scalar(dx);
+      eps_[k] = Scalar(eps);
+      te_[k] = Scalar(std::pow(eps, Cell::kBruggeman));
+      a_[k] = Scalar(a);
+    }
+  }
+
+  // Solves the chain system in place: rhs -> x. g[i] couples i and i+1.
+  template <typename T, int N>
+  static void chain_solve(const Scalar (&m)[N], const Scalar (&g)[N], T (&x)[N]) {
+    Scalar cp[N];
+    Scalar dd[N];
+    for (int i = 0; i < N; ++i) {
+      const Scalar gl = i > 0 ? g[i - 1] : Scalar(0);
+      const Scalar gr = i + 1 < N ? g[i] : Scalar(0);
+      dd[i] = m[i] + gl + gr;
+      if (i > 0) {
+        dd[i] -= gl * cp[i - 1];
+        x[i] = x[i] + gl * x[i - 1] / dd[i - 1];
+      }
+      cp[i] = gr / dd[i];
+    }
+    x[N - 1] = x[N - 1] / dd[N - 1];
+    for (int i = N - 2; i >= 0; --i) x[i] = x[i] / dd[i] + cp[i] * x[i + 1];
+  }
+
+  // Backward-Euler particle step with molar flux out of the surface `flux_out` [mol/m2/s];
+  // returns the surface concentration.
+  template <typename T, int N>
+  static T particle_step(const Scalar (&c_old)[N], const Scalar (&vol)[N], const Scalar* g_r2_d,
+                         Scalar outer_r2, Scalar surface_half, double ds, Scalar dt,
+                         const T& flux_out, T (&c_new)[N]) {
+    Scalar m[N], g[N];
+    for (int i = 0; i < N; ++i) {
+      m[i] = vol[i] / dt;
+      g[i] = i + 1 < N ? g_r2_d[i] * Scalar(ds) : Scalar(0);
+      c_new[i] = T(m[i] * c_old[i]);
+    }
+    c_new[N - 1] = c_new[N - 1] - outer_r2 * flux_out;
+    chain_solve(m, g, c_new);
+    return c_new[N - 1] - surface_half * flux_out / Scalar(ds);
+  }
+
+  template <typename T>
+  static T asinh_of(const T& x) {
+    using std::log; using std::sqrt;
+    // Sign-symmetric form: accurate for large negative x as well.
+    if (value_of(x) >= Scalar(0)) return log(x + sqrt(x * x + Scalar(1)));
+    return -log(-x + sqrt(x * x + Scalar(1)));
+  }
+
+  template <typename T>
+  static T clamp_conc(const T& c, double cmax) {
+    const Scalar lo = Scalar(1e-6 * cmax), hi = Scalar((1.0 - 1e-6) * cmax);
+    if (value_of(c) < lo) return T(lo);
+    if (value_of(c) > hi) return T(hi);
+    return c;
+  }
+
+  template <typename T>
+  void evaluate(const T& current_a, Scalar r_film, Scalar dt, Trial<T>& t) const {
+    using std::exp; using std::log; using std::sqrt;
+    const Scalar frt = Scalar(f_rt());
+    const T i_app = current_a / Scalar(Cell::kAreaM2);  // A/m2, positive = discharge
+    const T j_n = i_app / Scalar(a_neg() * Cell::kNeg.thickness_m);
+    const T j_p = -i_app / Scalar(a_pos() * Cell::kPos.thickness_m);
+
+    // Electrolyte concentration: D_e at the start of the tick, source from the uniform j.
+    Scalar m[kNx], g[kNx];
+    {
+      Scalar d_eff[kNx];
+      for (int k = 0; k < kNx; ++k) {
+        d_eff[k] = Cell::electrolyte_diffusivity_m2_s(s_.ce_mol_m3[k]) * te_[k];
+      }
+      for (int k = 0; k < kNx; ++k) {
+        m[k] = eps_[k] * dx_[k] / dt;
+        g[k] = k + 1 < kNx ? Scalar(1) / (dx_[k] / (Scalar(2) * d_eff[k]) + dx_[k + 1] / (Scalar(2) * d_eff[k + 1]))
+                           : Scalar(0);
+        const T j_k = k < kNn ? j_n : (k < kNn + kNs ? T(Scalar(0)) : j_p);
+        t.ce[k] = m[k] * s_.ce_mol_m3[k] + Scalar((1.0 - Cell::kTransference) / kFaradayC_mol) * a_[k] * j_k * dx_[k];
+      }
+      chain_solve(m, g, t.ce);
+    }
+
+    // Electrolyte potential at cell centres from the ionic current on the faces
+    // (psi = phi_e - nu ln c_e, reference psi_0 = 0).
+    const Scalar nu = Scalar(2.0 * (1.0 - Cell::kTransference)) / frt;
+    T phie[kNx];
+    {
+      T psi = T(Scalar(0));
+      T ie = T(Scalar(0));
+      T kap_k = Cell::electrolyte_conductivity_s_m(clamp_low(t.ce[0])) * te_[0];
+      phie[0] = nu * log(clamp_low(t.ce[0]));
+      for (int k = 0; k + 1 < kNx; ++k) {
+        const T j_k = k < kNn ? j_n : (k < kNn + kNs ? T(Scalar(0)) : j_p);
+        ie = ie + a_[k] * j_k * dx_[k];
+        const T kap_n = Cell::electrolyte_conductivity_s_m(clamp_low(t.ce[k + 1])) * te_[k + 1];
+        const T rk = dx_[k] / (Scalar(2) * kap_k) + dx_[k + 1] / (Scalar(2) * kap_n);
+        psi = psi - ie * rk;
+        phie[k + 1] = psi + nu * log(clamp_low(t.ce[k + 1]));
+        kap_k = kap_n;
+      }
+    }
+
+    // Negative electrode: side reaction inside Butler-Volmer, fixed number of passes.
+    const double cmax_n = Cell::kNeg.max_concentration_mol_m3;
+    const double cmax_p = Cell::kPos.max_concentration_mol_m3;
+    T js = T(s_.j_side_a_m2);
+    T phis_n = T(Scalar(0));
+    T cs_surf_n = T(Scalar(0));
+    for (int pass = 0; pass <= kSidePasses; ++pass) {
+      const T flux_out = (j_n - js) / Scalar(kFaradayC_mol);
+      cs_surf_n = clamp_conc(particle_step(s_.cs_neg_mol_m3, vol_n_, g_n_, r2_n_, half_n_,
+                                           Cell::kNeg.solid_diffusivity_m2_s, dt, flux_out, t.cs_neg),
+                             cmax_n);
+      const T ocp = Cell::ocp_neg_v(cs_surf_n / Scalar(cmax_n));
+      T js_sum = T(Scalar(0));
+      phis_n = T(Scalar(0));
+      for (int k = 0; k < kNn; ++k) {
+        const T i0 = Scalar(Cell::kNeg.i0_coefficient) * sqrt(clamp_low(t.ce[k]) * cs_surf_n * (Scalar(cmax_n) - cs_surf_n));
+        const T eta = Scalar(2) / frt * asinh_of((j_n - js) / (Scalar(2) * i0));
+        phis_n = phis_n + phie[k] + ocp + eta + j_n * r_film;
+        T arg = Scalar(-Cell::kSideAlpha) * frt * (eta + ocp - Scalar(Cell::kSideRefPotentialV));
+        if (value_of(arg) > Scalar(60)) arg = T(Scalar(60));
+        if (value_of(arg) < Scalar(-60)) arg = T(Scalar(-60));
+        js_sum = js_sum - Scalar(Cell::kSideExchangeAM2) * exp(arg);
+      }
+      phis_n = phis_n / Scalar(kNn);
+      js = js_sum / Scalar(kNn);
+    }
+
+    // Positive electrode.
+    const T cs_surf_p = clamp_conc(
+        particle_step(s_.cs_pos_mol_m3, vol_p_, g_p_, r2_p_, half_p_, Cell::kPos.solid_diffusivity_m2_s, dt,
+                      T(j_p / Scalar(kFaradayC_mol)), t.cs_pos),
+        cmax_p);
+    const T ocp_p = Cell::ocp_pos_v(cs_surf_p / Scalar(cmax_p));
+    T phis_p = T(Scalar(0));
+    for (int k = kNn + kNs; k < kNx; ++k) {
+      const T i0 = Scalar(Cell::kPos.i0_coefficient) * sqrt(clamp_low(t.ce[k]) * cs_surf_p * (Scalar(cmax_p) - cs_surf_p));
+      phis_p = phis_p + phie[k] + ocp_p + Scalar(2) / frt * asinh_of(j_p / (Scalar(2) * i0));
+    }
+    phis_p = phis_p / Scalar(kNp);
+
+    // Solid ohmic drop with a uniform reaction: mean potential to current collector is I L/(3 sigma).
+    const T ohmic = i_app * Scalar(Cell::kNeg.thickness_m / (3.0 * Cell::kNeg.conductivity_eff_s_m) +
+                                   Cell::kPos.thickness_m / (3.0 * Cell::kPos.conductivity_eff_s_m));
+    t.voltage_v = phis_p - phis_n - ohmic;
+    t.j_side_a_m2 = js;
+    t.j_side_a_m3 = js * Scalar(a_neg());
+    t.j_neg_a_m2 = j_n;
+  }
+
+  template <typename T>
+  static T clamp_low(const T& c) {
+    return value_of(c) < Scalar(1e-3) ? T(Scalar(1e-3)) : c;
+  }
+
+  bool commit(const Trial<Scalar>& t, Scalar current_a, Scalar dt) {
+    bool ok = std::isfinite(t.voltage_v) && std::isfinite(t.j_side_a_m2);
+    for (int i = 0; ok && i < kNrN; ++i) ok = std::isfinite(t.cs_neg[i]);
+    for (int i = 0; ok && i < kNrP; ++i) ok = std::isfinite(t.cs_pos[i]);
+    for (int k = 0; ok && k < kNx; ++k) ok = std::isfinite(t.ce[k]);
+    if (!ok) return false;
+    for (int i = 0; i < kNrN; ++i) s_.cs_neg_mol_m3[i] = t.cs_neg[i];
+    for (int i = 0; i < kNrP; ++i) s_.cs_pos_mol_m3[i] = t.cs_pos[i];
+    for (int k = 0; k < kNx; ++k) s_.ce_mol_m3[k] = t.ce[k];
+    // Lithium consumed by the side reaction over the anode (j_s < 0 consumes).
+    s_.li_loss_mol -= t.j_side_a_m2 * Scalar(a_neg() * Cell::kNeg.thickness_m * Cell::kAreaM2 / kFaradayC_mol) * dt;
+    s_.charge_c += current_a * dt;
+    s_.current_a = current_a;
+    s_.j_side_a_m2 = t.j_side_a_m2;
+    return true;
+  }
+
+  State s_{};
+  Scalar vol_n_[kNrN]{}, g_n_[kNrN]{}, vol_p_[kNrP]{}, g_p_[kNrP]{};
+  Scalar r2_n_ = Scalar(0), half_n_ = Scalar(0), r2_p_ = Scalar(0), half_p_ = Scalar(0);
+  Scalar dx_[kNx]{}, eps_[kNx]{}, te_[kNx]{}, a_[kNx]{};
+};
+
+}  // namespace bms::fw

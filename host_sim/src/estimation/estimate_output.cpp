@@ -1,0 +1,53 @@
+#include "estimation/estimate_output.hpp"
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "io/csv_table.hpp"
+
+namespace bms {
+
+void write_estimates_csv(const std::filesystem::path& file, const EstimateResult& r) {
+  std::vector<std::string> cols = {"t_s", "cycle", "mode", "rcsi_active", "r_film_est_ohm_m2", "r_film_true_ohm_m2",
+                                   "z_v", "model_voltage_v", "model_current_a", "j_side_a_m3", "li_loss_ah", "status"};
+  const std::size_t n_theta = r.theta.size();
+  for (std::size_t i = 0; i < n_theta / 2; ++i) cols.push_back("theta_m" + std::to_string(i + 1));
+  for (std::size_t i = 0; i < n_theta / 2; ++i) cols.push_back("theta_n" + std::to_string(i + 1));
+  CsvWriter w(file, cols);
+  for (std::size_t i = 0; i < r.rows.size(); ++i) {
+    const auto& row = r.rows[i];
+    w.cell(row.t_s).cell(row.cycle).cell(fw::mode_name(row.mode)).cell(row.rcsi_active ? 1 : 0);
+    w.cell(row.r_film_est_ohm_m2);
+    if (std::isfinite(row.r_film_true_ohm_m2)) w.cell(row.r_film_true_ohm_m2);
+    else w.cell("");
+    w.cell(row.z_v).cell(row.model_voltage_v).cell(row.model_current_a).cell(row.j_side_a_m3).cell(row.li_loss_ah);
+    w.cell(row.status);
+    for (double th : r.theta_rows[i]) w.cell(th);
+    w.end_row();
+  }
+  w.commit();
+}
+
+nlohmann::json estimate_summary_json(const EstimateResult& r, const EstimateOptions& o) {
+  nlohmann::json j;
+  j["cycles"] = nlohmann::json::array();
+  for (const auto& c : r.cycles) {
+    j["cycles"].push_back({{"cycle", c.cycle},
+                           {"r_film_err_median_pct", c.r_film_err_median_pct},
+                           {"r_film_err_end_pct", c.r_film_err_end_pct},
+                           {"r_film_true_end_ohm_m2", c.r_film_true_end_ohm_m2},
+                           {"r_film_est_end_ohm_m2", c.r_film_est_end_ohm_m2},
+                           {"cc_charge_ticks", c.cc_charge_ticks}});
+  }
+  j["theta"] = r.theta;
+  j["status_bits_seen"] = r.status;
+  j["newton_cap_hits"] = r.newton_cap_hits;
+  j["wall_s"] = r.wall_s;
+  j["ticks"] = r.rows.size();
+  j["options"] = {{"model", o.model}, {"nc", o.nc}, {"p0", o.p0}, {"p0_y0", o.p0_y0 > 0.0 ? o.p0_y0 : o.p0}, {"lambda", o.lambda}, {"eta", o.eta}, {"h", o.h_v_per_ohm_m2},
+                  {"h_from_model", o.markov_from_model}, {"delay", 0}};
+  return j;
+}
+
+}  // namespace bms

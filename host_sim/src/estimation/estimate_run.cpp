@@ -1,0 +1,187 @@
+#include "estimation/estimate_run.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <memory>
+
+#include <fmt/format.h>
+
+#include "bms/fw/bms_core.hpp"
+#include "estimation/full_dfn_main_model.hpp"
+#include "io/csv_table.hpp"
+#include "io/input_error.hpp"
+
+namespace bms {
+
+EstimateData read_estimate_data(const std::string& file) {
+  const CsvTable t = read_csv(file, {"mode"});
+  for (const char* c : {"t_s", "current_meas_a", "voltage_meas_v"})
+    if (!t.has(c))
+      throw InputError(fmt::format("{}: needs a '{}' column (a truth.csv from 'bmssim simulate')", file, c));
+  EstimateData d;
+  d.source = file;
+  d.t_s = t.numbers("t_s");
+  d.current_a = t.numbers("current_meas_a");
+  d.voltage_v = t.numbers("voltage_meas_v");
+  if (d.t_s.size() < 2) throw InputError(file + ": needs at least 2 samples");
+  d.cycle.assign(d.t_s.size(), 1);
+  if (t.has("cycle")) {
+    const auto& c = t.numbers("cycle");
+    for (std::size_t i = 0; i < c.size(); ++i) d.cycle[i] = static_cast<int>(c[i]);
+  }
+  if (t.has("r_film_ohm_m2")) d.r_film_true_ohm_m2 = t.numbers("r_film_ohm_m2");
+  if (t.has("mode")) {
+    for (std::size_t i = 0; i < t.rows(); ++i) {
+      Mode m{};
+      if (!parse_mode(t.strings("mode")[i], m))
+        throw InputError(t.where(i, "mode") + ": unknown mode '" + t.strings("mode")[i] + "'");
+      d.true_mode.push_back(m);
+    }
+  }
+  for (std::size_t i = 1; i < d.t_s.size(); ++i)
+    if (!(d.t_s[i] > d.t_s[i - 1])) throw InputError(t.where(i, "t_s") + ": time must increase strictly");
+  return d;
+}
+
+namespace {
+
+double uniform_step(const EstimateData& d) {
+  std::vector<double> dt(d.t_s.size() - 1);
+  for (std::size_t i = 1; i < d.t_s.size(); ++i) dt[i - 1] = d.t_s[i] - d.t_s[i - 1];
+  std::nth_element(dt.begin(), dt.begin() + static_cast<long>(dt.size() / 2), dt.end());
+  const double med = dt[dt.size() / 2];
+  for (std::size_t i = 1; i < d.t_s.size(); ++i) {
+    const double s = d.t_s[i] - d.t_s[i - 1];
+    if (std::abs(s - med) > 0.01 * med)
+      throw InputError(fmt::format("{}: the firmware runs at a fixed tick; samples must be evenly spaced (median "
+                                   "{} s) but t = {} s follows {} s after the previous sample",
+                                   d.source, med, d.t_s[i], s));
+  }
+  return med;
+}
+
+template <int Nc, class Model>
+void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, const CellParameters& cell,
+              double dt_s, EstimateResult& res, const EstimateProgress& progress) {
+  using Core = fw::BmsCore<double, Model, Nc, 0>;
+  typename Core::Config cfg;
+  cfg.dt_s = dt_s;
+  cfg.estimator.markov_v_per_ohm_m2 = o.h_v_per_ohm_m2;
+  cfg.estimator.p0_u = o.p0;
+  cfg.estimator.p0_y0 = o.p0_y0 > 0.0 ? o.p0_y0 : o.p0;
+  cfg.estimator.lambda = o.lambda;
+  cfg.estimator.eta = o.eta;
+  cfg.estimator.r_film_init_ohm_m2 =
+      o.r_film_init_ohm_m2 >= 0.0 ? o.r_film_init_ohm_m2 : cell.side.initial_film_resistance_ohm_m2;
+  cfg.markov_from_model = o.markov_from_model;
+  cfg.detector.v_max = cell.upper_voltage_v;
+  cfg.detector.v_min = cell.lower_voltage_v;
+  Core core(cfg, model);
+  const std::size_t n = d.t_s.size();
+  res.rows.reserve(n);
+  res.theta_rows.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto out = core.tick({d.voltage_v[i], d.current_a[i], true});
+    EstimateRow r{};
+    r.t_s = d.t_s[i];
+    r.cycle = d.cycle[i];
+    r.mode = out.mode;
+    r.rcsi_active = out.rcsi_active;
+    r.r_film_est_ohm_m2 = out.r_film_est_ohm_m2;
+    r.r_film_true_ohm_m2 = d.r_film_true_ohm_m2.empty() ? std::nan("") : d.r_film_true_ohm_m2[i];
+    r.z_v = out.z_v;
+    r.model_voltage_v = out.model_voltage_v;
+    r.model_current_a = out.model_current_a;
+    r.j_side_a_m3 = out.j_side_a_m3;
+    r.li_loss_ah = out.li_loss_ah;
+    r.status = out.status;
+    res.status |= out.status;
+    if (fw::has_status(out.status, fw::FwStatus::kModelNotConverged)) ++res.newton_cap_hits;
+    res.rows.push_back(r);
+    res.theta_rows.emplace_back(out.theta, out.theta + 2 * Nc);
+    if (progress && (i % 20000 == 0 || i + 1 == n)) progress(i + 1, n);
+  }
+  res.theta = res.theta_rows.back();
+}
+
+template <class Model>
+void dispatch_nc(Model& model, const EstimateData& d, const EstimateOptions& o, const CellParameters& cell,
+                 double dt_s, EstimateResult& res, const EstimateProgress& progress) {
+  switch (o.nc) {
+    case 1: run_core<1>(model, d, o, cell, dt_s, res, progress); break;
+    case 2: run_core<2>(model, d, o, cell, dt_s, res, progress); break;
+    case 3: run_core<3>(model, d, o, cell, dt_s, res, progress); break;
+    case 4: run_core<4>(model, d, o, cell, dt_s, res, progress); break;
+    case 5: run_core<5>(model, d, o, cell, dt_s, res, progress); break;
+    case 6: run_core<6>(model, d, o, cell, dt_s, res, progress); break;
+    case 7: run_core<7>(model, d, o, cell, dt_s, res, progress); break;
+    case 8: run_core<8>(model, d, o, cell, dt_s, res, progress); break;
+    default: throw InputError(fmt::format("--nc must be 1..8 (got {})", o.nc));
+  }
+}
+
+}  // namespace
+
+EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, const EstimateOptions& o,
+                            const EstimateProgress& progress) {
+  if (o.nc < 1 || o.nc > 8) throw InputError(fmt::format("--nc must be 1..8 (got {})", o.nc));
+  if (!(o.p0 > 0.0) || !std::isfinite(o.p0)) throw InputError("--p0 must be a positive number");
+  if (!(o.lambda > 0.0 && o.lambda <= 1.0)) throw InputError("--lambda must be in (0, 1]");
+  if (!(o.eta >= 0.0) || !std::isfinite(o.eta)) throw InputError("--eta must be >= 0");
+  if (!(o.h_v_per_ohm_m2 != 0.0) || !std::isfinite(o.h_v_per_ohm_m2)) throw InputError("--h must be nonzero");
+  const double dt_s = uniform_step(d);
+  const auto wall0 = std::chrono::steady_clock::now();
+  EstimateResult res;
+  if (o.model == "reduced") {
+    if (cell.name != "paper")
+      throw InputError("--model reduced is the firmware's model of the paper cell; use --cell paper or --model full");
+    fw::ReducedCell<double> model;
+    model.init(o.ic.stoich_neg, o.ic.stoich_pos, o.ic.electrolyte_mol_m3);
+    dispatch_nc(model, d, o, cell, dt_s, res, progress);
+  } else if (o.model == "full") {
+    SolverSettings s;
+    s.rtol = o.rtol;
+    InitialConditions ic = o.ic;
+    ic.r_film_ohm_m2 = o.r_film_init_ohm_m2 >= 0.0 ? o.r_film_init_ohm_m2 : cell.side.initial_film_resistance_ohm_m2;
+    FullDfnMainModel model(cell, o.mesh, s, ic, cell.thermal.initial_temperature_k);
+    dispatch_nc(model, d, o, cell, dt_s, res, progress);
+  } else {
+    throw InputError("--model must be 'reduced' or 'full' (got '" + o.model + "')");
+  }
+  res.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  res.cycles = score_cycles(res.rows, !d.true_mode.empty(), d.true_mode);
+  return res;
+}
+
+std::vector<CycleScore> score_cycles(const std::vector<EstimateRow>& rows, bool use_true_mode,
+                                     const std::vector<fw::Mode>& true_mode) {
+  std::map<int, std::vector<double>> errs;
+  std::map<int, std::size_t> last;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const auto& r = rows[i];
+    if (r.mode != fw::Mode::cc_charge) continue;
+    if (use_true_mode && true_mode[i] != fw::Mode::cc_charge) continue;
+    if (!std::isfinite(r.r_film_true_ohm_m2) || r.r_film_true_ohm_m2 == 0.0) continue;
+    errs[r.cycle].push_back(std::abs(r.r_film_est_ohm_m2 - r.r_film_true_ohm_m2) / r.r_film_true_ohm_m2 * 100.0);
+    last[r.cycle] = i;
+  }
+  std::vector<CycleScore> out;
+  for (auto& [cycle, e] : errs) {
+    CycleScore s{};
+    s.cycle = cycle;
+    s.cc_charge_ticks = e.size();
+    const std::size_t end_err_index = e.size() - 1;
+    const double end_err = e[end_err_index];
+    std::nth_element(e.begin(), e.begin() + static_cast<long>(e.size() / 2), e.end());
+    s.r_film_err_median_pct = e[e.size() / 2];
+    s.r_film_err_end_pct = end_err;
+    s.r_film_true_end_ohm_m2 = rows[last[cycle]].r_film_true_ohm_m2;
+    s.r_film_est_end_ohm_m2 = rows[last[cycle]].r_film_est_ohm_m2;
+    out.push_back(s);
+  }
+  return out;
+}
+
+}  // namespace bms

@@ -1,0 +1,78 @@
+#pragma once
+// Runs the firmware's tick (bms::fw::BmsCore, the same code as on target) offline over a data
+// file, with either the firmware's reduced model or the full truth DFN as the main model,
+// and scores the film-resistance estimate against the truth when the file carries it.
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "bms/fw/operating_mode.hpp"
+#include "cell/cell_parameters.hpp"
+#include "sim/cycler.hpp"
+
+namespace bms {
+
+struct EstimateData {
+  std::vector<double> t_s, current_a, voltage_v;  // measured (what the firmware sees)
+  std::vector<int> cycle;                         // from the file, or 1
+  std::vector<double> r_film_true_ohm_m2;         // empty when the file has no truth
+  std::vector<fw::Mode> true_mode;                // empty when the file has no mode column
+  std::string source;
+};
+
+// Reads truth.csv (current_meas_a, voltage_meas_v; truth columns only for scoring).
+EstimateData read_estimate_data(const std::string& file);
+
+struct EstimateOptions {
+  std::string model = "reduced";  // reduced | full
+  int nc = 1;                     // subsystem order, 1..8
+  double p0 = 5e-7;
+  double p0_y0 = -1.0;  // < 0: same as p0 (the paper's P(0) = p0 I)
+  double lambda = 1.0;
+  double eta = 0.0;
+  double h_v_per_ohm_m2 = 0.01;
+  bool markov_from_model = false;
+  double r_film_init_ohm_m2 = -1.0;  // < 0: the cell's initial film resistance
+  InitialConditions ic;              // of the model (not the truth)
+  DfnMesh mesh;                      // full model only
+  double rtol = 1e-6;                // full model only
+};
+
+struct EstimateRow {
+  double t_s;
+  int cycle;
+  fw::Mode mode;
+  bool rcsi_active;
+  double r_film_est_ohm_m2, r_film_true_ohm_m2, z_v, model_voltage_v, model_current_a, j_side_a_m3,
+      li_loss_ah;
+  std::uint32_t status;
+};
+
+struct CycleScore {
+  int cycle;
+  std::size_t cc_charge_ticks;
+  double r_film_err_median_pct, r_film_err_end_pct, r_film_true_end_ohm_m2, r_film_est_end_ohm_m2;
+};
+
+struct EstimateResult {
+  std::vector<EstimateRow> rows;
+  std::vector<std::vector<double>> theta_rows;  // per row, 2 nc values
+  std::vector<CycleScore> cycles;
+  std::vector<double> theta;  // final
+  double wall_s = 0.0;
+  std::uint32_t status = 0;   // OR of all tick status words
+  std::size_t newton_cap_hits = 0;
+};
+
+using EstimateProgress = std::function<void(std::size_t row, std::size_t rows)>;
+
+EstimateResult run_estimate(const EstimateData& data, const CellParameters& cell, const EstimateOptions& o,
+                            const EstimateProgress& progress = {});
+
+// Median and end-of-phase relative errors per cycle over the rows in CC charge (the detected
+// mode, and the true mode when known).
+std::vector<CycleScore> score_cycles(const std::vector<EstimateRow>& rows, bool use_true_mode,
+                                     const std::vector<fw::Mode>& true_mode);
+
+}  // namespace bms

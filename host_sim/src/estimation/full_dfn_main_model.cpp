@@ -1,0 +1,68 @@
+#include "estimation/full_dfn_main_model.hpp"
+
+#include <cmath>
+
+namespace bms {
+
+FullDfnMainModel::FullDfnMainModel(const CellParameters& cell, const DfnMesh& mesh, const SolverSettings& solver,
+                                   const InitialConditions& ic, double temperature_k)
+    : model_(cell, mesh, temperature_k) {
+  model_.set_film_frozen(true);
+  model_.set_control({ControlKind::current, 0.0});
+  solver_ = std::make_unique<DfnSolver>(model_, solver);
+  solver_->start(0.0, model_.initial_state(ic.stoich_neg, ic.stoich_pos, ic.electrolyte_mol_m3, ic.r_film_ohm_m2));
+  inventory0_mol_ = model_.lithium_inventory_mol(solver_->y().data());
+}
+
+FullDfnMainModel::~FullDfnMainModel() = default;
+
+fw::ModelTickResult<double> FullDfnMainModel::step_current(double current_a, double r_film, double dt_s) {
+  return step(ControlKind::current, current_a, r_film, dt_s);
+}
+
+fw::ModelTickResult<double> FullDfnMainModel::step_voltage(double voltage_v, double r_film, double dt_s) {
+  return step(ControlKind::voltage, voltage_v, r_film, dt_s);
+}
+
+fw::ModelTickResult<double> FullDfnMainModel::step(ControlKind kind, double value, double r_film, double dt_s) {
+  const Control& now = model_.control();
+  const bool control_changed = !have_control_ || now.kind != kind || now.value != value;
+  std::vector<double> y = solver_->y();
+  const bool film_changed = y[model_.idx_film()] != r_film;
+  if (control_changed || film_changed) {
+    // One consistent re-initialisation for both changes.
+    model_.set_control({kind, value});
+    y[model_.idx_film()] = r_film;
+    solver_->set_state(y);
+    have_control_ = true;
+  }
+  solver_->advance_to(solver_->t() + dt_s);
+  const double* ys = solver_->y().data();
+  fw::ModelTickResult<double> r{};
+  r.voltage_v = model_.terminal_voltage_v(ys);
+  r.current_a = ys[model_.idx_current()];
+  r.j_side_a_m3 = model_.mean_side_current_a_m2(ys) * model_.cell().negative.surface_area_per_volume_m();
+  const auto& neg = model_.cell().negative;
+  r.markov_v_per_ohm_m2 = -r.current_a / (model_.cell().electrode_area_m2 * neg.surface_area_per_volume_m() * neg.thickness_m);
+  r.newton_iterations = 0;
+  r.converged = true;
+  r.valid = std::isfinite(r.voltage_v) && std::isfinite(r.j_side_a_m3);
+  return r;
+}
+
+double FullDfnMainModel::li_loss_ah() const {
+  return (inventory0_mol_ - model_.lithium_inventory_mol(solver_->y().data())) * kFaraday_c_mol / 3600.0;
+}
+
+FullDfnMainModel::State FullDfnMainModel::state() const { return {solver_->t(), solver_->y()}; }
+
+bool FullDfnMainModel::restore(const State& s) {
+  if (static_cast<int>(s.y.size()) != model_.size()) return false;
+  for (double v : s.y)
+    if (!std::isfinite(v)) return false;
+  solver_->start(s.t_s, s.y);
+  have_control_ = false;
+  return true;
+}
+
+}  // namespace bms

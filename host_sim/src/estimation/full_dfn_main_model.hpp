@@ -1,0 +1,44 @@
+#pragma once
+// The truth DFN, minus film growth, as RCSI's main-system model: the paper's own setting
+// (identical truth and main model). Same interface as the firmware's ReducedCell, so the
+// firmware's BmsCore runs unchanged on top of it. Every tick in which the input or the film
+// resistance changes restarts IDA from a consistent state (the film drop is algebraic).
+#include <memory>
+#include <vector>
+
+#include "bms/fw/reduced_cell.hpp"
+#include "dfn/dfn_solver.hpp"
+#include "sim/cycler.hpp"
+
+namespace bms {
+
+class FullDfnMainModel {
+ public:
+  struct State {
+    double t_s = 0.0;
+    std::vector<double> y;
+  };
+
+  FullDfnMainModel(const CellParameters& cell, const DfnMesh& mesh, const SolverSettings& solver,
+                   const InitialConditions& ic, double temperature_k);
+  ~FullDfnMainModel();
+  FullDfnMainModel(const FullDfnMainModel&) = delete;
+  FullDfnMainModel& operator=(const FullDfnMainModel&) = delete;
+
+  fw::ModelTickResult<double> step_current(double current_a, double r_film_ohm_m2, double dt_s);
+  fw::ModelTickResult<double> step_voltage(double voltage_v, double r_film_ohm_m2, double dt_s);
+  double li_loss_ah() const;
+  State state() const;
+  bool restore(const State& s);
+  const SolverStats& stats() const { return solver_->stats(); }
+
+ private:
+  fw::ModelTickResult<double> step(ControlKind kind, double value, double r_film_ohm_m2, double dt_s);
+
+  DfnModel model_;
+  std::unique_ptr<DfnSolver> solver_;
+  double inventory0_mol_ = 0.0;
+  bool have_control_ = false;
+};
+
+}  // namespace bms

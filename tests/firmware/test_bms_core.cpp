@@ -1,0 +1,159 @@
+// The firmware tick: input validation, modes, RCSI activation, staleness, save/restore.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "bms/fw/bms_core.hpp"
+
+namespace {
+
+using bms::fw::FwStatus;
+using bms::fw::Mode;
+using Model = bms::fw::ReducedCell<double>;
+using Core = bms::fw::BmsCore<double, Model, 1, 0>;
+
+struct Rig {
+  Model truth, model;
+  Core core;
+  double r_true = 3.45e-3;  // differs from the estimator's 3.391e-3 start
+  Rig() : core(Core::Config{}, model) {
+    truth.init_default();
+    model.init_default();
+  }
+  // Truth sample from the same reduced model with a known film (a synthetic plant).
+  bms::fw::TickInput<double> sample(double current_a) {
+    const auto r = truth.step_current(current_a, r_true, 0.2);
+    return {r.voltage_v, current_a, true};
+  }
+};
+
+bool same_state(const Core& a, const Core& b) {
+  const auto sa = a.save(), sb = b.save();
+  return std::memcmp(&sa, &sb, sizeof(sa)) == 0;
+}
+
+TEST(BmsCore, RejectsBadSamplesAndKeepsState) {
+  Rig rig;
+  for (int i = 0; i < 20; ++i) rig.core.tick(rig.sample(2.5));
+  const auto before = rig.core.save();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  struct Case { double v, i; FwStatus bit; } cases[] = {
+      {nan, 2.5, FwStatus::kSampleNonFinite}, {3.3, nan, FwStatus::kSampleNonFinite},
+      {inf, 2.5, FwStatus::kSampleNonFinite}, {3.3, -inf, FwStatus::kSampleNonFinite},
+      {-0.1, 2.5, FwStatus::kVoltageOutOfRange}, {5.2, 2.5, FwStatus::kVoltageOutOfRange},
+      {3.3, 250.0, FwStatus::kCurrentImplausible}, {3.3, -19.0, FwStatus::kCurrentImplausible}};
+  for (const auto& c : cases) {
+    const auto out = rig.core.tick({c.v, c.i, true});
+    EXPECT_TRUE(bms::fw::has_status(out.status, c.bit)) << c.v << " " << c.i;
+    EXPECT_TRUE(std::isfinite(out.r_film_est_ohm_m2));
+    // The estimator, model and detector states are untouched (only the staleness counter
+    // moves), and no NaN leaves the tick.
+    auto now = rig.core.save();
+    EXPECT_EQ(std::memcmp(&now.model, &before.model, sizeof(now.model)), 0);
+    EXPECT_EQ(std::memcmp(&now.estimator, &before.estimator, sizeof(now.estimator)), 0);
+    rig.core.tick(rig.sample(2.5));  // a good sample in between resets staleness
+    rig.core.restore(before);
+  }
+}
+
+TEST(BmsCore, MissingSamplesFreezeThenResume) {
+  Rig rig;
+  for (int i = 0; i < 20; ++i) rig.core.tick(rig.sample(2.5));
+  const auto before = rig.core.save();
+  bms::fw::StatusWord st = 0;
+  for (int i = 0; i < 2; ++i) st |= rig.core.tick({0, 0, false}).status;
+  EXPECT_FALSE(bms::fw::has_status(st, FwStatus::kMeasurementStale));  // 2 ticks tolerated
+  const auto third = rig.core.tick({0, 0, false});
+  EXPECT_TRUE(bms::fw::has_status(third.status, FwStatus::kMeasurementStale));
+  auto now = rig.core.save();
+  EXPECT_EQ(std::memcmp(&now.estimator, &before.estimator, sizeof(now.estimator)), 0);
+  const auto back = rig.core.tick(rig.sample(2.5));
+  EXPECT_FALSE(bms::fw::has_status(back.status, FwStatus::kMeasurementStale));
+  EXPECT_EQ(back.tick, before.ticks + 1);
+}
+
+TEST(BmsCore, RcsiLearnsOnlyInConstantCurrentChargeAndTracksTheFilm) {
+  Rig rig;
+  int active_outside = 0, active_inside = 0;
+  Core::Output last{};
+  for (int i = 0; i < 300; ++i) {  // discharge: not identifiable
+    last = rig.core.tick(rig.sample(2.5));
+    active_outside += last.rcsi_active;
+  }
+  EXPECT_EQ(last.mode, Mode::cc_discharge);
+  EXPECT_DOUBLE_EQ(last.r_film_est_ohm_m2, 3.391e-3);  // held
+  for (int i = 0; i < 3000; ++i) {
+    last = rig.core.tick(rig.sample(-2.5));
+    active_inside += last.rcsi_active;
+  }
+  EXPECT_EQ(last.mode, Mode::cc_charge);
+  EXPECT_EQ(active_outside, 0);
+  EXPECT_GT(active_inside, 2900);
+  // Identical plant and model: the estimate moves from 3.391e-3 towards the true 3.45e-3.
+  EXPECT_LT(std::abs(last.r_film_est_ohm_m2 - rig.r_true), 0.5 * (rig.r_true - 3.391e-3));
+}
+
+TEST(BmsCore, SaveRestoreContinuesIdentically) {
+  Rig rig;
+  for (int i = 0; i < 100; ++i) rig.core.tick(rig.sample(2.5));
+  for (int i = 0; i < 500; ++i) rig.core.tick(rig.sample(-2.5));
+  const auto image = rig.core.save();
+  Model model2;
+  model2.init(0.5, 0.5, 1000.0);
+  Core core2(Core::Config{}, model2);
+  ASSERT_TRUE(core2.restore(image));
+  for (int i = 0; i < 200; ++i) {
+    const auto s = rig.sample(-2.5);
+    const auto a = rig.core.tick(s);
+    const auto b = core2.tick(s);
+    ASSERT_EQ(a.r_film_est_ohm_m2, b.r_film_est_ohm_m2);
+    ASSERT_EQ(a.z_v, b.z_v);
+  }
+  EXPECT_TRUE(same_state(rig.core, core2));
+}
+
+TEST(BmsCore, RestoreRejectsForeignOrCorruptImages) {
+  Rig rig;
+  auto image = rig.core.save();
+  image.layout_tag ^= 1u;
+  EXPECT_FALSE(rig.core.restore(image));
+  EXPECT_TRUE(bms::fw::has_status(rig.core.status(), FwStatus::kRestoreRejected));
+  image = rig.core.save();
+  image.model.ce_mol_m3[0] = std::nan("");
+  const auto before = rig.core.save();
+  EXPECT_FALSE(rig.core.restore(image));
+  auto now = rig.core.save();
+  EXPECT_EQ(std::memcmp(&now.model, &before.model, sizeof(now.model)), 0);
+}
+
+TEST(ModeDetector, DebouncesAndFollowsACccvCycle) {
+  bms::fw::ModeDetector<double> d;
+  auto feed = [&](double v, double i, int n) {
+    Mode m = Mode::unknown;
+    for (int k = 0; k < n; ++k) m = d.update(v, i);
+    return m;
+  };
+  EXPECT_EQ(feed(3.3, 2.5, 4), Mode::unknown);  // not yet confirmed
+  EXPECT_EQ(feed(3.3, 2.5, 1), Mode::cc_discharge);
+  // A single noisy sample does not switch.
+  EXPECT_EQ(feed(3.3, 0.0, 1), Mode::cc_discharge);
+  EXPECT_EQ(feed(3.3, 2.5, 1), Mode::cc_discharge);
+  EXPECT_EQ(feed(2.0, 1.0, 5), Mode::cv_discharge);
+  EXPECT_EQ(feed(2.3, -2.5, 5), Mode::cc_charge);
+  EXPECT_EQ(feed(3.598, -2.5, 5), Mode::cc_charge);  // near the limit but still at the CC level
+  EXPECT_EQ(feed(3.6, -1.5, 5), Mode::cv_charge);
+  EXPECT_EQ(feed(3.4, 0.0, 5), Mode::rest);
+}
+
+TEST(BmsCore, FloatInstantiates) {
+  bms::fw::ReducedCell<float> m;
+  m.init_default();
+  bms::fw::BmsCore<float, bms::fw::ReducedCell<float>, 1, 0> core({}, m);
+  const auto out = core.tick({3.3f, 2.5f, true});
+  EXPECT_TRUE(std::isfinite(out.r_film_est_ohm_m2));
+}
+
+}  // namespace
