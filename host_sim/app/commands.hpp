@@ -11,5 +11,6 @@ using Runner = std::function<int()>;  // returns the process exit code
 Runner add_simulate(CLI::App& app);
 Runner add_validate(CLI::App& app);
 Runner add_estimate(CLI::App& app);
+Runner add_hil(CLI::App& app);
 
 }  // namespace bms::app

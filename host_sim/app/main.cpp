@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   add(bms::app::add_simulate);
   add(bms::app::add_validate);
   add(bms::app::add_estimate);
+  add(bms::app::add_hil);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
