@@ -7,7 +7,7 @@ pkgs=(cmake ninja-build g++ pkg-config libeigen3-dev libsundials-dev libsuitespa
       nlohmann-json3-dev libcli11-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev
       gnuplot-nox python3-matplotlib python3-numpy)
 case " $groups " in *" cross "*|*" all "*)
-  pkgs+=(gcc-arm-none-eabi libnewlib-arm-none-eabi libstdc++-arm-none-eabi-newlib qemu-system-arm) ;; esac
+  pkgs+=(gcc-arm-none-eabi libnewlib-arm-none-eabi libstdc++-arm-none-eabi-newlib qemu-system-arm python3) ;; esac
 case " $groups " in *" can "*|*" all "*)
   pkgs+=(user-mode-linux kmod iproute2 can-utils python3-can python3-canmatrix) ;; esac
 case " $groups " in *" analysis "*|*" all "*)

@@ -240,6 +240,13 @@ CellParameters read_bpx_text(std::string_view text, std::string_view name) {
     const std::size_t tag_end = detail.find("] ");
     if (tag_end != std::string_view::npos) detail.remove_prefix(tag_end + 2);
     throw InputError(fmt::format("{}: not valid JSON (byte {}): {}", file, e.byte, detail));
+  } catch (const json::out_of_range& e) {
+    // A number beyond double's range ("1e400") is out_of_range.406, not a parse_error
+    // (found by fuzzing: it escaped as a non-InputError exception).
+    std::string_view detail = e.what();
+    const std::size_t tag_end = detail.find("] ");
+    if (tag_end != std::string_view::npos) detail.remove_prefix(tag_end + 2);
+    throw InputError(fmt::format("{}: not valid JSON: {}", file, detail));
   }
   if (!root.is_object()) {
     throw InputError(fmt::format("{}: not a BPX file: the top level must be a JSON object, not {}",
