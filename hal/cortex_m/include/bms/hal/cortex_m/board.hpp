@@ -1,0 +1,105 @@
+// Board support for QEMU's MPS2 boards (mps2-an500 Cortex-M7, mps2-an386 Cortex-M4F):
+// implementations of the HAL interfaces that make sense there.
+//
+//   SysTickTimer     TickSource (one SysTick interrupt per 0.2 s tick) and MonotonicClock
+//                    (40 ns resolution); under `qemu-system-arm -icount shift=0` its readings
+//                    count instructions (one instruction = 1 ns of virtual time)
+//   SemihostLogSink  LogSink on the semihosting console (QEMU -semihosting)
+//   RamNvm           NonVolatileMemory over RAM (kept over a warm reset, lost at power-off)
+//
+// The board has no CAN controller that QEMU emulates and no watchdog is used: those
+// interfaces have no implementation here. Everything is single-threaded (no RTOS); the only
+// interrupt is SysTick. No heap, no exceptions, no RTTI.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "bms/hal/cortex_m/board.h"
+#include "bms/hal/log_sink.hpp"
+#include "bms/hal/monotonic_clock.hpp"
+#include "bms/hal/nvm.hpp"
+#include "bms/hal/status.hpp"
+#include "bms/hal/tick_source.hpp"
+
+namespace bms::hal::cortex_m {
+
+/// MPS2 system clock: SysTick's processor clock source. QEMU's mps2 machines run it at
+/// 25 MHz; with -icount shift=0 (1 ns per instruction) one count is 40 instructions.
+inline constexpr std::uint32_t kSysClockHz = 25'000'000u;
+inline constexpr std::uint64_t kNsPerCount = 1'000'000'000u / kSysClockHz;
+static_assert(1'000'000'000u % kSysClockHz == 0u, "the clock period must be a whole number of ns");
+
+/// SysTick on the processor clock, reloading once per tick period: each reload is one tick
+/// and one interrupt, counted by SysTick_Handler. The 64-bit count of clock cycles since
+/// construction is (interrupts * period) + (counts into the current period).
+/// Owns SysTick: construct one per program (later constructions restart the count).
+class SysTickTimer final : public MonotonicClock, public TickSource {
+ public:
+  /// Starts SysTick. The period must be a whole number of clock counts in 1..2^24
+  /// (0.2 s = 5 000 000 counts); otherwise ok() is false and SysTick stays off.
+  explicit SysTickTimer(std::uint64_t period_ns = kTickPeriodNs);
+
+  bool ok() const { return reload_ != 0u; }
+
+  /// Clock counts (kSysClockHz) since construction; exact, never goes backwards.
+  std::uint64_t now_counts() const;
+  /// now_counts() in ns (resolution kNsPerCount).
+  std::uint64_t now_ns() const override { return now_counts() * kNsPerCount; }
+
+  /// Sleeps (WFI) until the next SysTick reload. Tick 0 is the first reload after
+  /// construction. timeout_ms is checked at each interrupt, so it is rounded up to a period.
+  Status wait_next_tick(std::uint32_t& tick, std::int32_t timeout_ms) override;
+  std::uint64_t period_ns() const override { return period_ns_; }
+  std::uint32_t missed_ticks() const override { return missed_; }
+  const char* last_error() const override { return error_; }
+
+ private:
+  std::uint32_t elapsed_periods() const;
+
+  std::uint64_t period_ns_;
+  std::uint32_t reload_ = 0u;  // counts per period - 1; 0 when not running
+  std::uint32_t next_tick_ = 0u;
+  std::uint32_t missed_ = 0u;
+  const char* error_ = "";
+};
+
+/// Log lines on the semihosting console: "level: message" or, with a clock,
+/// "[seconds.micros] level: message".
+class SemihostLogSink final : public LogSink {
+ public:
+  explicit SemihostLogSink(LogLevel min_level = LogLevel::info, const MonotonicClock* clock = nullptr)
+      : min_level_(min_level), clock_(clock) {}
+  void write(LogLevel level, const char* message) override;
+
+ private:
+  LogLevel min_level_;
+  const MonotonicClock* clock_;
+};
+
+/// NonVolatileMemory over a caller-provided RAM buffer (for example retained_ram()), with
+/// the erase semantics of flash (erased bytes read kNvmErasedByte). A new RamNvm over a
+/// buffer does not erase it: contents survive a warm reset when the buffer is retained_ram().
+class RamNvm final : public NonVolatileMemory {
+ public:
+  RamNvm(std::uint8_t* storage, std::size_t size_bytes, std::size_t page_size);
+
+  std::size_t size_bytes() const override { return size_; }
+  std::size_t page_size() const override { return page_size_; }
+  Status read(std::size_t offset, void* dst, std::size_t len) override;
+  Status write(std::size_t offset, const void* src, std::size_t len) override;
+  Status erase(std::size_t offset, std::size_t len) override;
+  const char* last_error() const override { return error_; }
+
+ private:
+  std::uint8_t* mem_;
+  std::size_t size_;
+  std::size_t page_size_;
+  const char* error_ = "";
+};
+
+/// RAM that Reset_Handler neither copies nor zeroes (.noinit): a warm reset keeps it.
+inline constexpr std::size_t kRetainedRamBytes = 4096u;
+std::uint8_t* retained_ram();
+
+}  // namespace bms::hal::cortex_m

@@ -1,0 +1,41 @@
+// The firmware as the target test application uses it: the tick (bms::fw::BmsCore over the
+// reduced-order model, bms::fw::ReducedCell) and the one call per 0.2 s tick.
+//
+// This file and replay_tick.cpp are the whole firmware in the image: the heap, unwinding and
+// stack checks of target/tools look at replay_tick.cpp's object (the firmware is header-only,
+// so its code is instantiated there). BMS_REPLAY_SCALAR (double or float) is the build's
+// scalar type: the host and Cortex-M7 builds use double, the Cortex-M4F build float.
+#pragma once
+
+#include <bms/fw/bms_core.hpp>
+#include <bms/fw/reduced_cell.hpp>
+
+#ifndef BMS_REPLAY_SCALAR
+#define BMS_REPLAY_SCALAR double
+#endif
+
+namespace bms::target {
+
+using Scalar = BMS_REPLAY_SCALAR;
+using Model = bms::fw::ReducedCell<Scalar>;
+using Core = bms::fw::BmsCore<Scalar, Model>;
+using TickOutput = Core::Output;
+
+/// Everything the firmware owns: the main-system model and the core that drives it.
+/// Default configuration of the paper cell; the model starts from the paper's initial state.
+struct ReplayFirmware {
+  ReplayFirmware();
+  Model model;
+  Core core;
+};
+
+/// The firmware's per-tick entry point as the application calls it: one measured sample
+/// (voltage [V], current [A], positive on discharge) in, the tick's estimates out.
+TickOutput replay_tick(ReplayFirmware& fw, Scalar voltage_v, Scalar current_a);
+
+/// Bounded worst case of the tick's model step: the voltage-driven (CV) step of a copy of the
+/// model, asked for a terminal voltage it cannot reach, so that its Newton iteration runs
+/// into kMaxNewtonIterations. Returns the step's result; the firmware is not changed.
+bms::fw::ModelTickResult<Scalar> newton_cap_probe(const ReplayFirmware& fw);
+
+}  // namespace bms::target
