@@ -9,7 +9,10 @@ pkgs=(cmake ninja-build g++ pkg-config libeigen3-dev libsundials-dev libsuitespa
 case " $groups " in *" cross "*|*" all "*)
   pkgs+=(gcc-arm-none-eabi libnewlib-arm-none-eabi libstdc++-arm-none-eabi-newlib qemu-system-arm python3) ;; esac
 case " $groups " in *" can "*|*" all "*)
-  pkgs+=(user-mode-linux kmod iproute2 can-utils python3-can python3-canmatrix) ;; esac
+  pkgs+=(user-mode-linux kmod iproute2 can-utils python3-can python3-canmatrix gcc) ;; esac
+# Fallback backend of scripts/vcan-run.sh where User-Mode Linux does not boot (large).
+case " $groups " in *" can-qemu "*|*" all "*)
+  pkgs+=(qemu-system-x86 linux-image-amd64 busybox-static cpio kmod iproute2 can-utils python3-can) ;; esac
 case " $groups " in *" analysis "*|*" all "*)
   pkgs+=(clang clang-tidy cppcheck libclang-rt-14-dev) ;; esac
 missing=()

@@ -82,7 +82,7 @@ if [ "$probe" = 1 ]; then
 fi
 [ $# -gt 0 ] || bad "no command given (put it after --)"
 
-cache="${VCAN_RUN_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/bms-vcan-run}"
+cache="${VCAN_RUN_CACHE:-${XDG_CACHE_HOME:-${HOME:-/tmp}/.cache}/bms-vcan-run}"
 install_hint="install it with scripts/install-deps.sh"
 is_root() { [ "$(id -u)" -eq 0 ]; }
 
@@ -113,10 +113,11 @@ rundir=""
 guest_pid=""
 watchdog_pid=""
 saved_tty=""
+tty_fd=2
 cleanup() {
   if [ -n "$watchdog_pid" ]; then kill "$watchdog_pid" 2>/dev/null || true; fi
   if [ -n "$guest_pid" ]; then kill -KILL -- "-$guest_pid" 2>/dev/null || true; fi
-  if [ -n "$saved_tty" ]; then stty "$saved_tty" <&2 2>/dev/null || true; fi
+  if [ -n "$saved_tty" ]; then stty "$saved_tty" <&"$tty_fd" 2>/dev/null || true; fi
   if [ -n "$rundir" ] && [ "$keep" != 1 ]; then rm -rf "$rundir"; fi
 }
 trap cleanup EXIT
@@ -134,7 +135,7 @@ new_rundir() {
     local n
     while IFS= read -r n; do
       case "$n" in
-        LD_PRELOAD|LD_LIBRARY_PATH_UML|SHLVL|PWD|OLDPWD|_|SHELLOPTS|BASHOPTS|BASH_*|VCAN_RUN_BACKEND) continue ;;
+        SHLVL|PWD|OLDPWD|_|SHELLOPTS|BASHOPTS|BASH_*|VCAN_RUN_BACKEND) continue ;;
       esac
       printf 'export %s=%q\n' "$n" "${!n}"
     done < <(compgen -e)
@@ -148,15 +149,20 @@ new_rundir() {
 }
 
 iface_list() { local IFS=,; echo "${ifaces[*]}"; }
-raw_flag() { if [ -t "$1" ]; then echo 0; else echo 1; fi; }
+# 1: fd $1 is not a terminal, the guest tty passes bytes unchanged; 0: a terminal (which UML
+# puts into raw mode), the guest tty adds the CR before LF. Not for use inside $(...).
+raw_flag() { if [ -t "$1" ]; then raw=0; else raw=1; fi; }
 
-# Starts "$@" in its own process group (so everything it leaves behind can be killed),
-# with the optional watchdog; waits; sets guest_status.
-guest_status=0
-run_guest_process() {
+# With --timeout: a watchdog that stops the guest's process group (guest_pid) in time.
+start_watchdog() {
   if [ "$timeout_s" -gt 0 ]; then
-    ( sleep "$timeout_s"; : > "$rundir/timed-out"; kill -TERM -- "-$guest_pid" 2>/dev/null
-      sleep 3; kill -KILL -- "-$guest_pid" 2>/dev/null ) &
+    # Its own fds go nowhere, and it sleeps in 1 s steps, so nothing of it outlives the run
+    # holding our stdout open (ctest waits for that).
+    ( exec </dev/null >/dev/null 2>&1
+      end=$((SECONDS + timeout_s))
+      while [ "$SECONDS" -lt "$end" ]; do sleep 1; done
+      : > "$rundir/timed-out"; kill -TERM -- "-$guest_pid"
+      sleep 3; kill -KILL -- "-$guest_pid" ) &
     watchdog_pid=$!
   fi
 }
@@ -209,6 +215,14 @@ uml_check() {
   uml_exe="$b"
 }
 
+# prune KEEP FILES...: removes cached builds of older sources, never KEEP (which another
+# run may have just built).
+prune() {
+  local keep="$1" f; shift
+  for f in "$@"; do [ -f "$f" ] && [ "$f" != "$keep" ] && rm -f "$f"; done
+  return 0
+}
+
 # The XSAVE shim (scripts/vcan/uml-xstate-shim.c), compiled once per source version.
 uml_shim() {
   local src="$vdir/uml-xstate-shim.c" sum out cc
@@ -221,7 +235,12 @@ uml_shim() {
       return 1
     fi
     mkdir -p "$cache"
-    "$cc" -shared -fPIC -O2 -o "$out.tmp.$$" "$src" -ldl >&2 || { rm -f "$out.tmp.$$"; return 1; }
+    prune "$out" "$cache/uml-xstate-shim-"*.so
+    if ! "$cc" -shared -fPIC -O2 -o "$out.tmp.$$" "$src" -ldl >&2; then
+      rm -f "$out.tmp.$$"
+      say "could not build the UML XSAVE shim with $cc; trying UML without it"
+      return 1
+    fi
     mv "$out.tmp.$$" "$out"
   fi
   echo "$out"
@@ -231,17 +250,24 @@ run_uml() {   # returns like read_result
   local shim="" preload=()
   shim="$(uml_shim)" && preload=(env "LD_PRELOAD=$shim")
   new_rundir uml "$@"
+  local extra=() raw raw_out raw_err
+  read -r -a extra <<< "${VCAN_RUN_KERNEL_ARGS:-}"
+  raw_flag 1; raw_out=$raw
+  raw_flag 2; raw_err=$raw
+  # shellcheck disable=SC2054  # the commas belong to UML's channel syntax
   local kargs=(mem="$mem" rootfstype=hostfs rootflags=/ rw init="$rundir/init" quiet
                con=null ssl=null con0=null,fd:3 con1=null,fd:1 con2=null,fd:2
                uml_dir="$rundir/uml" umid=vcan-run
                VCAN_RUN_DIR="$rundir" VCAN_RUN_OUT=/dev/tty1 VCAN_RUN_ERR=/dev/tty2
-               VCAN_RUN_RAW_OUT="$(raw_flag 1)" VCAN_RUN_RAW_ERR="$(raw_flag 2)"
-               VCAN_RUN_IFACES="$(iface_list)" ${VCAN_RUN_KERNEL_ARGS:-})
-  if [ -t 2 ]; then saved_tty="$(stty -g <&2 2>/dev/null || true)"; fi
+               VCAN_RUN_RAW_OUT="$raw_out" VCAN_RUN_RAW_ERR="$raw_err"
+               VCAN_RUN_IFACES="$(iface_list)" "${extra[@]}")
+  # UML puts a terminal on fd 1/2 into raw mode while it runs; put it back even if killed.
+  if [ -t 1 ]; then tty_fd=1; fi
+  if [ -t "$tty_fd" ]; then saved_tty="$(stty -g <&"$tty_fd" 2>/dev/null || true)"; fi
   "${preload[@]}" setsid "$uml_exe" "${kargs[@]}" </dev/null 3>"$rundir/console.log" &
   guest_pid=$!
-  run_guest_process
-  wait "$guest_pid"
+  start_watchdog
+  wait "$guest_pid" 2>/dev/null   # (no "Aborted" job notice from bash when UML panics)
   kill -KILL -- "-$guest_pid" 2>/dev/null || true
   guest_pid=""
   show_console
@@ -278,10 +304,12 @@ qemu_check() {
 # A small initramfs: static busybox, the virtio/9p modules, /init = qemu-initramfs-init.sh.
 qemu_initramfs() {
   local sum out tmp m n=0
-  sum="$(cat "$vdir/qemu-initramfs-init.sh" "$qemu_busybox" | cksum | cut -d' ' -f1)"
+  local mods=(virtio_pci virtio_console 9pnet_virtio 9p)
+  sum="$({ echo "${mods[*]}"; cat "$vdir/qemu-initramfs-init.sh" "$qemu_busybox"; } | cksum | cut -d' ' -f1)"
   out="$cache/qemu-initramfs-$qemu_kver-$sum.cpio.gz"
   if [ ! -f "$out" ]; then
     mkdir -p "$cache"
+    prune "$out" "$cache/qemu-initramfs-$qemu_kver-"*.cpio.gz
     tmp="$(mktemp -d)"
     mkdir -p "$tmp/bin" "$tmp/modules" "$tmp/proc" "$tmp/sys" "$tmp/dev" "$tmp/newroot"
     cp "$qemu_busybox" "$tmp/bin/busybox"
@@ -296,7 +324,7 @@ qemu_initramfs() {
         *.ko.xz) xz -dc "$m" > "$tmp/modules/$n.ko"; echo "$n.ko" >> "$tmp/modules/order" ;;
         *.ko.zst) zstd -qdc "$m" > "$tmp/modules/$n.ko"; echo "$n.ko" >> "$tmp/modules/order" ;;
       esac
-    done < <(modprobe -S "$qemu_kver" --show-depends -a virtio_pci 9pnet_virtio 9p 2>/dev/null \
+    done < <(modprobe -S "$qemu_kver" --show-depends -a "${mods[@]}" 2>/dev/null \
              | awk '$1 == "insmod" { print $2 }' | awk '!seen[$0]++')
     (cd "$tmp" && find . | cpio -o -H newc --quiet | gzip -1) > "$out.tmp.$$"
     mv "$out.tmp.$$" "$out"
@@ -331,6 +359,16 @@ run_qemu() {
   return "$st"
 }
 
+# Lets the output cats finish: a cat still blocked in open() (QEMU never opened its FIFO)
+# gets a writer that closes at once; then both see end-of-file.
+release_fifos() {
+  local f
+  for f in "$rundir/out" "$rundir/err"; do
+    { exec 7<>"$f"; exec 7>&-; } 2>/dev/null || true
+  done
+  wait "$@" 2>/dev/null || true
+}
+
 run_qemu_once() {   # run_qemu_once kvm|tcg COMMAND...; as read_result, or 4: KVM hung
   local initrd accel="$1" cpu=max smp=1 model=none
   shift
@@ -339,18 +377,25 @@ run_qemu_once() {   # run_qemu_once kvm|tcg COMMAND...; as read_result, or 4: KV
   is_root && model=passthrough
   new_rundir qemu "$@"
   echo "$accel" > "$rundir/accel"
-  local append="console=ttyS0 panic=-1 quiet VCAN_RUN_DIR=$rundir VCAN_RUN_OUT=/dev/ttyS1 VCAN_RUN_ERR=/dev/ttyS2 VCAN_RUN_RAW_OUT=1 VCAN_RUN_RAW_ERR=1 VCAN_RUN_IFACES=$(iface_list) ${VCAN_RUN_KERNEL_ARGS:-}"
+  # QEMU writes the guest's stdout/stderr into FIFOs that cats copy to our own fds: QEMU
+  # opening /proc/self/fd/1 itself would not share our file offset when stdout is a file.
+  mkfifo "$rundir/out" "$rundir/err"
+  cat "$rundir/out" & local cat1=$!
+  cat "$rundir/err" >&2 & local cat2=$!
+  local append
+  append="console=ttyS0 panic=-1 quiet VCAN_RUN_DIR=$rundir VCAN_RUN_OUT=/dev/hvc0 VCAN_RUN_ERR=/dev/hvc1 VCAN_RUN_RAW_OUT=1 VCAN_RUN_RAW_ERR=1 VCAN_RUN_IFACES=$(iface_list) ${VCAN_RUN_KERNEL_ARGS:-}"
   setsid "$qemu_exe" -nodefaults -no-user-config -nographic -no-reboot -monitor none \
     -M pc -accel "$accel" -cpu "$cpu" -smp "$smp" -m "$mem" \
     -kernel "/boot/vmlinuz-$qemu_kver" -initrd "$initrd" -append "$append" \
     -fsdev "local,id=hostroot,path=/,security_model=$model,multidevs=remap" \
     -device virtio-9p-pci,fsdev=hostroot,mount_tag=hostroot \
     -chardev "file,id=con,path=$rundir/console.log" -serial chardev:con \
-    -chardev file,id=so,path=/proc/self/fd/1,append=on -serial chardev:so \
-    -chardev file,id=se,path=/proc/self/fd/2,append=on -serial chardev:se \
+    -device virtio-serial-pci \
+    -chardev "file,id=so,path=$rundir/out" -device virtconsole,chardev=so \
+    -chardev "file,id=se,path=$rundir/err" -device virtconsole,chardev=se \
     </dev/null 2>"$rundir/qemu.err" &
   guest_pid=$!
-  run_guest_process
+  start_watchdog
   if [ "$accel" = kvm ] && [ "${VCAN_RUN_QEMU_ACCEL:-auto}" = auto ]; then
     local waited=0
     while kill -0 "$guest_pid" 2>/dev/null && [ ! -f "$rundir/started" ] \
@@ -362,13 +407,15 @@ run_qemu_once() {   # run_qemu_once kvm|tcg COMMAND...; as read_result, or 4: KV
       wait "$guest_pid" 2>/dev/null
       guest_pid=""
       if [ -n "$watchdog_pid" ]; then kill "$watchdog_pid" 2>/dev/null; watchdog_pid=""; fi
+      release_fifos "$cat1" "$cat2"
       return 4
     fi
   fi
-  wait "$guest_pid"
+  wait "$guest_pid" 2>/dev/null
   local qrc=$?
   kill -KILL -- "-$guest_pid" 2>/dev/null || true
   guest_pid=""
+  release_fifos "$cat1" "$cat2"
   show_console
   if [ ! -f "$rundir/started" ] && [ -s "$rundir/qemu.err" ]; then
     say "qemu (exit $qrc): $(head -n 3 "$rundir/qemu.err")"
@@ -404,7 +451,7 @@ guest() {   # guest uml|qemu COMMAND...: 0..2 as read_result; 3 when not install
   if [ "$verbose" = 1 ]; then say "$b: $(awk -v a="$t0" -v b="$t1" 'BEGIN{printf "%.1f", b-a}') s in all"; fi
   if [ "$st" = 1 ]; then
     say "$b: the guest did not start the command (boot failed); console log tail:"
-    tail -n 15 "$rundir/console.log" >&2 2>/dev/null || true
+    grep -v '^ *\[<' "$rundir/console.log" 2>/dev/null | tail -n 8 >&2 || true
     [ "$keep" = 1 ] || rm -rf "$rundir"
     rundir=""
   fi

@@ -34,8 +34,6 @@ mount -t tmpfs -o mode=1777 tmpfs /dev/shm
 mount -t tmpfs -o mode=755 tmpfs /run
 hostname vcan-run 2>/dev/null
 
-[ "${VCAN_RUN_RAW_OUT:-1}" = 1 ] && stty -F "$out" raw -echo 2>/dev/null
-[ "${VCAN_RUN_RAW_ERR:-1}" = 1 ] && stty -F "$err" raw -echo 2>/dev/null
 
 # CAN modules: Debian's UML keeps them under /usr/lib/uml/modules/VERSION (no modules.dep
 # there), a normal kernel under /lib/modules/VERSION.
@@ -48,9 +46,7 @@ if [ -d "/usr/lib/uml/modules/$kver" ] && [ ! -d "/lib/modules/$kver" ]; then
     [ -f "$m/$k" ] && insmod "$m/$k" 2>/dev/null
   done
 else
-  for k in can can-raw can-bcm can-gw can-isotp can-dev vcan vxcan; do
-    modprobe -q "$k" 2>/dev/null
-  done
+  modprobe -qa can can-raw can-bcm can-gw can-isotp can-dev vcan vxcan 2>/dev/null
 fi
 ip link set lo up 2>/dev/null
 ok=1
@@ -71,8 +67,11 @@ fi
 # isatty() answers as it would in CI; two cats carry the bytes to the host's fds.
 mkfifo /run/vcan-run-out /run/vcan-run-err
 # The cats ignore SIGTERM, so that the clean-up below stops the command's leftovers first.
-(trap '' TERM; exec cat /run/vcan-run-out > "$out") & c1=$!
-(trap '' TERM; exec cat /run/vcan-run-err > "$err") & c2=$!
+# The tty mode is set while the cat holds the tty open (hvc resets it on last close).
+(trap '' TERM; [ "${VCAN_RUN_RAW_OUT:-1}" = 1 ] && stty raw -echo <&1 2>/dev/null
+ exec cat /run/vcan-run-out) > "$out" & c1=$!
+(trap '' TERM; [ "${VCAN_RUN_RAW_ERR:-1}" = 1 ] && stty raw -echo <&1 2>/dev/null
+ exec cat /run/vcan-run-err) > "$err" & c2=$!
 
 : > "$d/started"
 (
