@@ -42,7 +42,7 @@ cmake --build "$build" -j "$jobs"
 
 mkdir -p "$build/logs"
 summary="$build/summary.tsv"
-printf 'target\tseconds\texecutions\texec_per_s\tcov\tft\tcorpus\tresult\n' >"$summary"
+printf 'target\tseconds\texecutions\texec_per_s\tcov\tedges\tft\tcorpus\tresult\n' >"$summary"
 failed=0
 for t in "${targets[@]}"; do
   bin="$build/fuzz_$t"
@@ -68,14 +68,17 @@ for t in "${targets[@]}"; do
   ft=$(sed -n 's/.* ft: \([0-9]*\).*/\1/p' <<<"$status")
   corp=$(sed -n 's/.* corp: \([0-9]*\).*/\1/p' <<<"$status")
   rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
+  # Instrumented edges in the whole binary (parser, harness, inlined library code): the
+  # denominator of cov.
+  edges=$(sed -n 's/^INFO: Loaded 1 modules *(\([0-9]*\) inline 8-bit counters).*/\1/p' "$log" | head -1)
   result=ok
   if [ "$rc" -ne 0 ]; then
     result="FAILED (exit $rc)"
     failed=1
   fi
-  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$t" "$seconds" "${execs:-?}" "${rate:-?}" "${cov:-?}" "${ft:-?}" \
-    "${corp:-?}" "$result" >>"$summary"
-  echo "   executions ${execs:-?} (${rate:-?}/s), cov ${cov:-?}, ft ${ft:-?}, corpus ${corp:-?}: $result"
+  printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$t" "$seconds" "${execs:-?}" "${rate:-?}" "${cov:-?}" \
+    "${edges:-?}" "${ft:-?}" "${corp:-?}" "$result" >>"$summary"
+  echo "   executions ${execs:-?} (${rate:-?}/s), cov ${cov:-?} of ${edges:-?} edges, ft ${ft:-?}, corpus ${corp:-?}: $result"
   if [ "$rc" -ne 0 ]; then
     grep -E 'ERROR: |SUMMARY: |runtime error|Test unit written to|deadly signal' "$log" | head -20 >&2 || true
     echo "   full log: $log" >&2

@@ -8,6 +8,8 @@
 #include <cstdio>
 #include <cstring>
 
+#include "errno_text.hpp"
+
 namespace bms::hal::lnx {
 
 FileNvm::~FileNvm() { close(); }
@@ -18,8 +20,10 @@ void FileNvm::close() {
 }
 
 Status FileNvm::fail(Status s, const char* what, int err) {
-  std::snprintf(error_, sizeof error_, "NVM file '%s': %s%s%s", path_, what, err != 0 ? ": " : "",
-                err != 0 ? std::strerror(err) : "");
+  char text[96];
+  // snprintf's result is not needed: a message longer than the buffer is cut, on purpose.
+  (void)std::snprintf(error_, sizeof error_, "NVM file '%s': %s%s%s", path_, what, err != 0 ? ": " : "",
+                      err != 0 ? detail::errno_text(err, text, sizeof text) : "");
   return s;
 }
 
@@ -40,7 +44,7 @@ Status FileNvm::pwrite_all(std::size_t offset, const void* src, std::size_t len)
 
 Status FileNvm::open(const char* path, std::size_t size_bytes, std::size_t page_size) {
   close();
-  std::snprintf(path_, sizeof path_, "%s", path != nullptr ? path : "");
+  (void)std::snprintf(path_, sizeof path_, "%s", path != nullptr ? path : "");
   if (path == nullptr || path[0] == '\0') return fail(Status::invalid_argument, "empty path", 0);
   if (page_size == 0 || size_bytes == 0 || size_bytes % page_size != 0)
     return fail(Status::invalid_argument, "size must be a positive multiple of the page size", 0);
@@ -64,7 +68,7 @@ Status FileNvm::open(const char* path, std::size_t size_bytes, std::size_t page_
   } else if (static_cast<std::size_t>(st.st_size) != size_bytes) {
     close();
     char what[96];
-    std::snprintf(what, sizeof what, "has %lld bytes, expected %zu", static_cast<long long>(st.st_size), size_bytes);
+    (void)std::snprintf(what, sizeof what, "has %lld bytes, expected %zu", static_cast<long long>(st.st_size), size_bytes);
     return fail(Status::invalid_argument, what, 0);
   }
   return Status::ok;

@@ -12,6 +12,8 @@
 #include <cstdio>
 #include <cstring>
 
+#include "errno_text.hpp"
+
 namespace bms::hal::lnx {
 
 static_assert(kCanIdExtended == CAN_EFF_FLAG, "CanFrame's extended flag mirrors Linux CAN_EFF_FLAG");
@@ -24,10 +26,13 @@ void SocketCanBus::close() {
 }
 
 Status SocketCanBus::fail(Status s, const char* what, int err) {
-  if (err != 0)
-    std::snprintf(error_, sizeof error_, "%s: %s", what, std::strerror(err));
-  else
-    std::snprintf(error_, sizeof error_, "%s", what);
+  // snprintf's result is not needed here and below: a long message is cut, on purpose.
+  if (err != 0) {
+    char text[96];
+    (void)std::snprintf(error_, sizeof error_, "%s: %s", what, detail::errno_text(err, text, sizeof text));
+  } else {
+    (void)std::snprintf(error_, sizeof error_, "%s", what);
+  }
   return s;
 }
 
@@ -38,7 +43,7 @@ Status SocketCanBus::open(const char* ifname) {
   ifreq ifr{};
   if (std::strlen(ifname) >= sizeof ifr.ifr_name) {
     char what[96];
-    std::snprintf(what, sizeof what, "CAN interface name '%.40s...' is too long", ifname);
+    (void)std::snprintf(what, sizeof what, "CAN interface name '%.40s...' is too long", ifname);
     return fail(Status::invalid_argument, what, 0);
   }
   const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
@@ -53,23 +58,24 @@ Status SocketCanBus::open(const char* ifname) {
     ::close(fd);
     char what[200];
     if (err == ENODEV) {
-      std::snprintf(what, sizeof what,
+      (void)std::snprintf(what, sizeof what,
                     "no CAN interface '%s' (ENODEV): create it with 'ip link add dev %s type vcan && ip link set "
                     "up %s'",
                     ifname, ifname, ifname);
       return fail(Status::not_found, what, 0);
     }
-    std::snprintf(what, sizeof what, "ioctl(SIOCGIFINDEX, '%s') failed", ifname);
+    (void)std::snprintf(what, sizeof what, "ioctl(SIOCGIFINDEX, '%s') failed", ifname);
     return fail(Status::io_error, what, err);
   }
   sockaddr_can addr{};
   addr.can_family = AF_CAN;
   addr.can_ifindex = ifr.ifr_ifindex;
-  if (::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) < 0) {
+  // bind() takes the generic sockaddr*: the POSIX socket API's own cast.
+  if (::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) < 0) {  // NOLINT(cppcoreguidelines-pro-type-reinterpret-cast)
     const int err = errno;
     ::close(fd);
     char what[96];
-    std::snprintf(what, sizeof what, "bind to CAN interface '%s' failed", ifname);
+    (void)std::snprintf(what, sizeof what, "bind to CAN interface '%s' failed", ifname);
     return fail(Status::io_error, what, err);
   }
   fd_ = fd;

@@ -20,7 +20,7 @@ void StderrLogSink::write(LogLevel level, const char* message) {
   }
   if (n <= 0) return;
   std::size_t len = static_cast<std::size_t>(n) < sizeof line ? static_cast<std::size_t>(n) : sizeof line - 1;
-  if (line[len - 1] != '\n') line[len - 1] = '\n';  // cut: keep the line ending
+  line[len - 1] = '\n';  // a cut message still ends its line (a whole one already does)
   const ssize_t w = ::write(fd_, line, len);
   (void)w;
 }

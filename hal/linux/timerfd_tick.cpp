@@ -9,6 +9,8 @@
 #include <cstring>
 #include <ctime>
 
+#include "errno_text.hpp"
+
 namespace bms::hal::lnx {
 
 TimerfdTickSource::~TimerfdTickSource() { close(); }
@@ -19,7 +21,10 @@ void TimerfdTickSource::close() {
 }
 
 Status TimerfdTickSource::fail(Status s, const char* what, int err) {
-  std::snprintf(error_, sizeof error_, "%s%s%s", what, err != 0 ? ": " : "", err != 0 ? std::strerror(err) : "");
+  char text[96];
+  // snprintf's result is not needed: a message longer than the buffer is cut, on purpose.
+  (void)std::snprintf(error_, sizeof error_, "%s%s%s", what, err != 0 ? ": " : "",
+                      err != 0 ? detail::errno_text(err, text, sizeof text) : "");
   return s;
 }
 

@@ -280,10 +280,13 @@ class RecordStore {
       return StoreStatus::invalid_config;
     if (!ok(nvm_.write(at, buf_, kRecordBytes))) return StoreStatus::io_error;
     // Read back: a write that reported success but did not stick must not count as a commit.
+    // The payload is compared as bytes on purpose: what must match is exactly what was
+    // copied out of `payload` (padding and NaN bits included), not its value.
     RecordView view;
     if (!read_slot(target) ||
         check_record(buf_, kRecordBytes, LayoutTag, kPayloadBytes, view) != RecordCheck::valid ||
-        view.sequence != seq || std::memcmp(view.payload, &payload, kPayloadBytes) != 0) {
+        view.sequence != seq ||
+        std::memcmp(view.payload, &payload, kPayloadBytes) != 0) {  // NOLINT(bugprone-suspicious-memory-comparison,cert-exp42-c,cert-flp37-c)
       return StoreStatus::io_error;
     }
     check_[target] = RecordCheck::valid;

@@ -126,17 +126,19 @@ class ReducedCell {
 
   const State& state() const { return s_; }
   bool restore(const State& s) {
-    const Scalar* p = reinterpret_cast<const Scalar*>(&s);
-    for (unsigned i = 0; i < sizeof(State) / sizeof(Scalar); ++i) {
-      if (!std::isfinite(p[i])) return false;
-    }
+    bool ok = std::isfinite(s.li_loss_mol) && std::isfinite(s.charge_c) && std::isfinite(s.current_a) &&
+              std::isfinite(s.j_side_a_m2);
+    for (int i = 0; ok && i < kNrN; ++i) ok = std::isfinite(s.cs_neg_mol_m3[i]);
+    for (int i = 0; ok && i < kNrP; ++i) ok = std::isfinite(s.cs_pos_mol_m3[i]);
+    for (int k = 0; ok && k < kNx; ++k) ok = std::isfinite(s.ce_mol_m3[k]);
+    if (!ok) return false;
     s_ = s;
     return true;
   }
 
   // One tick driven by current [A], positive = discharge.
   ModelTickResult<Scalar> step_current(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s) {
-    Trial<Scalar> t;
+    Trial<Scalar> t{};
     evaluate(current_a, r_film_ohm_m2, dt_s, t);
     ModelTickResult<Scalar> r{t.voltage_v, current_a, t.j_side_a_m3, -t.j_neg_a_m2, 0, true, false};
     r.valid = commit(t, current_a, dt_s);
@@ -149,7 +151,7 @@ class ReducedCell {
     Scalar current = s_.current_a;
     bool converged = false;
     std::uint8_t it = 0;
-    Trial<D> td;
+    Trial<D> td{};
     while (it < kMaxNewtonIterations) {
       ++it;
       evaluate(D(current, Scalar(1)), r_film_ohm_m2, dt_s, td);
@@ -167,7 +169,7 @@ class ReducedCell {
         break;
       }
     }
-    Trial<Scalar> t;
+    Trial<Scalar> t{};
     evaluate(current, r_film_ohm_m2, dt_s, t);
     ModelTickResult<Scalar> r{t.voltage_v, current, t.j_side_a_m3, -t.j_neg_a_m2, it, converged, false};
     r.valid = commit(t, current, dt_s);
@@ -177,7 +179,7 @@ class ReducedCell {
   // Terminal voltage of the current state at a given current, without advancing (dt -> 0 is
   // not meaningful for backward Euler, so this evaluates a tick without committing it).
   Scalar peek_voltage(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s) const {
-    Trial<Scalar> t;
+    Trial<Scalar> t{};
     evaluate(current_a, r_film_ohm_m2, dt_s, t);
     return t.voltage_v;
   }
