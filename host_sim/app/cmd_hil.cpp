@@ -25,6 +25,7 @@
 #include "commands.hpp"
 #include "estimation/estimate_output.hpp"
 #include "estimation/estimate_run.hpp"
+#include "io/candump_log.hpp"
 #include "io/input_error.hpp"
 #include "simulate_options.hpp"
 #include "sim/truth_output.hpp"
@@ -51,10 +52,14 @@ std::filesystem::path default_firmware_path() {
   return self.parent_path().parent_path() / "hal" / "bms-firmware";
 }
 
-std::string frame_log_line(double t_s, const std::string& iface, const hal::CanFrame& f) {
-  std::string s = fmt::format("({:.6f}) {} {:03X}#", t_s, iface, f.id);
-  for (int i = 0; i < f.len; ++i) s += fmt::format("{:02X}", f.data[i]);
-  return s + "\n";
+CanLogEntry log_entry(double t_s, const std::string& iface, const hal::CanFrame& f) {
+  CanLogEntry e;
+  e.time_s = t_s;
+  e.interface = iface;
+  e.id = f.id & hal::kCanStdIdMask;
+  e.dlc = f.len;
+  for (int i = 0; i < f.len; ++i) e.data[static_cast<std::size_t>(i)] = f.data[i];
+  return e;
 }
 
 class FirmwareProcess {
@@ -169,8 +174,7 @@ int run_hil(HilCli& c) {
                                       "--h", fmt::format("{}", c.h)};
   FirmwareProcess fw(c.firmware.empty() ? default_firmware_path() : std::filesystem::path(c.firmware), fw_args);
 
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> log(std::fopen((dir / "can.log").c_str(), "w"), &std::fclose);
-  if (!log) throw RuntimeFailure("cannot write " + (dir / "can.log").string());
+  CandumpWriter log(dir / "can.log");
   const double t_epoch = 1700000000.0;  // fixed: lock-step logs are identical run to run
   can::Transmitter tx;
   can::Receiver rx(can::Node::host);
@@ -189,7 +193,7 @@ int run_hil(HilCli& c) {
     if (bus.send(f) != hal::Status::ok) throw RuntimeFailure(std::string("CAN send failed: ") + bus.last_error());
     const double t_log = c.realtime ? t_epoch + std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count()
                                     : t_epoch + s.t_s;
-    std::fputs(frame_log_line(t_log, c.bus, f).c_str(), log.get());
+    log.write(log_entry(t_log, c.bus, f));
     EstimateRow row{};
     row.t_s = s.t_s;
     row.cycle = s.cycle;
@@ -202,7 +206,7 @@ int run_hil(HilCli& c) {
       if (st == hal::Status::timeout)
         throw RuntimeFailure(fmt::format("the firmware did not answer tick {} within 2 s", k));
       if (st != hal::Status::ok) throw RuntimeFailure(std::string("CAN receive failed: ") + bus.last_error());
-      std::fputs(frame_log_line(t_log, c.bus, r).c_str(), log.get());
+      log.write(log_entry(t_log, c.bus, r));
       can::RxMessage msg{};
       if (rx.accept(r, msg) != can::RxResult::accepted) continue;
       switch (msg.msg) {
@@ -233,6 +237,7 @@ int run_hil(HilCli& c) {
   }
   res.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   const int fw_exit = fw.stop();
+  log.commit();
   res.theta = res.theta_rows.back();
   std::vector<fw::Mode> modes;
   for (const auto& s : run.result.samples) modes.push_back(s.mode);

@@ -7,12 +7,13 @@
 #include <vector>
 
 #include "bms/fw/dual.hpp"
+#include "bms/fw/physical_constants.hpp"
 #include "cell/cell_parameters.hpp"
 
 namespace bms {
 
-inline constexpr double kFaraday_c_mol = 96485.33212;
-inline constexpr double kGas_j_mol_k = 8.314462618;
+inline constexpr double kFaraday_c_mol = fw::kFaradayC_mol;
+inline constexpr double kGas_j_mol_k = fw::kGasJ_molK;
 
 struct DfnMesh {
   int n_neg = 20;

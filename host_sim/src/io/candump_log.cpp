@@ -238,54 +238,13 @@ std::string format_candump_line(const CanLogEntry& e) {
   return out;
 }
 
-CandumpWriter::CandumpWriter(std::filesystem::path file) : file_(std::move(file)), tmp_(file_) {
-  tmp_ += ".tmp";
-  out_ = std::fopen(tmp_.c_str(), "wb");
-  if (out_ == nullptr) {
-    throw InputError(fmt::format("{}: cannot create: {}", tmp_.string(), std::strerror(errno)));
-  }
-}
-
-CandumpWriter::~CandumpWriter() {
-  if (out_ != nullptr) {
-    std::fclose(out_);
-    std::error_code ignored;
-    std::filesystem::remove(tmp_, ignored);
-  }
-}
+CandumpWriter::CandumpWriter(std::filesystem::path file) : out_(std::move(file)) {}
 
 void CandumpWriter::write(const CanLogEntry& entry) {
-  if (out_ == nullptr) throw std::logic_error("CandumpWriter used after commit()");
-  buffer_ += format_candump_line(entry);
-  buffer_ += '\n';
+  out_.append(format_candump_line(entry) + "\n");
   ++lines_;
-  constexpr std::size_t kFlushBytes = 1 << 16;
-  if (buffer_.size() >= kFlushBytes) flush();
 }
 
-void CandumpWriter::flush() {
-  if (out_ == nullptr) throw std::logic_error("CandumpWriter used after commit()");
-  if (std::fwrite(buffer_.data(), 1, buffer_.size(), out_) != buffer_.size()) {
-    throw RuntimeFailure(fmt::format("{}: write failed: {}", tmp_.string(), std::strerror(errno)));
-  }
-  buffer_.clear();
-}
-
-void CandumpWriter::commit() {
-  flush();
-  const bool closed = std::fclose(out_) == 0;
-  out_ = nullptr;
-  std::error_code ec;
-  if (!closed) {
-    std::filesystem::remove(tmp_, ec);
-    throw RuntimeFailure(fmt::format("{}: write failed: {}", tmp_.string(), std::strerror(errno)));
-  }
-  std::filesystem::rename(tmp_, file_, ec);
-  if (ec) {
-    const std::string reason = ec.message();
-    std::filesystem::remove(tmp_, ec);
-    throw RuntimeFailure(fmt::format("{}: cannot rename to {}: {}", tmp_.string(), file_.string(), reason));
-  }
-}
+void CandumpWriter::commit() { out_.commit(); }
 
 }  // namespace bms

@@ -12,6 +12,8 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+
+#include "io/atomic_file.hpp"
 #include <string>
 #include <string_view>
 #include <vector>
@@ -58,21 +60,16 @@ std::string format_candump_line(const CanLogEntry& entry);
 class CandumpWriter {
  public:
   explicit CandumpWriter(std::filesystem::path file);
-  ~CandumpWriter();
   CandumpWriter(const CandumpWriter&) = delete;
   CandumpWriter& operator=(const CandumpWriter&) = delete;
 
   void write(const CanLogEntry& entry);
   void commit();
   std::size_t lines() const { return lines_; }
-  const std::filesystem::path& path() const { return file_; }
+  const std::filesystem::path& path() const { return out_.path(); }
 
  private:
-  void flush();
-  std::filesystem::path file_;
-  std::filesystem::path tmp_;
-  std::FILE* out_ = nullptr;
-  std::string buffer_;
+  AtomicFileWriter out_;
   std::size_t lines_ = 0;
 };
 

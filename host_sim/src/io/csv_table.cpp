@@ -168,24 +168,14 @@ CsvTable read_csv(const std::filesystem::path& file, const std::vector<std::stri
 }
 
 CsvWriter::CsvWriter(std::filesystem::path file, std::vector<std::string> columns)
-    : file_(std::move(file)), tmp_(file_), columns_(columns.size()) {
+    : file_(std::move(file)), columns_(columns.size()) {
   if (columns.empty()) throw std::invalid_argument("CsvWriter needs at least one column");
   for (const std::string& c : columns) cell(std::string_view(c));  // validates before opening
+  out_ = std::make_unique<AtomicFileWriter>(file_);
   end_row();
-  tmp_ += ".tmp";
-  out_ = std::fopen(tmp_.c_str(), "wb");
-  if (out_ == nullptr) {
-    throw InputError(fmt::format("{}: cannot create: {}", tmp_.string(), std::strerror(errno)));
-  }
 }
 
-CsvWriter::~CsvWriter() {
-  if (out_ != nullptr) {
-    std::fclose(out_);
-    std::error_code ignored;
-    std::filesystem::remove(tmp_, ignored);
-  }
-}
+CsvWriter::~CsvWriter() = default;
 
 void CsvWriter::separator() {
   if (cells_++ > 0) buffer_.push_back(',');
@@ -213,35 +203,13 @@ void CsvWriter::end_row() {
   }
   buffer_.push_back('\n');
   cells_ = 0;
-  constexpr std::size_t kFlushBytes = 1 << 16;
-  if (buffer_.size() >= kFlushBytes) flush();
-}
-
-void CsvWriter::flush() {
-  if (out_ == nullptr) throw std::logic_error("CsvWriter used after commit()");
-  if (std::fwrite(buffer_.data(), 1, buffer_.size(), out_) != buffer_.size()) {
-    throw RuntimeFailure(fmt::format("{}: write failed: {}", tmp_.string(), std::strerror(errno)));
-  }
+  out_->append(std::string_view(buffer_.data(), buffer_.size()));
   buffer_.clear();
 }
 
 void CsvWriter::commit() {
   if (cells_ != 0) throw std::logic_error(fmt::format("{}: unfinished row", file_.string()));
-  flush();
-  const bool closed = std::fclose(out_) == 0;
-  out_ = nullptr;
-  std::error_code ec;
-  if (!closed) {
-    std::filesystem::remove(tmp_, ec);
-    throw RuntimeFailure(fmt::format("{}: write failed: {}", tmp_.string(), std::strerror(errno)));
-  }
-  std::filesystem::rename(tmp_, file_, ec);
-  if (ec) {
-    const std::string reason = ec.message();
-    std::filesystem::remove(tmp_, ec);
-    throw RuntimeFailure(
-        fmt::format("{}: cannot rename to {}: {}", tmp_.string(), file_.string(), reason));
-  }
+  out_->commit();
 }
 
 }  // namespace bms

@@ -3,6 +3,10 @@
 // columns (e.g. `mode`) kept as strings. Errors name the file, the 1-based line and column.
 #include <fmt/format.h>
 
+#include <memory>
+
+#include "io/atomic_file.hpp"
+
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -79,14 +83,12 @@ class CsvWriter {
 
  private:
   void separator();
-  void flush();
 
   std::filesystem::path file_;
-  std::filesystem::path tmp_;
   std::size_t columns_;
   std::size_t cells_ = 0;
-  std::FILE* out_ = nullptr;
-  fmt::memory_buffer buffer_;
+  fmt::memory_buffer buffer_;  // the current row
+  std::unique_ptr<AtomicFileWriter> out_;
 };
 
 }  // namespace bms

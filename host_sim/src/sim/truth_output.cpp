@@ -1,20 +1,15 @@
 #include "sim/truth_output.hpp"
 
-#include <fstream>
-
+#include "io/atomic_file.hpp"
 #include "io/csv_table.hpp"
 #include "io/input_error.hpp"
 
 namespace bms {
 
 void write_file_atomically(const std::filesystem::path& file, const std::string& text) {
-  const auto tmp = std::filesystem::path(file.string() + ".tmp");
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    out << text;
-    if (!out) throw RuntimeFailure(file.string() + ": cannot write");
-  }
-  std::filesystem::rename(tmp, file);
+  AtomicFileWriter out(file);
+  out.append(text);
+  out.commit();
 }
 
 void write_truth_csv(const std::filesystem::path& file, const SimulationResult& r, const Measured& m) {

@@ -134,13 +134,12 @@ class BmsCore {
     const bool voltage_driven = (raw == Mode::cv_charge || raw == Mode::cv_discharge) && raw == mode;
     const ModelTickResult<Scalar> r = voltage_driven ? model_.step_voltage(in.voltage_v, u, config_.dt_s)
                                                      : model_.step_current(in.current_a, u, config_.dt_s);
-    Output out = base_output(mode);
     if (!r.valid) {
       st |= bit(FwStatus::kModelInvalid);
       if (cc_charge) st |= estimator_.advance_without_learning(last_j_side_);
       prev_cc_charge_ = cc_charge;
-      out.status = st;
-      return out;
+      status_ |= st;
+      return held_output(st);
     }
     if (!r.converged) st |= bit(FwStatus::kModelNotConverged);
     const Scalar z = r.voltage_v - in.voltage_v;
@@ -156,7 +155,7 @@ class BmsCore {
     prev_cc_charge_ = cc_charge;
     last_j_side_ = r.j_side_a_m3;
     ++ticks_;
-    out = base_output(mode);
+    Output out = base_output(mode);
     out.rcsi_active = active;
     out.r_film_est_ohm_m2 = u;
     out.z_v = z;

@@ -10,7 +10,7 @@
 //                      otherwise                                         -> cc_discharge
 // "Below the CC level" means |I| < |I_cc| - cc_tolerance_a, where I_cc is the current seen
 // when the present constant-current phase was confirmed; without a CC level (e.g. power-up
-// in CV) the voltage band alone decides. A new mode is reported only after it has been the
+// in CV) the voltage band alone decides. A different mode is reported only after it has been the
 // raw class for debounce_ticks consecutive ticks, so noise near a threshold cannot toggle
 // the estimator on and off.
 #include <cmath>

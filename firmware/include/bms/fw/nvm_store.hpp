@@ -2,7 +2,7 @@
 // Two-slot record store for non-volatile memory: keeps the last committed copy of one
 // trivially copyable payload (the estimator's State) through power loss at any instant.
 //
-// Why two slots: a write interrupted by power loss leaves its slot half old, half new (a
+// Why two slots: a write interrupted by power loss leaves its slot half old, half updated (a
 // "torn" record). Writing always goes to the slot that does NOT hold the newest valid
 // record, so the newest committed record is never touched; at start-up the valid record
 // with the highest sequence number wins. A torn record fails its CRC and is never accepted.
@@ -202,10 +202,10 @@ inline RecordCheck check_record(const std::uint8_t* bytes, std::size_t len, std:
 
 enum class StoreStatus : std::uint8_t {
   ok,
-  empty,           ///< load: both slots erased (a new device): nothing to restore, not a fault
+  empty,           ///< load: both slots erased (a fresh device): nothing to restore, not a fault
   no_valid_record, ///< load: something is stored, but no slot holds a valid record (a fault)
   io_error,        ///< the NVM failed (read, erase, write, or the read-back check); for save:
-                   ///< the new record was not committed, the previous one is still the newest
+                   ///< the record was not committed, the previous one is still the newest
   invalid_config,  ///< base offset not page-aligned, slots outside the device, page size 0
 };
 

@@ -16,7 +16,7 @@
 // of phi_e + U + eta + j R_film). The film resistance is an input (no eqs 11-12).
 //
 // Time stepping: backward Euler over one tick. Particles and electrolyte are linear in the
-// new state once D_e is taken at the start of the tick, so each is one tridiagonal solve;
+// next state once D_e is taken at the start of the tick, so each is one tridiagonal solve;
 // the kinetics are closed-form (asinh) with a fixed number of side-reaction fixed-point
 // passes. Current-driven (CC, rest) costs one evaluation. Voltage-driven (CV) solves
 // V(I) = V_measured by Newton on the current with an exact derivative (dual numbers), capped
@@ -29,11 +29,9 @@
 
 #include "bms/fw/dual.hpp"
 #include "bms/fw/paper_cell.hpp"
+#include "bms/fw/physical_constants.hpp"
 
 namespace bms::fw {
-
-inline constexpr double kFaradayC_mol = 96485.33212;
-inline constexpr double kGasJ_molK = 8.314462618;
 
 // Compile-time mesh of the reduced model.
 template <int Nn = 3, int Ns = 1, int Np = 3, int NrN = 16, int NrP = 2>
