@@ -1,4 +1,5 @@
 // bmssim estimate: the firmware's tick (BmsCore, same code as on target) run offline on a file.
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -7,6 +8,7 @@
 #include "commands.hpp"
 #include "estimation/estimate_output.hpp"
 #include "estimation/estimate_run.hpp"
+#include "io/input_error.hpp"
 #include "sim/cell_catalog.hpp"
 #include "sim/truth_output.hpp"
 
@@ -16,6 +18,8 @@ namespace {
 struct EstimateCli {
   std::string data, out, cell = "paper";
   EstimateOptions o;
+  double ic_error_pct = 0.0;
+  bool beyond = false;
   bool quiet = false;
 };
 }  // namespace
@@ -43,6 +47,30 @@ Runner add_estimate(CLI::App& app) {
                 "Use H = dV/dR_film of the main model at each charge start (about 0.88 for the paper cell) instead of --h");
   sub->add_option("--r-film-init", c->o.r_film_init_ohm_m2,
                   "Film resistance the estimator starts from [ohm m2] (default: the cell's initial value)");
+  sub->add_option("--ic-error-pct", c->ic_error_pct,
+                  "Initial-condition error of the main model (not the data), percent: scales the initial anode and "
+                  "cathode stoichiometries and the electrolyte concentration together (paper: +-1)")
+      ->capture_default_str();
+  sub->add_flag("--resync", c->o.resync,
+                "Beyond the paper: re-synchronise the firmware model's state at the end of each CV phase (measured "
+                "voltage, nominal lithium inventory minus the model's lithium loss); removes initial-condition errors");
+  sub->add_option("--resync-current", c->o.resync_current_a,
+                  "|current| [A] below which a CV phase counts as ended for --resync")
+      ->capture_default_str();
+  sub->add_option("--warmup", c->o.warmup_s,
+                  "Beyond the paper: seconds at the start of each CC charge before RCSI learns (film held)")
+      ->capture_default_str();
+  sub->add_flag("--calibrate-bias", c->o.calibrate_bias,
+                "Beyond the paper: the first CC charge is a reference charge at the initial film resistance; its mean "
+                "residual (after --warmup) is the model's voltage bias, subtracted in later charges");
+  sub->add_option("--reference-after-resyncs", c->o.reference_after_resyncs,
+                  "With --resync and --calibrate-bias: re-synchronisations before the reference charge")
+      ->capture_default_str();
+  sub->add_flag("--average", c->o.average_estimate,
+                "Beyond the paper: report and hold the mean of RCSI's u_hat over each charge's learning window");
+  sub->add_flag("--beyond-paper", c->beyond,
+                "Shorthand for the firmware's best settings (docs/results/firmware-model.md): --h-from-model "
+                "--p0 5e-7 --resync --warmup 600 --calibrate-bias --average");
   sub->add_option("--points", c->o.mesh.n_neg, "Full model: finite volumes per region")->capture_default_str();
   sub->add_option("--out", c->out, "Output folder (estimates.csv, summary.json)")->required();
   sub->add_flag("--quiet", c->quiet, "No progress lines");
@@ -50,8 +78,22 @@ Runner add_estimate(CLI::App& app) {
               "--model reduced --out out/est");
   return [c]() {
     c->o.mesh.n_sep = c->o.mesh.n_pos = c->o.mesh.n_neg;
+    if (c->beyond) {
+      c->o.markov_from_model = true;
+      c->o.p0 = 5e-7;
+      c->o.p0_y0 = 5e-7;
+      c->o.resync = true;
+      c->o.warmup_s = 600.0;
+      c->o.calibrate_bias = true;
+      c->o.average_estimate = true;
+    }
     const CellParameters cell = load_cell(c->cell);
+    if (!(std::abs(c->ic_error_pct) < 50.0)) throw InputError("--ic-error-pct: must be within +-50");
     c->o.ic = default_initial_conditions(cell);
+    const double ic_scale = 1.0 + c->ic_error_pct / 100.0;
+    c->o.ic.stoich_neg *= ic_scale;
+    c->o.ic.stoich_pos *= ic_scale;
+    c->o.ic.electrolyte_mol_m3 *= ic_scale;
     const EstimateData data = read_estimate_data(c->data);
     const bool quiet = c->quiet;
     auto progress = [quiet](std::size_t row, std::size_t rows) {

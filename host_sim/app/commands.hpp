@@ -12,5 +12,8 @@ Runner add_simulate(CLI::App& app);
 Runner add_validate(CLI::App& app);
 Runner add_estimate(CLI::App& app);
 Runner add_hil(CLI::App& app);
+Runner add_study(CLI::App& app);
+Runner add_baseline(CLI::App& app);
+Runner add_diagnose(CLI::App& app);
 
 }  // namespace bms::app

@@ -22,6 +22,9 @@ int main(int argc, char** argv) {
   add(bms::app::add_validate);
   add(bms::app::add_estimate);
   add(bms::app::add_hil);
+  add(bms::app::add_study);
+  add(bms::app::add_baseline);
+  add(bms::app::add_diagnose);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -23,8 +23,10 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
   sub.add_option("--ic-error-pct", o.ic_error_pct,
                  "Initial-condition error P: scales c_e, theta_n, theta_p by (1 + P/100)")->capture_default_str();
   sub.add_option("--effect", o.effects,
-                 "Undeclared effect NAME=VALUE (repeatable): contact_resistance (ohm), current_offset (A), "
-                 "current_gain (relative), none; hysteresis and thermal are not implemented yet");
+                 "Undeclared effect NAME=VALUE (repeatable): contact_resistance (ohm), hysteresis (V, half the "
+                 "gap between the charge and discharge OCV branches; starts on the charge branch), current_offset "
+                 "(A), current_gain (relative), thermal (lumped thermal model with Arrhenius properties; VALUE = "
+                 "heat-transfer coefficient to ambient in W/K, e.g. 0.05 for an 18650 in still air), none");
   sub.add_option("--v-min", o.v_min, "Lower voltage limit (V); default: the cell's");
   sub.add_option("--v-max", o.v_max, "Upper voltage limit (V); default: the cell's");
   sub.add_option("--cv-end-current-a", o.cv_end_current_a, "CV phases end below this current (A)")->capture_default_str();
@@ -87,6 +89,7 @@ SimulateRun run_simulation(const SimulateOptions& o, const ProgressFn& progress)
     } catch (const std::exception&) {
       throw InputError("--effect '" + e + "': VALUE must be a number");
     }
+    if (!std::isfinite(value)) throw InputError("--effect '" + e + "': VALUE must be a finite number");
     if (name == "contact_resistance") {
       if (value < 0.0) throw InputError("--effect contact_resistance: must be >= 0 ohm");
       cfg.effects.contact_resistance_ohm = value;
@@ -95,8 +98,13 @@ SimulateRun run_simulation(const SimulateOptions& o, const ProgressFn& progress)
     } else if (name == "current_gain") {
       if (std::abs(value) >= 0.5) throw InputError("--effect current_gain: must be within +-0.5");
       meas.current_gain = value;
-    } else if (name == "hysteresis" || name == "thermal") {
-      throw InputError("--effect " + name + ": not implemented in the truth model yet (issue 7)");
+    } else if (name == "hysteresis") {
+      if (!(value >= 0.0 && value <= 0.5))
+        throw InputError("--effect hysteresis: must be in [0, 0.5] V (half the gap between the branches)");
+      cfg.effects.hysteresis_v = value;
+    } else if (name == "thermal") {
+      if (!(value > 0.0)) throw InputError("--effect thermal: heat-transfer coefficient must be > 0 W/K");
+      cfg.effects.thermal_h_w_per_k = value;
     } else if (name != "none") {
       throw InputError("--effect '" + name +
                        "': unknown; use contact_resistance, hysteresis, current_offset, current_gain, thermal or none");

@@ -173,6 +173,10 @@ expect_bad unknown_cell          "w:nosuchcell"         -- --cell nosuchcell --p
 expect_bad unknown_effect        "w:foo"                -- --cell paper --protocol cccv --effect foo=1
 expect_bad malformed_effect      "w:contact_resistance" -- --cell paper --protocol cccv --effect contact_resistance
 expect_bad negative_dt           "w:dt"                 -- --cell paper --protocol cccv --dt -1
+expect_bad negative_hysteresis   "w:hysteresis"         -- --cell paper --protocol cccv --effect hysteresis=-0.01
+expect_bad huge_hysteresis       "w:hysteresis"         -- --cell paper --protocol cccv --effect hysteresis=2
+expect_bad zero_thermal          "w:thermal"            -- --cell paper --protocol cccv --effect thermal=0
+expect_bad nan_thermal           "w:thermal"            -- --cell paper --protocol cccv --effect thermal=nan
 expect_bad unknown_option        "w:frobnicate"         -- --cell paper --protocol cccv --frobnicate
 
 MISSING_CSV="$WORK/no/such/dir/nonexistent.csv"

@@ -71,6 +71,14 @@ CellParameters make_paper_cell() {
   c.thermal.ambient_temperature_k = pc::kTemperature_k;
   c.thermal.initial_temperature_k = pc::kTemperature_k;
   c.thermal.reference_temperature_k = pc::kTemperature_k;
+  // Forman et al. give no thermal data. For the thermal effect: an A123 26650 cell, 76 g
+  // (datasheet mass) in 26 mm x 65 mm (3.45e-5 m3), with 1100 J/(kg K), a typical lumped
+  // heat capacity of LFP cells: about 84 J/K. No activation energies or entropic data: the
+  // paper cell's properties do not depend on temperature (docs/results/measured-effects.md).
+  c.thermal.volume_m3 = 3.45e-5;
+  c.thermal.density_kg_m3 = 0.076 / 3.45e-5;
+  c.thermal.specific_heat_j_kg_k = 1100.0;
+  c.thermal.external_area_m2 = 2.0 * 3.14159265 * 0.013 * 0.065 + 2.0 * 3.14159265 * 0.013 * 0.013;
   return c;
 }
 

@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <stdexcept>
+#include <string>
+
+#include "io/input_error.hpp"
 
 namespace bms {
 namespace {
@@ -43,15 +46,45 @@ using fw::sqrt;
 
 }  // namespace
 
-DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double temperature_k)
-    : cell_(cell), mesh_(mesh), temperature_k_(temperature_k) {
+DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double temperature_k,
+                   const ModelEffects& effects)
+    : cell_(cell), mesh_(mesh), temperature_k_(temperature_k), effects_(effects) {
   if (mesh.n_neg < 2 || mesh.n_sep < 1 || mesh.n_pos < 2 || mesh.n_r < 3)
     throw std::invalid_argument("DfnMesh: need at least 2 cells per electrode, 1 in the separator, 3 radial");
+  const auto bad = [](const std::string& what) { throw InputError("effect " + what); };
+  if (!(std::isfinite(effects.contact_resistance_ohm) && effects.contact_resistance_ohm >= 0.0))
+    bad("contact_resistance: must be a finite value >= 0 ohm");
+  if (!(std::isfinite(effects.hysteresis_v) && effects.hysteresis_v >= 0.0 && effects.hysteresis_v <= 0.5))
+    bad("hysteresis: must be in [0, 0.5] V (half the gap between the branches)");
+  if (!(std::isfinite(effects.hysteresis_rate_per_soc) && effects.hysteresis_rate_per_soc > 0.0))
+    bad("hysteresis rate: must be > 0 per unit of state of charge");
+  if (!(std::abs(effects.hysteresis_initial_branch) <= 1.0)) bad("hysteresis initial branch: must be in [-1, 1]");
+  if (!(std::isfinite(effects.thermal_h_w_per_k) && effects.thermal_h_w_per_k >= 0.0))
+    bad("thermal: heat-transfer coefficient must be a finite value >= 0 W/K");
+  if (!(temperature_k > 150.0 && temperature_k < 500.0))
+    bad("temperature " + std::to_string(temperature_k) + " K: outside 150-500 K");
+  if (effects.hysteresis_on() && !(cell.nominal_capacity_ah > 0.0))
+    bad("hysteresis: cell '" + cell.name + "' has no nominal capacity to scale the rate");
+  if (effects.thermal_on()) {
+    const auto& th = cell.thermal;
+    heat_capacity_j_k_ = th.specific_heat_j_kg_k * th.density_kg_m3 * th.volume_m3;
+    if (!(heat_capacity_j_k_ > 0.0))
+      bad("thermal: cell '" + cell.name + "' has no heat capacity (BPX Cell: 'Specific heat capacity [J.K-1.kg-1]', "
+          "'Density [kg.m-3]', 'Volume [m3]')");
+  }
+  temperature_dependent_ = effects.thermal_on() || temperature_k != cell.thermal.reference_temperature_k;
   f_rt_ = kFaraday_c_mol / (kGas_j_mol_k * temperature_k_);
   nx_ = mesh.n_neg + mesh.n_sep + mesh.n_pos;
   ne_ = mesh.n_neg + mesh.n_pos;
   cs_end_ = 2 * nx_ + ne_ * mesh.n_r;
   n_ = cs_end_ + 2 * ne_ + 3;
+  // Effect states go after the plain model's, so its layout does not depend on them.
+  if (effects.hysteresis_on()) idx_hyst_ = n_++;
+  if (effects.thermal_on()) {
+    idx_heat0_ = n_;
+    n_ += nx_;
+    idx_temp_ = n_++;
+  }
 
   dx_.resize(nx_);
   eps_.resize(nx_);
@@ -117,6 +150,29 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
   atol_scale_[idx_film()] = std::max(cell.side.initial_film_resistance_ohm_m2, 1e-3);
   mass_[idx_charge()] = 1.0;
   atol_scale_[idx_charge()] = std::max(cell.nominal_capacity_ah, 1.0);
+  if (idx_hyst_ >= 0) {
+    mass_[idx_hyst_] = 1.0;
+    atol_scale_[idx_hyst_] = 1e-2;  // resolves 0.1 uV at atol 1e-8 (V scale of the gap)
+  }
+  if (idx_temp_ >= 0) {
+    mass_[idx_temp_] = heat_capacity_j_k_;  // the row is C dT/dt = Q - h (T - T_amb), in W
+    atol_scale_[idx_temp_] = temperature_k_;
+    // The heat sums are small differences of large products (reaction current x potentials
+    // of 3 V), so their Newton residue is far above 1e-8 W/m2: a tolerance that tight makes
+    // the consistent initialisation fail. They only feed the temperature; 1e-2 W/m2 (1e-3 of
+    // the heat at 1C) moves the end temperature of a 2C discharge by 10 uK against 1e-3 W/m2.
+    for (int k = 0; k < nx_; ++k) atol_scale_[idx_heat_sum(k)] = 1e6;
+  }
+}
+
+double DfnModel::arrhenius(double activation_j_mol, double temperature_k) const {
+  return std::exp(activation_j_mol / kGas_j_mol_k *
+                  (1.0 / cell_.thermal.reference_temperature_k - 1.0 / temperature_k));
+}
+
+template <typename T>
+T DfnModel::arrhenius(double activation_j_mol, const T& temperature_k) const {
+  return exp(T(activation_j_mol / kGas_j_mol_k) * (T(1.0 / cell_.thermal.reference_temperature_k) - 1.0 / temperature_k));
 }
 
 std::vector<double> DfnModel::initial_state(double stoich_neg, double stoich_pos, double ce,
@@ -139,6 +195,8 @@ std::vector<double> DfnModel::initial_state(double stoich_neg, double stoich_pos
   y[idx_current()] = 0.0;
   y[idx_film()] = r_film;
   y[idx_charge()] = 0.0;
+  if (idx_hyst_ >= 0) y[idx_hyst_] = effects_.hysteresis_initial_branch * effects_.hysteresis_v;
+  if (idx_temp_ >= 0) y[idx_temp_] = temperature_k_;  // starts at ambient; heat sums are algebraic
   return y;
 }
 
@@ -162,42 +220,76 @@ double DfnModel::film_growth_factor() const {
 }
 
 template <typename T>
-T DfnModel::side_current(const T& phis, const T& phie, const T& j, const T& r) const {
+T DfnModel::side_current(const T& phis, const T& phie, const T& j, const T& r, const T& minus_alpha_f) const {
   const auto& s = cell_.side;
   const T eta_s = phis - phie - s.reference_potential_v - j * r;
-  return -s.exchange_current_a_m2 * exp(clamp_between(T(-s.transfer_coefficient * f_rt_) * eta_s, -60.0, 60.0));
+  return -s.exchange_current_a_m2 * exp(clamp_between(minus_alpha_f * eta_s, -60.0, 60.0));
 }
 
 template <typename T>
-void DfnModel::eval_g(double t, const T* y, T* g) const {
+void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
   const int nn = mesh_.n_neg, ns = mesh_.n_sep, nr = mesh_.n_r;
   const double area = cell_.electrode_area_m2;
   const double tplus = cell_.electrolyte.transference_number;
-  const double nu = 2.0 * (1.0 - tplus) / f_rt_;  // diffusion-potential coefficient (V), TDF = 1
   const T current = y[idx_current()];
   const T i_app = current / area;  // A/m2, positive = discharge
   const T r_film = y[idx_film()];
   const bool side_on = cell_.side.enabled;
+  // Temperature terms are evaluated only when they can differ from the reference; otherwise
+  // every expression below is the isothermal model's own (bit-for-bit the same residual).
+  const bool temp_dep = temperature_dependent_;
+  const bool thermal = idx_temp_ >= 0;
+  const bool want_heat = thermal || heat != nullptr;
+  const T temp = thermal ? y[idx_temp_] : T(temperature_k_);
+  const T f_rt = temp_dep ? T(kFaraday_c_mol / kGas_j_mol_k) / temp : T(f_rt_);
+  const T nu = temp_dep ? T(2.0 * (1.0 - tplus)) / f_rt : T(2.0 * (1.0 - tplus) / f_rt_);  // V, TDF = 1
+  const T half_f = temp_dep ? T(0.5) * f_rt : T(0.5 * f_rt_);
+  const T minus_alpha_f_side =
+      temp_dep ? T(-cell_.side.transfer_coefficient) * f_rt : T(-cell_.side.transfer_coefficient * f_rt_);
+  const auto& el = cell_.electrolyte;
+  T arr_de = T(1.0), arr_ke = T(1.0);
+  if (temp_dep) {
+    arr_de = arrhenius(el.diffusivity_activation_j_mol, temp);
+    arr_ke = arrhenius(el.conductivity_activation_j_mol, temp);
+  }
+  const auto d_eff = [&](const T& ce, int k) {
+    const T d = apply(*el.diffusivity_m2_s, ce) * te_[k];
+    return temp_dep ? d * arr_de : d;
+  };
+  const auto kappa_eff = [&](const T& ce, int k) {
+    const T kap = apply(*el.conductivity_s_m, ce) * te_[k];
+    return temp_dep ? kap * arr_ke : kap;
+  };
+  // Heat rows: running sum S_k = S_(k-1) + q_k, with q_k subtracted below as it is found.
+  if (thermal)
+    for (int k = 0; k < nx_; ++k) g[idx_heat_sum(k)] = y[idx_heat_sum(k)] - (k > 0 ? y[idx_heat_sum(k - 1)] : T(0.0));
+  T q_joule = T(0.0), q_reaction = T(0.0), q_reversible = T(0.0), p_chemical = T(0.0);  // W/m2
+  const auto add_heat = [&](int k, const T& q, T& total) {
+    if (thermal) g[idx_heat_sum(k)] = g[idx_heat_sum(k)] - q;
+    if (heat) total = total + q;
+  };
 
   // Electrolyte: concentration flux and ionic current on the internal faces.
   T flux_left = T(0.0), ie_left = T(0.0);
   T ce_k = clamp_above(y[idx_ce(0)], 1e-3);
-  T d_k = apply(*cell_.electrolyte.diffusivity_m2_s, ce_k) * te_[0];
-  T kap_k = apply(*cell_.electrolyte.conductivity_s_m, ce_k) * te_[0];
+  T d_k = d_eff(ce_k, 0);
+  T kap_k = kappa_eff(ce_k, 0);
   T psi_k = y[idx_phie(0)] - nu * log(ce_k);
   for (int k = 0; k < nx_; ++k) {
     T flux_right = T(0.0), ie_right = T(0.0);
     T ce_n{}, d_n{}, kap_n{}, psi_n{};
     if (k + 1 < nx_) {
       ce_n = clamp_above(y[idx_ce(k + 1)], 1e-3);
-      d_n = apply(*cell_.electrolyte.diffusivity_m2_s, ce_n) * te_[k + 1];
-      kap_n = apply(*cell_.electrolyte.conductivity_s_m, ce_n) * te_[k + 1];
+      d_n = d_eff(ce_n, k + 1);
+      kap_n = kappa_eff(ce_n, k + 1);
       psi_n = y[idx_phie(k + 1)] - nu * log(ce_n);
       // Series resistance of the two half cells: exact at region interfaces.
       const T rd = dx_[k] / (2.0 * d_k) + dx_[k + 1] / (2.0 * d_n);
       const T rk = dx_[k] / (2.0 * kap_k) + dx_[k + 1] / (2.0 * kap_n);
       flux_right = (y[idx_ce(k + 1)] - y[idx_ce(k)]) / rd;
       ie_right = -(psi_n - psi_k) / rk;
+      // Ohmic heat of the ionic current, -i_e grad(phi_e), including the diffusion potential.
+      if (want_heat) add_heat(k, ie_right * (y[idx_phie(k)] - y[idx_phie(k + 1)]), q_joule);
     }
     T source = T(0.0);  // volumetric reaction current J (A/m3) times dx
     if (a_[k] > 0.0) {
@@ -227,44 +319,63 @@ void DfnModel::eval_g(double t, const T* y, T* g) const {
     const T is_right = e == last ? (neg ? T(0.0) : i_app) : -sigma * (y[idx_phis(e + 1)] - y[idx_phis(e)]) / h;
     const T j = y[idx_j(e)];
     g[idx_phis(e)] = is_right - is_left + a_[k] * j * h;
+    if (want_heat && e != last) add_heat(k, is_right * (y[idx_phis(e)] - y[idx_phis(e + 1)]), q_joule);
 
     // Particle: finite volumes in r; molar flux out of the surface from the intercalation part.
     const int side = neg ? 0 : 1;
     const double ds = p.solid_diffusivity_m2_s;
+    const T arr_ds = temp_dep ? arrhenius(p.diffusivity_activation_j_mol, temp) : T(1.0);
     const T phis = y[idx_phis(e)], phie = y[idx_phie(k)];
     T js = T(0.0);
-    if (neg && side_on) js = side_current(phis, phie, j, r_film);
+    if (neg && side_on) js = side_current(phis, phie, j, r_film, minus_alpha_f_side);
     const T flux_out = (j - js) / kFaraday_c_mol;
     for (int r = 0; r < nr; ++r) {
       const T c = y[idx_cs(e, r)];
-      const T in_right = r + 1 < nr ? face_r2_[side * (nr + 1) + r + 1] * ds * (y[idx_cs(e, r + 1)] - c) /
-                                          center_dist_[side * (nr - 1) + r]
-                                    : -face_r2_[side * (nr + 1) + nr] * flux_out;
-      const T in_left = r > 0 ? face_r2_[side * (nr + 1) + r] * ds * (c - y[idx_cs(e, r - 1)]) /
-                                    center_dist_[side * (nr - 1) + r - 1]
-                              : T(0.0);
+      T in_right = r + 1 < nr ? face_r2_[side * (nr + 1) + r + 1] * ds * (y[idx_cs(e, r + 1)] - c) /
+                                    center_dist_[side * (nr - 1) + r]
+                              : -face_r2_[side * (nr + 1) + nr] * flux_out;
+      T in_left = r > 0 ? face_r2_[side * (nr + 1) + r] * ds * (c - y[idx_cs(e, r - 1)]) /
+                              center_dist_[side * (nr - 1) + r - 1]
+                        : T(0.0);
+      if (temp_dep) {  // diffusive faces only: the surface flux is set by the reaction
+        if (r + 1 < nr) in_right = in_right * arr_ds;
+        if (r > 0) in_left = in_left * arr_ds;
+      }
       g[idx_cs(e, r)] = in_right - in_left;
     }
     const double cmax = p.max_concentration_mol_m3;
-    const T c_surf = clamp_between(y[idx_cs(e, nr - 1)] - surface_half_[side] * flux_out / ds, 1e-6 * cmax, (1.0 - 1e-6) * cmax);
+    const T surface_drop = temp_dep ? surface_half_[side] * flux_out / (ds * arr_ds) : surface_half_[side] * flux_out / ds;
+    const T c_surf = clamp_between(y[idx_cs(e, nr - 1)] - surface_drop, 1e-6 * cmax, (1.0 - 1e-6) * cmax);
     const T ce = clamp_above(y[idx_ce(k)], 1e-3);
-    const T i0 = p.i0_coefficient * sqrt(ce * c_surf * (cmax - c_surf));
-    const T ocp = apply(*p.ocp_v, c_surf / cmax);
+    T i0 = p.i0_coefficient * sqrt(ce * c_surf * (cmax - c_surf));
+    if (temp_dep) i0 = i0 * arrhenius(p.rate_activation_j_mol, temp);
+    T ocp = apply(*p.ocp_v, c_surf / cmax);
+    T dudt = T(0.0);
+    if ((temp_dep || want_heat) && p.entropic_v_k) dudt = apply(*p.entropic_v_k, c_surf / cmax);
+    if (temp_dep && p.entropic_v_k) ocp = ocp + (temp - cell_.thermal.reference_temperature_k) * dudt;
     T eta = phis - phie - ocp;
     if (neg) eta = eta - j * r_film;
     // Saturating the exponent keeps wild Newton trial states (consistent initialisation after
     // a large current step) finite; converged states are far inside the limit.
-    g[idx_j(e)] = j - (2.0 * i0 * sinh(clamp_between(T(0.5 * f_rt_) * eta, -60.0, 60.0)) + js);
+    g[idx_j(e)] = j - (2.0 * i0 * sinh(clamp_between(half_f * eta, -60.0, 60.0)) + js);
     if (neg) js_weighted_sum = js_weighted_sum + js * h;
+    if (want_heat) {
+      // Irreversible: the whole drop phi_s - phi_e - U (kinetics and film); reversible: j T dU/dT.
+      const T ajh = a_[k] * h * j;
+      add_heat(k, ajh * (phis - phie - ocp), q_reaction);
+      if (p.entropic_v_k) add_heat(k, ajh * temp * dudt, q_reversible);
+      if (heat) p_chemical = p_chemical - ajh * ocp;
+    }
   }
 
   // Ground: the negative current collector is at 0 V (replaces one redundant charge balance).
   const double h_n = dx_[0], h_p = dx_[nx_ - 1];
   g[idx_phie(0)] = y[idx_phis(0)] + i_app * (0.5 * h_n / cell_.negative.conductivity_eff_s_m);
 
-  const T v_terminal = y[idx_phis(ne_ - 1)] - i_app * (0.5 * h_p / cell_.positive.conductivity_eff_s_m) -
-                       y[idx_phis(0)] - i_app * (0.5 * h_n / cell_.negative.conductivity_eff_s_m) -
-                       effects_.contact_resistance_ohm * current;
+  T v_terminal = y[idx_phis(ne_ - 1)] - i_app * (0.5 * h_p / cell_.positive.conductivity_eff_s_m) -
+                 y[idx_phis(0)] - i_app * (0.5 * h_n / cell_.negative.conductivity_eff_s_m) -
+                 effects_.contact_resistance_ohm * current;
+  if (idx_hyst_ >= 0) v_terminal = v_terminal + y[idx_hyst_];
   switch (control_.kind) {
     case ControlKind::current:
     case ControlKind::profile:
@@ -277,41 +388,83 @@ void DfnModel::eval_g(double t, const T* y, T* g) const {
   const T mean_js = js_weighted_sum / cell_.negative.thickness_m;
   g[idx_film()] = film_frozen_ || !side_on ? T(0.0) : -film_growth_factor() * mean_js;
   g[idx_charge()] = current / 3600.0;
+
+  if (idx_hyst_ >= 0) {
+    // dh/dt = -(kappa |I| / Q) (h + H sign(I)): h follows the charge moved, not the time.
+    const T abs_i = fw::value_of(current) < 0.0 ? -current : current;
+    const double rate = effects_.hysteresis_rate_per_soc / (3600.0 * cell_.nominal_capacity_ah);
+    g[idx_hyst_] = -rate * (effects_.hysteresis_v * current + abs_i * y[idx_hyst_]);
+  }
+  if (want_heat) {
+    const double r_collector = 0.5 * h_n / cell_.negative.conductivity_eff_s_m +
+                               0.5 * h_p / cell_.positive.conductivity_eff_s_m;  // ohm m2
+    const T q_lumped = area * r_collector * i_app * i_app + effects_.contact_resistance_ohm * current * current;  // W
+    const T q_hyst = idx_hyst_ >= 0 ? -current * y[idx_hyst_] : T(0.0);
+    if (thermal)
+      g[idx_temp_] = area * y[idx_heat_sum(nx_ - 1)] + q_lumped + q_hyst -
+                     effects_.thermal_h_w_per_k * (temp - temperature_k_);
+    if constexpr (std::is_same_v<T, double>) {
+      if (heat) {
+        heat->joule_w = area * q_joule + q_lumped;
+        heat->reaction_w = area * q_reaction;
+        heat->reversible_w = area * q_reversible;
+        heat->hysteresis_w = q_hyst;
+        heat->chemical_power_w = area * p_chemical;
+        heat->electrical_power_w = current * v_terminal;
+      }
+    }
+  }
 }
 
 double DfnModel::terminal_voltage_v(const double* y) const {
   const double i_app = y[idx_current()] / cell_.electrode_area_m2;
-  return y[idx_phis(ne_ - 1)] - i_app * (0.5 * dx_[nx_ - 1] / cell_.positive.conductivity_eff_s_m) -
-         y[idx_phis(0)] - i_app * (0.5 * dx_[0] / cell_.negative.conductivity_eff_s_m) -
-         effects_.contact_resistance_ohm * y[idx_current()];
+  const double v = y[idx_phis(ne_ - 1)] - i_app * (0.5 * dx_[nx_ - 1] / cell_.positive.conductivity_eff_s_m) -
+                   y[idx_phis(0)] - i_app * (0.5 * dx_[0] / cell_.negative.conductivity_eff_s_m) -
+                   effects_.contact_resistance_ohm * y[idx_current()];
+  return idx_hyst_ >= 0 ? v + y[idx_hyst_] : v;
+}
+
+HeatRates DfnModel::heat_rates(const double* y) const {
+  std::vector<double> g(static_cast<size_t>(n_));
+  HeatRates h;
+  eval_g(0.0, y, g.data(), &h);
+  return h;
 }
 
 double DfnModel::mean_side_current_a_m2(const double* y) const {
   if (!cell_.side.enabled) return 0.0;
+  const double minus_alpha_f = -cell_.side.transfer_coefficient *
+                               (temperature_dependent_ ? kFaraday_c_mol / kGas_j_mol_k / temperature_k(y) : f_rt_);
   double sum = 0.0;
   for (int e = 0; e < mesh_.n_neg; ++e)
-    sum += side_current(y[idx_phis(e)], y[idx_phie(e)], y[idx_j(e)], y[idx_film()]) * dx_[e];
+    sum += side_current(y[idx_phis(e)], y[idx_phie(e)], y[idx_j(e)], y[idx_film()], minus_alpha_f) * dx_[e];
   return sum / cell_.negative.thickness_m;
 }
 
 void DfnModel::film_row_jacobian(const double* y, std::vector<std::pair<int, double>>& out) const {
   out.clear();
   const double r = y[idx_film()];
-  const double alpha_f = cell_.side.transfer_coefficient * f_rt_;
+  const double f_rt = temperature_dependent_ ? kFaraday_c_mol / kGas_j_mol_k / temperature_k(y) : f_rt_;
+  const double alpha_f = cell_.side.transfer_coefficient * f_rt;
   const double scale = film_frozen_ || !cell_.side.enabled ? 0.0 : -film_growth_factor() / cell_.negative.thickness_m;
-  double d_r = 0.0;
+  double d_r = 0.0, d_temp = 0.0;
   for (int e = 0; e < mesh_.n_neg; ++e) {
     const double j = y[idx_j(e)];
-    const double js = side_current(y[idx_phis(e)], y[idx_phie(e)], j, r);
-    const double arg = -alpha_f * (y[idx_phis(e)] - y[idx_phie(e)] - cell_.side.reference_potential_v - j * r);
+    const double js = side_current(y[idx_phis(e)], y[idx_phie(e)], j, r, -alpha_f);
+    const double eta_s = y[idx_phis(e)] - y[idx_phie(e)] - cell_.side.reference_potential_v - j * r;
+    const double arg = -alpha_f * eta_s;
     const bool saturated = arg <= -60.0 || arg >= 60.0;  // as in side_current()
     const double w = saturated ? 0.0 : scale * dx_[e] * (-alpha_f) * js;  // d js / d eta_s = -alpha f js
     out.emplace_back(idx_phis(e), w);
     out.emplace_back(idx_phie(e), -w);
     out.emplace_back(idx_j(e), -w * r);
     d_r += -w * j;
+    // f = F / (R T): d(arg)/dT = -arg / T.
+    if (idx_temp_ >= 0 && !saturated) d_temp += scale * dx_[e] * js * (-arg / temperature_k(y));
   }
   out.emplace_back(idx_film(), d_r);
+  // The temperature column is dense in the pattern, so the film row's entry must be written.
+  if (idx_temp_ >= 0) out.emplace_back(idx_temp_, d_temp);
 }
 
 double DfnModel::lithium_inventory_mol(const double* y) const {
@@ -356,7 +509,7 @@ double DfnModel::lithium_loss_mol(double r_film, double r_film_start) const {
   return (r_film - r_film_start) * per_r;
 }
 
-template void DfnModel::eval_g<double>(double, const double*, double*) const;
-template void DfnModel::eval_g<fw::Dual<double>>(double, const fw::Dual<double>*, fw::Dual<double>*) const;
+template void DfnModel::eval_g<double>(double, const double*, double*, HeatRates*) const;
+template void DfnModel::eval_g<fw::Dual<double>>(double, const fw::Dual<double>*, fw::Dual<double>*, HeatRates*) const;
 
 }  // namespace bms

@@ -33,14 +33,45 @@ struct Control {
   const std::vector<double>* profile_current_a = nullptr;
 };
 
-// Effects the plain DFN lacks, switchable in the truth model (issue 7 adds the rest).
+// Effects the plain DFN lacks, switchable in the truth model. Zero everywhere = the plain
+// isothermal DFN, bit for bit (no extra states are allocated).
 struct ModelEffects {
-  double contact_resistance_ohm = 0.0;
+  double contact_resistance_ohm = 0.0;  // V = phi+ - phi- - R_c I
+  // One-state OCV hysteresis (Plett 2004): h relaxes towards -H sign(I) at a rate proportional
+  // to |I|, so it depends on the charge moved, not on time, and survives at low current.
+  // V gains +h: h = +H on the charge branch, -H on the discharge branch.
+  double hysteresis_v = 0.0;  // H, half the gap between the branches (0 = off)
+  // Fraction of the remaining gap closed per unit of state of charge (1/capacity): 50 closes
+  // 90 % of a branch change within ln(10)/50 = 4.6 % SOC (docs/results/measured-effects.md).
+  double hysteresis_rate_per_soc = 50.0;
+  // Initial h in units of H: +1 = on the charge branch (the cell was just charged, the
+  // usual start of a discharge from full), -1 = discharge branch, 0 = between.
+  double hysteresis_initial_branch = 1.0;
+  // Lumped thermal model: one cell temperature, heat capacity from the cell parameters,
+  // Joule + reaction + entropic heat, loss h (T - T_ambient). 0 = isothermal.
+  double thermal_h_w_per_k = 0.0;
+
+  bool hysteresis_on() const { return hysteresis_v > 0.0; }
+  bool thermal_on() const { return thermal_h_w_per_k > 0.0; }
+};
+
+// Heat sources of one state (W, whole cell). joule: electrolyte and solid ohmic heat,
+// current-collector half cells and contact resistance; reaction: j (phi_s - phi_e - U) summed
+// over the electrodes (kinetic overpotential and film drop); reversible: j T dU/dT;
+// hysteresis: -I h (the energy lost around a hysteresis loop).
+struct HeatRates {
+  double joule_w = 0.0, reaction_w = 0.0, reversible_w = 0.0, hysteresis_w = 0.0;
+  double total_w() const { return joule_w + reaction_w + reversible_w + hysteresis_w; }
+  double chemical_power_w = 0.0;  // sum of j U over the electrodes: what the cell's reactions deliver
+  double electrical_power_w = 0.0;  // I V at the terminals
 };
 
 class DfnModel {
  public:
-  DfnModel(const CellParameters& cell, const DfnMesh& mesh, double temperature_k);
+  // temperature_k: the cell's temperature when isothermal; with the thermal effect, the
+  // ambient and initial temperature. Effects that add states are fixed at construction.
+  DfnModel(const CellParameters& cell, const DfnMesh& mesh, double temperature_k,
+           const ModelEffects& effects = {});
 
   const CellParameters& cell() const { return cell_; }
   const DfnMesh& mesh() const { return mesh_; }
@@ -57,15 +88,22 @@ class DfnModel {
   int idx_current() const { return cs_end_ + 2 * ne_; }
   int idx_film() const { return cs_end_ + 2 * ne_ + 1; }
   int idx_charge() const { return cs_end_ + 2 * ne_ + 2; }
+  // Present only with the matching effect (-1 otherwise).
+  int idx_hysteresis() const { return idx_hyst_; }
+  int idx_temperature() const { return idx_temp_; }
+  // Running sum of the local heat over x cells 0..k (W/m2): keeps the temperature row sparse.
+  int idx_heat_sum(int k) const { return idx_heat0_ + k; }
   bool is_differential(int i) const { return mass_[i] != 0.0; }
   const std::vector<double>& mass() const { return mass_; }
   const std::vector<double>& abs_tolerance_scale() const { return atol_scale_; }
 
   void set_control(const Control& c) { control_ = c; }
   const Control& control() const { return control_; }
-  ModelEffects& effects() { return effects_; }
   const ModelEffects& effects() const { return effects_; }
+  // Changes the contact resistance (the one effect that adds no state).
+  void set_contact_resistance_ohm(double r) { effects_.contact_resistance_ohm = r; }
   bool side_reaction_enabled() const { return cell_.side.enabled; }
+  bool temperature_dependent() const { return temperature_dependent_; }
   void set_side_reaction_enabled(bool on) { cell_.side.enabled = on; }
   // When frozen, the film row becomes dR/dt = 0 (the film resistance is an input).
   void set_film_frozen(bool frozen) { film_frozen_ = frozen; }
@@ -74,13 +112,19 @@ class DfnModel {
   std::vector<double> initial_state(double stoich_neg, double stoich_pos, double ce_mol_m3,
                                     double r_film_ohm_m2) const;
 
+  // heat (doubles only): receives the heat sources of y, whether or not the thermal state exists.
   template <typename T>
-  void eval_g(double t, const T* y, T* g) const;
+  void eval_g(double t, const T* y, T* g, HeatRates* heat = nullptr) const;
 
   double current_setpoint_a(double t) const;
 
   // Derived outputs of a state.
   double terminal_voltage_v(const double* y) const;
+  double temperature_k(const double* y) const { return idx_temp_ >= 0 ? y[idx_temp_] : temperature_k_; }
+  double hysteresis_voltage_v(const double* y) const { return idx_hyst_ >= 0 ? y[idx_hyst_] : 0.0; }
+  // Heat sources recomputed from the state (the DAE carries the same sum in its heat rows).
+  HeatRates heat_rates(const double* y) const;
+  double heat_capacity_j_k() const { return heat_capacity_j_k_; }
   double mean_side_current_a_m2(const double* y) const;  // mean over the anode of j_s (A/m2)
   double lithium_inventory_mol(const double* y) const;   // solid + electrolyte
   double mean_stoich(const double* y, bool negative) const;
@@ -94,13 +138,21 @@ class DfnModel {
   double film_growth_factor() const;  // dR/dt = -factor * mean(j_s)
 
  private:
-  template <typename T> T side_current(const T& phis, const T& phie, const T& j, const T& r) const;
+  template <typename T>
+  T side_current(const T& phis, const T& phie, const T& j, const T& r, const T& minus_alpha_f) const;
+  double arrhenius(double activation_j_mol, double temperature_k) const;
+  template <typename T> T arrhenius(double activation_j_mol, const T& temperature_k) const;
 
   CellParameters cell_;
   DfnMesh mesh_;
   double temperature_k_;
   double f_rt_;
   int nx_, ne_, cs_end_, n_;
+  int idx_hyst_ = -1, idx_temp_ = -1, idx_heat0_ = -1;
+  // Off when isothermal at the reference temperature: then no temperature term is evaluated
+  // and the residual is the isothermal model's, bit for bit.
+  bool temperature_dependent_ = false;
+  double heat_capacity_j_k_ = 0.0;
   std::vector<double> dx_, eps_, te_, a_;  // per x cell (a_ = 0 in separator)
   std::vector<double> shell_vol_, face_r2_;  // per electrode (2 x n_r, n_r + 1)
   std::vector<double> center_dist_;          // per electrode, n_r - 1 distances between shell centres

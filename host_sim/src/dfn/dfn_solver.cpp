@@ -158,6 +158,10 @@ std::vector<std::vector<int>> detect_pattern_uncached(DfnModel& m, const std::ve
     for (int e = 0; e < m.n_electrode_nodes(); ++e) y[m.idx_j(e)] = 1e-3 * (1.0 + 0.1 * u(rng));
     y[m.idx_current()] = 1e-2 * (1.0 + 0.1 * u(rng));
     for (int i = 0; i < n; ++i) y[i] *= 1.0 + 1e-3 * u(rng);
+    // The heat rows multiply potential differences (i_s x grad phi_s), which vanish in a
+    // uniform initial state (phi_s = 0 across the anode) and would hide their columns.
+    if (m.idx_temperature() >= 0)
+      for (int i = 0; i < n; ++i) y[i] += 1e-6 * u(rng);
     for (int col = 0; col < n; ++col) {
       for (int i = 0; i < n; ++i) yd[i] = Dual<double>{y[i], i == col ? 1.0 : 0.0};
       m.eval_g(0.0, yd.data(), gd.data());
@@ -170,6 +174,11 @@ std::vector<std::vector<int>> detect_pattern_uncached(DfnModel& m, const std::ve
   // The film row is always structurally coupled to every anode potential and reaction current.
   for (int e = 0; e < m.mesh().n_neg; ++e)
     for (int col : {m.idx_phis(e), m.idx_phie(e), m.idx_j(e)}) cols[col].push_back(m.film_row());
+  // Temperature reaches every row through F/RT and the Arrhenius factors; a cell with a zero
+  // activation energy or no entropic data would hide some of them from the probe, and the
+  // pattern is shared between cells, so the column is taken as dense.
+  if (m.idx_temperature() >= 0)
+    for (int row = 0; row < n; ++row) cols[m.idx_temperature()].push_back(row);
   for (auto& c : cols) {
     std::sort(c.begin(), c.end());
     c.erase(std::unique(c.begin(), c.end()), c.end());
@@ -182,9 +191,10 @@ std::vector<std::vector<int>> detect_pattern_uncached(DfnModel& m, const std::ve
 // in studies and benchmarks, pays for it once).
 std::vector<std::vector<int>> detect_pattern(DfnModel& m, const std::vector<double>& y0) {
   static std::mutex mutex;
-  static std::map<std::tuple<int, int, int, int, bool>, std::vector<std::vector<int>>> cache;
+  static std::map<std::tuple<int, int, int, int, bool, bool, bool, bool>, std::vector<std::vector<int>>> cache;
   const auto& mesh = m.mesh();
-  const auto key = std::make_tuple(mesh.n_neg, mesh.n_sep, mesh.n_pos, mesh.n_r, m.side_reaction_enabled());
+  const auto key = std::make_tuple(mesh.n_neg, mesh.n_sep, mesh.n_pos, mesh.n_r, m.side_reaction_enabled(),
+                                   m.idx_hysteresis() >= 0, m.idx_temperature() >= 0, m.temperature_dependent());
   {
     std::lock_guard<std::mutex> lock(mutex);
     if (auto it = cache.find(key); it != cache.end()) return it->second;

@@ -78,6 +78,13 @@ void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, con
   cfg.estimator.r_film_init_ohm_m2 =
       o.r_film_init_ohm_m2 >= 0.0 ? o.r_film_init_ohm_m2 : cell.side.initial_film_resistance_ohm_m2;
   cfg.markov_from_model = o.markov_from_model;
+  cfg.resync_at_cv_end = o.resync;
+  cfg.resync_current_a = o.resync_current_a;
+  cfg.nominal_inventory_mol = o.nominal_inventory_mol;
+  cfg.rcsi_warmup_s = o.warmup_s;
+  cfg.calibrate_bias = o.calibrate_bias;
+  cfg.reference_after_resyncs = o.resync ? o.reference_after_resyncs : 0u;
+  cfg.average_estimate = o.average_estimate;
   cfg.detector.v_max = cell.upper_voltage_v;
   cfg.detector.v_min = cell.lower_voltage_v;
   Core core(cfg, model);
@@ -126,13 +133,17 @@ void dispatch_nc(Model& model, const EstimateData& d, const EstimateOptions& o, 
 
 }  // namespace
 
-EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, const EstimateOptions& o,
+EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, const EstimateOptions& options,
                             const EstimateProgress& progress) {
+  EstimateOptions o = options;
   if (o.nc < 1 || o.nc > 8) throw InputError(fmt::format("--nc must be 1..8 (got {})", o.nc));
   if (!(o.p0 > 0.0) || !std::isfinite(o.p0)) throw InputError("--p0 must be a positive number");
   if (!(o.lambda > 0.0 && o.lambda <= 1.0)) throw InputError("--lambda must be in (0, 1]");
   if (!(o.eta >= 0.0) || !std::isfinite(o.eta)) throw InputError("--eta must be >= 0");
   if (!(o.h_v_per_ohm_m2 != 0.0) || !std::isfinite(o.h_v_per_ohm_m2)) throw InputError("--h must be nonzero");
+  if (!(o.warmup_s >= 0.0) || !std::isfinite(o.warmup_s)) throw InputError("--warmup must be >= 0 s");
+  if (!(o.resync_current_a > 0.0) || !std::isfinite(o.resync_current_a))
+    throw InputError("--resync-current must be a positive current in A");
   const double dt_s = uniform_step(d);
   const auto wall0 = std::chrono::steady_clock::now();
   EstimateResult res;
@@ -141,8 +152,12 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
       throw InputError("--model reduced is the firmware's model of the paper cell; use --cell paper or --model full");
     fw::ReducedCell<double> model;
     model.init(o.ic.stoich_neg, o.ic.stoich_pos, o.ic.electrolyte_mol_m3);
+    // The nominal inventory is the cell's design state, not the (possibly wrong) model start.
+    const InitialConditions nominal = default_initial_conditions(cell);
+    o.nominal_inventory_mol = fw::ReducedCell<double>::inventory_of(nominal.stoich_neg, nominal.stoich_pos);
     dispatch_nc(model, d, o, cell, dt_s, res, progress);
   } else if (o.model == "full") {
+    if (o.resync) throw InputError("--resync is a feature of the firmware model; use --model reduced");
     SolverSettings s;
     s.rtol = o.rtol;
     InitialConditions ic = o.ic;

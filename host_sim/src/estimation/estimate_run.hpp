@@ -35,6 +35,13 @@ struct EstimateOptions {
   bool markov_from_model = false;
   double r_film_init_ohm_m2 = -1.0;  // < 0: the cell's initial film resistance
   InitialConditions ic;              // of the model (not the truth)
+  bool resync = false;               // state re-synchronisation at the end of each CV phase
+  double resync_current_a = 0.25;
+  double nominal_inventory_mol = 0.0;  // set by run_estimate from the cell's nominal state
+  double warmup_s = 0.0;             // RCSI learns only after this long in each CC charge
+  bool calibrate_bias = false;       // first CC charge = reference charge at the initial film resistance
+  unsigned reference_after_resyncs = 1;  // with --resync: resyncs before the reference charge
+  bool average_estimate = false;     // report the mean of u_hat over each charge's learning window
   DfnMesh mesh;                      // full model only
   double rtol = 1e-6;                // full model only
 };

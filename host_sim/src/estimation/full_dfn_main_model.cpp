@@ -54,6 +54,10 @@ double FullDfnMainModel::li_loss_ah() const {
   return (inventory0_mol_ - model_.lithium_inventory_mol(solver_->y().data())) * kFaraday_c_mol / 3600.0;
 }
 
+double FullDfnMainModel::li_loss_mol() const {
+  return inventory0_mol_ - model_.lithium_inventory_mol(solver_->y().data());
+}
+
 FullDfnMainModel::State FullDfnMainModel::state() const { return {solver_->t(), solver_->y()}; }
 
 bool FullDfnMainModel::restore(const State& s) {

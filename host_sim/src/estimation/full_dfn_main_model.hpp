@@ -28,6 +28,9 @@ class FullDfnMainModel {
   fw::ModelTickResult<double> step_current(double current_a, double r_film_ohm_m2, double dt_s);
   fw::ModelTickResult<double> step_voltage(double voltage_v, double r_film_ohm_m2, double dt_s);
   double li_loss_ah() const;
+  double li_loss_mol() const;
+  // The state observer is a firmware-model feature; the paper's setting has none.
+  bool resync(double, double, double, double, double) { return false; }
   State state() const;
   bool restore(const State& s);
   const SolverStats& stats() const { return solver_->stats(); }

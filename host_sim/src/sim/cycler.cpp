@@ -30,8 +30,7 @@ namespace {
 
 class Recorder {
  public:
-  Recorder(const DfnModel& m, double r0, double temperature_k)
-      : m_(m), r0_(r0), temperature_k_(temperature_k) {}
+  Recorder(const DfnModel& m, double r0) : m_(m), r0_(r0) {}
 
   SampleRecord sample(double t, int cycle, Mode mode, const std::vector<double>& y) const {
     SampleRecord s{};
@@ -43,17 +42,19 @@ class Recorder {
     s.r_film_ohm_m2 = y[m_.idx_film()];
     s.j_s_a_m3 = m_.mean_side_current_a_m2(y.data()) * m_.cell().negative.surface_area_per_volume_m();
     s.li_loss_ah = m_.lithium_loss_mol(s.r_film_ohm_m2, r0_) * kFaraday_c_mol / 3600.0;
-    s.temperature_k = temperature_k_;
+    s.temperature_k = m_.temperature_k(y.data());
     s.charge_ah = y[m_.idx_charge()];
     s.inventory_mol = m_.lithium_inventory_mol(y.data());
     s.stoich_neg = m_.mean_stoich(y.data(), true);
     s.stoich_pos = m_.mean_stoich(y.data(), false);
+    s.hysteresis_v = m_.hysteresis_voltage_v(y.data());
+    if (m_.effects().thermal_on()) s.heat_w = m_.heat_rates(y.data()).total_w();
     return s;
   }
 
  private:
   const DfnModel& m_;
-  double r0_, temperature_k_;
+  double r0_;
 };
 
 std::vector<double> initial_state_of(const DfnModel& model, const SimulationConfig& cfg) {
@@ -70,13 +71,12 @@ SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& proto
   if (!(protocol.current_a > 0.0)) throw InputError("--current-a must be positive (a magnitude)");
   if (!(cfg.dt_s > 0.0)) throw InputError("--dt must be positive");
   const auto wall0 = std::chrono::steady_clock::now();
-  DfnModel model(cfg.cell, cfg.mesh, cfg.temperature_k);
-  model.effects() = cfg.effects;
+  DfnModel model(cfg.cell, cfg.mesh, cfg.temperature_k, cfg.effects);
   DfnSolver solver(model, cfg.solver);
   Control rest_control{ControlKind::current, 0.0};
   model.set_control(rest_control);
   solver.start(0.0, initial_state_of(model, cfg));
-  Recorder rec(model, cfg.ic.r_film_ohm_m2, cfg.temperature_k);
+  Recorder rec(model, cfg.ic.r_film_ohm_m2);
 
   SimulationResult out;
   long k = 0;  // output index: t = k * dt
@@ -153,8 +153,7 @@ SimulationResult run_current_profile(const SimulationConfig& cfg, const std::vec
                                      double v_stop_high, const ProgressFn& progress) {
   if (t_s.size() < 2 || t_s.size() != current_a.size()) throw InputError("current profile needs at least 2 samples");
   const auto wall0 = std::chrono::steady_clock::now();
-  DfnModel model(cfg.cell, cfg.mesh, cfg.temperature_k);
-  model.effects() = cfg.effects;
+  DfnModel model(cfg.cell, cfg.mesh, cfg.temperature_k, cfg.effects);
   DfnSolver solver(model, cfg.solver);
   // Time relative to the first sample; the profile interpolates linearly between samples and
   // treats a large change between two samples as a step (restart with consistent algebraic states).
@@ -216,7 +215,7 @@ SimulationResult run_current_profile(const SimulationConfig& cfg, const std::vec
   stop.min_surface_stoich = 1e-4;
   solver.start(0.0, initial_state_of(model, cfg));
   solver.switch_control(c, stop);
-  Recorder rec(model, cfg.ic.r_film_ohm_m2, cfg.temperature_k);
+  Recorder rec(model, cfg.ic.r_film_ohm_m2);
   SimulationResult out;
   auto mode_of = [](double i) {
     return i > 1e-6 ? Mode::cc_discharge : (i < -1e-6 ? Mode::cc_charge : Mode::rest);

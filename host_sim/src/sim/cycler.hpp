@@ -33,7 +33,7 @@ struct SimulationConfig {
   DfnMesh mesh;
   SolverSettings solver;
   double dt_s = 0.2;
-  double temperature_k = 298.15;
+  double temperature_k = 298.15;  // isothermal cell temperature; with the thermal effect, ambient and initial
   InitialConditions ic;
   ModelEffects effects;
 };
@@ -46,6 +46,8 @@ struct SampleRecord {
   double charge_ah;     // integral of current (discharge positive)
   double inventory_mol; // lithium in solid + electrolyte
   double stoich_neg, stoich_pos;  // electrode-average stoichiometries
+  double hysteresis_v;  // hysteresis state h (0 without the effect)
+  double heat_w;        // heat generated (thermal effect only, else 0)
 };
 
 struct CycleSummary {

@@ -49,6 +49,9 @@ enum class FwStatus : StatusWord {
   kModelInvalid = 1u << 13,
   // A saved state was rejected on restore (layout or content).
   kRestoreRejected = 1u << 14,
+  // The state re-synchronisation at the end of a CV phase found no admissible state; the
+  // model state was kept as it was.
+  kResyncFailed = 1u << 15,
 };
 
 inline constexpr StatusWord kTickRejectMask = (1u << 8) | (1u << 9) | (1u << 10);

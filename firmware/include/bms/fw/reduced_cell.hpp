@@ -183,11 +183,106 @@ class ReducedCell {
   }
 
   Scalar li_loss_ah() const { return s_.li_loss_mol * Scalar(kFaradayC_mol / 3600.0); }
+  Scalar li_loss_mol() const { return s_.li_loss_mol; }
   Scalar mean_stoich_neg() const { return mean_shell(s_.cs_neg_mol_m3, vol_n_, kNrN) / Scalar(Cell::kNeg.max_concentration_mol_m3); }
   Scalar mean_stoich_pos() const { return mean_shell(s_.cs_pos_mol_m3, vol_p_, kNrP) / Scalar(Cell::kPos.max_concentration_mol_m3); }
 
+  // Lithium held in both particles [mol]: the cyclable inventory.
+  Scalar solid_inventory_mol() const {
+    return mean_stoich_neg() * Scalar(solid_capacity_neg_mol()) + mean_stoich_pos() * Scalar(solid_capacity_pos_mol());
+  }
+  static Scalar inventory_of(Scalar stoich_neg, Scalar stoich_pos) {
+    return stoich_neg * Scalar(solid_capacity_neg_mol()) + stoich_pos * Scalar(solid_capacity_pos_mol());
+  }
+
+  // State re-synchronisation (an observer step beside RCSI, for the end of a CV phase, where
+  // the cell is close to equilibrium). Shifts every shell of each particle by one amount, so
+  // the model keeps its own concentration gradients, such that (1) the solid inventory equals
+  // `inventory_mol` and (2) the terminal voltage at the measured current equals the measured
+  // voltage; the electrolyte is scaled back to its initial mean (salt is conserved). The two
+  // shifts are tied by (1), which leaves one unknown; V rises monotonically with lithium moved
+  // into the anode, so a bracketed regula falsi (Illinois) with a fixed iteration cap solves
+  // (2). Returns false and leaves the state unchanged when no bracket exists.
+  bool resync(Scalar voltage_v, Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s, Scalar inventory_mol) {
+    if (!std::isfinite(voltage_v) || !std::isfinite(current_a) || !std::isfinite(inventory_mol)) return false;
+    // Only a voltage inside the cell's window is a state to synchronise to.
+    if (voltage_v < Scalar(Cell::kLowerVoltageV - 0.5) || voltage_v > Scalar(Cell::kUpperVoltageV + 0.5)) return false;
+    const State base = s_;
+    const Scalar cap_n = Scalar(solid_capacity_neg_mol()), cap_p = Scalar(solid_capacity_pos_mol());
+    const Scalar missing_mol = inventory_mol - solid_inventory_mol();
+    // Admissible anode shift (stoichiometry units): every shell of both particles stays inside (0, 1).
+    Scalar lo = Scalar(-1), hi = Scalar(1);
+    auto limit = [&](const Scalar* c, int n, double cmax, Scalar scale, Scalar offset) {
+      // shell stoich after the shift: c/cmax + offset + scale * dn, within [kMargin, 1 - kMargin]
+      for (int i = 0; i < n; ++i) {
+        const Scalar x = c[i] / Scalar(cmax) + offset;
+        const Scalar a = (Scalar(kResyncMargin) - x) / scale, b = (Scalar(1 - kResyncMargin) - x) / scale;
+        const Scalar mn = a < b ? a : b, mx = a < b ? b : a;
+        if (mn > lo) lo = mn;
+        if (mx < hi) hi = mx;
+      }
+    };
+    limit(base.cs_neg_mol_m3, kNrN, Cell::kNeg.max_concentration_mol_m3, Scalar(1), Scalar(0));
+    limit(base.cs_pos_mol_m3, kNrP, Cell::kPos.max_concentration_mol_m3, -cap_n / cap_p, missing_mol / cap_p);
+    if (!(lo < hi)) return false;
+    Scalar ce_mean = Scalar(0), ce_vol = Scalar(0);
+    for (int k = 0; k < kNx; ++k) {
+      ce_mean += s_.ce_mol_m3[k] * eps_[k] * dx_[k];
+      ce_vol += eps_[k] * dx_[k];
+    }
+    ce_mean /= ce_vol;
+    if (!(ce_mean > Scalar(0))) return false;
+    const Scalar ce_scale = Scalar(Cell::kElectrolyteInitMolM3) / ce_mean;
+    auto apply = [&](Scalar dn) {
+      s_ = base;
+      const Scalar dp = (missing_mol - cap_n * dn) / cap_p;
+      for (int i = 0; i < kNrN; ++i) s_.cs_neg_mol_m3[i] += dn * Scalar(Cell::kNeg.max_concentration_mol_m3);
+      for (int i = 0; i < kNrP; ++i) s_.cs_pos_mol_m3[i] += dp * Scalar(Cell::kPos.max_concentration_mol_m3);
+      for (int k = 0; k < kNx; ++k) s_.ce_mol_m3[k] *= ce_scale;
+    };
+    auto mismatch = [&](Scalar dn) {
+      apply(dn);
+      return peek_voltage(current_a, r_film_ohm_m2, dt_s) - voltage_v;
+    };
+    Scalar a = lo, b = hi, fa = mismatch(a), fb = mismatch(b);
+    if (!std::isfinite(fa) || !std::isfinite(fb) || fa > Scalar(0) || fb < Scalar(0)) {
+      s_ = base;
+      return false;
+    }
+    Scalar x = a;
+    int side = 0;
+    for (int it = 0; it < kResyncIterations; ++it) {
+      x = (a * fb - b * fa) / (fb - fa);
+      const Scalar fx = mismatch(x);
+      if (!std::isfinite(fx)) {
+        s_ = base;
+        return false;
+      }
+      if (std::fabs(fx) < Scalar(kResyncToleranceV)) break;
+      if (fx < Scalar(0)) {
+        a = x; fa = fx;
+        if (side == -1) fb /= Scalar(2);
+        side = -1;
+      } else {
+        b = x; fb = fx;
+        if (side == 1) fa /= Scalar(2);
+        side = 1;
+      }
+    }
+    apply(x);
+    if (!(std::fabs(peek_voltage(current_a, r_film_ohm_m2, dt_s) - voltage_v) < Scalar(kResyncAcceptV))) {
+      s_ = base;
+      return false;
+    }
+    return true;
+  }
+
   static constexpr double kVoltageToleranceV = 1e-9;
   static constexpr double kMaxNewtonStepA = 20.0;
+  static constexpr double kResyncMargin = 1e-3;
+  static constexpr double kResyncToleranceV = 1e-7;
+  static constexpr int kResyncIterations = 40;
+  static constexpr double kResyncAcceptV = 1e-4;  // float reaches about 1e-5 V here
 
  private:
   template <typename T>
@@ -204,6 +299,12 @@ class ReducedCell {
   static constexpr double f_rt() { return kFaradayC_mol / (kGasJ_molK * Cell::kTemperatureK); }
   static constexpr double a_neg() { return 3.0 * Cell::kNeg.solid_fraction / Cell::kNeg.particle_radius_m; }
   static constexpr double a_pos() { return 3.0 * Cell::kPos.solid_fraction / Cell::kPos.particle_radius_m; }
+  static constexpr double solid_capacity_neg_mol() {
+    return Cell::kNeg.max_concentration_mol_m3 * Cell::kNeg.solid_fraction * Cell::kNeg.thickness_m * Cell::kAreaM2;
+  }
+  static constexpr double solid_capacity_pos_mol() {
+    return Cell::kPos.max_concentration_mol_m3 * Cell::kPos.solid_fraction * Cell::kPos.thickness_m * Cell::kAreaM2;
+  }
 
   static Scalar mean_shell(const Scalar* c, const Scalar* vol, int n) {
     Scalar sum = Scalar(0), v = Scalar(0);

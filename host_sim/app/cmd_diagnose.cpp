@@ -1,0 +1,121 @@
+// bmssim diagnose: residual of the truth model against measured data, candidate effects
+// fitted and scored on held-out data, before/after report (contract: diagnose).
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "commands.hpp"
+#include "diagnosis/diagnose.hpp"
+#include "diagnosis/report.hpp"
+#include "io/input_error.hpp"
+#include "sim/cell_catalog.hpp"
+
+namespace bms::app {
+
+namespace {
+
+struct DiagnoseOptions {
+  std::vector<std::string> data;
+  std::string cell;
+  std::string out;
+  std::string candidates = "all";
+  int points = 20, radial = 20, search_points = 8, search_radial = 8;
+  double rtol = 1e-6;
+  int blocks = 8;
+  bool quiet = false;
+};
+
+std::vector<diagnosis::Effect> parse_candidates(const std::string& list) {
+  using diagnosis::Effect;
+  if (list == "all") return {std::begin(diagnosis::kAllCandidates), std::end(diagnosis::kAllCandidates)};
+  std::vector<Effect> out;
+  std::stringstream ss(list);
+  std::string name;
+  while (std::getline(ss, name, ',')) {
+    Effect e = Effect::none;
+    if (!diagnosis::parse_effect(name, e) || e == Effect::none)
+      throw InputError("--candidates: unknown effect '" + name +
+                       "'; use all or a comma-separated list of contact_resistance, hysteresis, current_offset, "
+                       "current_gain, thermal");
+    out.push_back(e);
+  }
+  if (out.empty()) throw InputError("--candidates: empty list");
+  return out;
+}
+
+std::string command_line(const DiagnoseOptions& o) {
+  std::string s = "bmssim diagnose";
+  for (const auto& d : o.data) s += " --data " + d;
+  s += " --cell " + o.cell;
+  if (o.candidates != "all") s += " --candidates " + o.candidates;
+  if (o.points != 20 || o.radial != 20) s += fmt::format(" --points {} --radial {}", o.points, o.radial);
+  if (o.search_points != 8 || o.search_radial != 8)
+    s += fmt::format(" --search-points {} --search-radial {}", o.search_points, o.search_radial);
+  if (o.rtol != 1e-6) s += fmt::format(" --rtol {}", o.rtol);
+  if (o.blocks != 8) s += fmt::format(" --blocks {}", o.blocks);
+  return s + " --out " + o.out;
+}
+
+}  // namespace
+
+Runner add_diagnose(CLI::App& app) {
+  auto* sub = app.add_subcommand(
+      "diagnose",
+      "Run the truth model on measured current, characterise the voltage residual, fit each candidate effect "
+      "(contact_resistance, hysteresis, current_offset, current_gain, thermal) on part of the data, score it on "
+      "the rest, choose one or none, and write the before/after report");
+  auto o = std::make_shared<DiagnoseOptions>();
+  sub->add_option("--data", o->data,
+                  "Measured record: About:Energy 'Time [s],I[A],U[V]' or truth.csv (its current_meas_a and "
+                  "voltage_meas_v; temperature_k when present). Repeatable: the first trains, the others validate")
+      ->required();
+  sub->add_option("--cell", o->cell, "paper | aboutenergy | FILE.bpx.json")->required();
+  sub->add_option("--out", o->out, "Output folder (summary.json, report.md, residual.csv, PNG plots)")->required();
+  sub->add_option("--candidates", o->candidates, "all, or a comma-separated subset of the candidate effects")
+      ->capture_default_str();
+  sub->add_option("--points", o->points, "Final mesh: finite volumes per region")->capture_default_str()->check(CLI::Range(2, 400));
+  sub->add_option("--radial", o->radial, "Final mesh: finite volumes per particle")->capture_default_str()->check(CLI::Range(3, 400));
+  sub->add_option("--search-points", o->search_points, "Search mesh (every fit evaluation is a full run)")
+      ->capture_default_str()->check(CLI::Range(2, 400));
+  sub->add_option("--search-radial", o->search_radial, "Search mesh: finite volumes per particle")
+      ->capture_default_str()->check(CLI::Range(3, 400));
+  sub->add_option("--rtol", o->rtol, "IDA relative tolerance")->capture_default_str();
+  sub->add_option("--blocks", o->blocks, "One record: split into this many blocks, alternately training and validation")
+      ->capture_default_str()->check(CLI::Range(2, 1000));
+  sub->add_flag("--quiet", o->quiet, "No progress output");
+  sub->footer(
+      "Exit codes: 0 diagnosis written (possibly 'none', with the reason), 1 runtime failure, 2 bad input.\n"
+      "Example: bmssim simulate --cell paper --protocol cccv --effect contact_resistance=0.001 --out out/rc\n"
+      "         bmssim diagnose --data out/rc/truth.csv --cell paper --out out/rc-diag");
+  return [o]() {
+    if (!(o->rtol > 0.0 && o->rtol < 1e-2)) throw InputError("--rtol: must be in (0, 0.01)");
+    diagnosis::DiagnoseSettings settings;
+    settings.candidates = parse_candidates(o->candidates);
+    settings.final_mesh = {o->points, o->points, o->points, o->radial};
+    settings.search_mesh = {o->search_points, o->search_points, o->search_points, o->search_radial};
+    settings.rtol = o->rtol;
+    settings.blocks = o->blocks;
+    const CellParameters cell = load_cell(o->cell);
+    std::vector<diagnosis::Record> records;
+    for (const auto& d : o->data) records.push_back(diagnosis::load_record(d));
+    auto log = [q = o->quiet](const std::string& s) {
+      if (!q) std::fprintf(stderr, "diagnose: %s\n", s.c_str());
+    };
+    const auto result = diagnosis::diagnose(cell, records, settings, log);
+    if (!result.excitation_note.empty())
+      std::fprintf(stderr, "diagnose: note: %s\n", result.excitation_note.c_str());
+    const diagnosis::ReportContext ctx{command_line(*o), o->cell, settings};
+    const auto plots = diagnosis::write_report(o->out, result, ctx);
+    if (plots.empty()) std::fprintf(stderr, "diagnose: warning: no plots (see %s/report.md)\n", o->out.c_str());
+    std::fprintf(stderr, "diagnose: %s: RMSE %.3f -> %.3f mV (%s) -> %s\n", diagnosis::effect_name(result.selection.effect),
+                 result.rmse_before_mv, result.rmse_after_mv, result.selection.reason.c_str(), o->out.c_str());
+    return 0;
+  };
+}
+
+}  // namespace bms::app

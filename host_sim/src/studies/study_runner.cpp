@@ -1,0 +1,177 @@
+#include "studies/study_runner.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <deque>
+#include <fcntl.h>
+#include <map>
+#include <spawn.h>
+#include <sys/wait.h>
+
+#include <nlohmann/json.hpp>
+
+#include "io/atomic_file.hpp"
+#include "sim/truth_output.hpp"
+#include "io/input_error.hpp"
+#include "io/text_file.hpp"
+
+extern char** environ;
+
+namespace bms::study {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// posix_spawn rather than fork: the parent may hold large buffers, and spawn never copies them.
+pid_t spawn_logged(const fs::path& exe, const std::vector<std::string>& args, const fs::path& log) {
+  std::vector<std::string> argv_s;
+  argv_s.push_back(exe.string());
+  argv_s.insert(argv_s.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_addopen(&fa, STDOUT_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+  posix_spawn_file_actions_adddup2(&fa, STDOUT_FILENO, STDERR_FILENO);
+  pid_t pid = 0;
+  const int rc = posix_spawn(&pid, exe.c_str(), &fa, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  if (rc != 0) throw RuntimeFailure("cannot start " + exe.string() + ": " + std::strerror(rc));
+  return pid;
+}
+
+int exit_code(int status) {
+  if (WIFEXITED(status)) return WEXITSTATUS(status);
+  if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
+  return 1;
+}
+
+int wait_for(pid_t pid) {
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) throw RuntimeFailure(std::string("waitpid: ") + std::strerror(errno));
+  }
+  return exit_code(status);
+}
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+}  // namespace
+
+fs::path case_dir(const fs::path& out_dir, const std::string& name) { return out_dir / "cases" / name; }
+
+std::vector<std::string> step_args(const fs::path& out_dir, const CaseSpec& c, const Step& s) {
+  const std::string dir = case_dir(out_dir, c.name).string();
+  std::vector<std::string> out;
+  for (std::string a : s.args) {
+    for (auto at = a.find("{case}"); at != std::string::npos; at = a.find("{case}", at + dir.size()))
+      a.replace(at, 6, dir);
+    out.push_back(a);
+  }
+  return out;
+}
+
+bool case_complete(const fs::path& out_dir, const CaseSpec& c) {
+  for (const auto& s : c.steps)
+    if (!fs::exists(case_dir(out_dir, c.name) / s.name / "summary.json")) return false;
+  return true;
+}
+
+int run_case(const fs::path& exe, const fs::path& out_dir, const CaseSpec& c) {
+  const fs::path dir = case_dir(out_dir, c.name);
+  fs::create_directories(dir);
+  // Runs with other --models or --arms may share the folder: case.json keeps every step
+  // any run asked for, so --collect finds all of them.
+  CaseSpec merged = c;
+  if (fs::exists(dir / "case.json")) {
+    const CaseSpec old = case_from_json(nlohmann::json::parse(read_text_file(dir / "case.json"), nullptr, false),
+                                        (dir / "case.json").string());
+    for (const auto& s : old.steps) {
+      const bool known = std::any_of(merged.steps.begin(), merged.steps.end(), [&](const Step& x) { return x.name == s.name; });
+      if (!known) merged.steps.push_back(s);
+    }
+  }
+  write_file_atomically(dir / "case.json", case_json(merged).dump(2) + "\n");
+  nlohmann::json steps = nlohmann::json::array();
+  int failed = 0;
+  for (const auto& s : c.steps) {
+    if (fs::exists(dir / s.name / "summary.json")) {
+      steps.push_back({{"name", s.name}, {"status", "existing"}});
+      continue;
+    }
+    const auto t0 = Clock::now();
+    std::fprintf(stderr, "study: case %s: step %s\n", c.name.c_str(), s.name.c_str());
+    std::fflush(stderr);
+    const int rc = wait_for(spawn_logged(exe, step_args(out_dir, c, s), dir / "log.txt"));
+    steps.push_back({{"name", s.name}, {"status", rc == 0 ? "done" : "failed"}, {"exit_code", rc},
+                     {"wall_s", seconds_since(t0)}});
+    if (rc != 0) {
+      failed = rc;
+      break;  // later steps read this step's output
+    }
+  }
+  write_file_atomically(dir / "summary.json",
+                        nlohmann::json{{"case", case_json(merged)}, {"complete", failed == 0}, {"steps", steps}}.dump(2) +
+                            "\n");
+  return failed;
+}
+
+int run_cases(const fs::path& exe, const fs::path& out_dir, const std::vector<CaseSpec>& cases, int jobs,
+              const CaseArgs& case_args) {
+  std::deque<const CaseSpec*> pending;
+  for (const auto& c : cases) {
+    if (case_complete(out_dir, c))
+      std::fprintf(stderr, "study: case %s: complete, skipped\n", c.name.c_str());
+    else
+      pending.push_back(&c);
+  }
+  const std::size_t total = pending.size();
+  std::size_t started = 0, finished = 0;
+  int failures = 0;
+  struct Running {
+    const CaseSpec* spec;
+    Clock::time_point t0;
+  };
+  std::map<pid_t, Running> running;
+  const auto t_study = Clock::now();
+  while (!pending.empty() || !running.empty()) {
+    while (!pending.empty() && static_cast<int>(running.size()) < jobs) {
+      const CaseSpec* c = pending.front();
+      pending.pop_front();
+      const fs::path dir = case_dir(out_dir, c->name);
+      fs::create_directories(dir);
+      running[spawn_logged(exe, case_args(*c), dir / "log.txt")] = {c, Clock::now()};
+      std::fprintf(stderr, "study: [%zu/%zu] started %s\n", ++started, total, c->name.c_str());
+    }
+    int status = 0;
+    const pid_t pid = waitpid(-1, &status, 0);
+    if (pid < 0) {
+      if (errno == EINTR) continue;
+      throw RuntimeFailure(std::string("waitpid: ") + std::strerror(errno));
+    }
+    const auto it = running.find(pid);
+    if (it == running.end()) continue;
+    const int rc = exit_code(status);
+    ++finished;
+    const fs::path log = case_dir(out_dir, it->second.spec->name) / "log.txt";
+    if (rc == 0) {
+      std::fprintf(stderr, "study: [%zu/%zu] done %s in %.0f s (%.0f s elapsed)\n", finished, total,
+                   it->second.spec->name.c_str(), seconds_since(it->second.t0), seconds_since(t_study));
+    } else {
+      ++failures;
+      std::fprintf(stderr, "study: [%zu/%zu] FAILED %s (exit %d), see %s\n", finished, total,
+                   it->second.spec->name.c_str(), rc, log.c_str());
+    }
+    running.erase(it);
+  }
+  return failures;
+}
+
+}  // namespace bms::study

@@ -1,0 +1,138 @@
+// The firmware's additions beyond the paper: the state re-synchronisation at the end of a CV
+// phase (ReducedCell::resync) and the reference-charge voltage-bias calibration, warm-up and
+// charge-averaged estimate in BmsCore.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "bms/fw/bms_core.hpp"
+
+namespace {
+
+using bms::fw::FwStatus;
+using bms::fw::Mode;
+using Model = bms::fw::ReducedCell<double>;
+using Core = bms::fw::BmsCore<double, Model, 1, 0>;
+constexpr double kFilm = 3.391e-3;
+
+TEST(ReducedCellResync, RestoresInventoryAndVoltageAfterAnInitialConditionError) {
+  Model nominal, wrong;
+  nominal.init_default();
+  wrong.init(0.8408 * 1.01, 0.1592 * 1.01, 1266.9 * 1.01);  // the paper's +1 % case
+  for (int k = 0; k < 3000; ++k) {  // 600 s of 2.5 A discharge, then a low current
+    nominal.step_current(2.5, kFilm, 0.2);
+    wrong.step_current(2.5, kFilm, 0.2);
+  }
+  nominal.step_current(0.2, kFilm, 0.2);
+  wrong.step_current(0.2, kFilm, 0.2);
+  const double target_v = nominal.peek_voltage(0.2, kFilm, 0.2);
+  const double inventory = Model::inventory_of(0.8408, 0.1592);
+  ASSERT_GT(std::abs(wrong.solid_inventory_mol() / inventory - 1.0), 5e-3);
+  ASSERT_GT(std::abs(wrong.mean_stoich_neg() - nominal.mean_stoich_neg()), 5e-3);
+  ASSERT_TRUE(wrong.resync(target_v, 0.2, kFilm, 0.2, inventory));
+  EXPECT_NEAR(wrong.solid_inventory_mol() / inventory, 1.0, 1e-12);
+  EXPECT_NEAR(wrong.peek_voltage(0.2, kFilm, 0.2), target_v, 1e-6);
+  // Both electrodes land near the nominal model's stoichiometry (not just the sum): the
+  // 8e-3 error becomes < 5e-4 (what is left is the electrolyte's and the gradients' history).
+  EXPECT_NEAR(wrong.mean_stoich_neg(), nominal.mean_stoich_neg(), 5e-4);
+  EXPECT_NEAR(wrong.mean_stoich_pos(), nominal.mean_stoich_pos(), 5e-4);
+}
+
+TEST(ReducedCellResync, ImpossibleTargetLeavesTheStateUntouched) {
+  Model m;
+  m.init_default();
+  const auto before = m.state();
+  const double inventory = Model::inventory_of(0.8408, 0.1592);
+  EXPECT_FALSE(m.resync(9.0, 0.0, kFilm, 0.2, inventory));    // no state reaches 9 V
+  EXPECT_FALSE(m.resync(3.3, 0.0, kFilm, 0.2, 10.0 * inventory));  // more lithium than sites
+  EXPECT_FALSE(m.resync(NAN, 0.0, kFilm, 0.2, inventory));
+  EXPECT_EQ(std::memcmp(&before, &m.state(), sizeof(before)), 0);
+}
+
+// A plant made of the same reduced model with a known film and a voltage sensor that reads
+// `offset_v` high: the model's residual then carries a constant bias, which in CC charge is
+// collinear with the film resistance.
+struct BiasedRig {
+  Model plant, model;
+  Core core;
+  double r_true = kFilm, offset_v;
+  BiasedRig(const Core::Config& cfg, double offset) : core(cfg, model), offset_v(offset) {
+    plant.init_default();
+    model.init_default();
+  }
+  Core::Output tick(double current_a) {
+    const auto r = plant.step_current(current_a, r_true, 0.2);
+    return core.tick({r.voltage_v + offset_v, current_a, true});
+  }
+  // Two charges separated by a rest (each charge resets RCSI), returns the last output of the second.
+  void discharge() {
+    for (int k = 0; k < 10000; ++k) tick(2.5);  // 2000 s: from full to about 40 % charge
+  }
+  Core::Output two_charges() {
+    Core::Output out{};
+    discharge();
+    for (int k = 0; k < 4000; ++k) tick(-2.5);
+    for (int k = 0; k < 300; ++k) tick(0.0);
+    for (int k = 0; k < 4000; ++k) out = tick(-2.5);
+    return out;
+  }
+};
+
+Core::Config beyond_config() {
+  Core::Config cfg;
+  cfg.markov_from_model = true;
+  cfg.rcsi_warmup_s = 60.0;
+  cfg.calibrate_bias = true;
+  cfg.average_estimate = true;
+  return cfg;
+}
+
+TEST(BmsCoreBiasCalibration, ReferenceChargeLearnsTheBiasAndRemovesItsFilmError) {
+  const double offset_v = 0.1e-3;  // 0.1 mV: the reduced model's measured bias in CC charge
+  BiasedRig with(beyond_config(), offset_v);
+  const auto out = with.two_charges();
+  ASSERT_TRUE(with.core.bias_calibrated());
+  EXPECT_NEAR(with.core.bias_v(), -offset_v, 2e-6);  // z = y_hat - y
+  EXPECT_EQ(out.mode, Mode::cc_charge);
+  EXPECT_LT(std::abs(out.r_film_est_ohm_m2 / kFilm - 1.0), 2e-3);
+
+  // The same data without the calibration read the bias as film: several % off.
+  Core::Config plain = beyond_config();
+  plain.calibrate_bias = false;
+  BiasedRig without(plain, offset_v);
+  const auto raw = without.two_charges();
+  EXPECT_GT(std::abs(raw.r_film_est_ohm_m2 / kFilm - 1.0), 1e-2);
+}
+
+TEST(BmsCoreBiasCalibration, NoLearningBeforeTheReferenceChargeAndDuringWarmUp) {
+  BiasedRig rig(beyond_config(), 0.0);
+  int active = 0;
+  rig.discharge();
+  for (int k = 0; k < 4000; ++k) active += rig.tick(-2.5).rcsi_active;
+  EXPECT_EQ(active, 0);  // the reference charge only measures the bias
+  EXPECT_DOUBLE_EQ(rig.core.r_film_ohm_m2(), kFilm);
+  for (int k = 0; k < 300; ++k) rig.tick(0.0);
+  int warm_active = 0;
+  for (int k = 0; k < 300; ++k) warm_active += rig.tick(-2.5).rcsi_active;  // 5 debounce + 300 warm-up ticks
+  EXPECT_EQ(warm_active, 0);
+  int later = 0;
+  for (int k = 0; k < 100; ++k) later += rig.tick(-2.5).rcsi_active;
+  EXPECT_GT(later, 90);
+}
+
+TEST(BmsCoreBiasCalibration, SaveRestoreCarriesTheCalibration) {
+  BiasedRig a(beyond_config(), 0.05e-3);
+  a.discharge();
+  for (int k = 0; k < 4000; ++k) a.tick(-2.5);
+  for (int k = 0; k < 10; ++k) a.tick(0.0);
+  ASSERT_TRUE(a.core.bias_calibrated());
+  const auto image = a.core.save();
+  Model m2;
+  Core b(beyond_config(), m2);
+  ASSERT_TRUE(b.restore(image));
+  EXPECT_TRUE(b.bias_calibrated());
+  EXPECT_EQ(b.bias_v(), a.core.bias_v());
+}
+
+}  // namespace
