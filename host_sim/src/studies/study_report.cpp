@@ -112,7 +112,7 @@ std::string our_statement(const std::string& id, const json& s) {
   }
   if (id == "fig11" && s.contains("fig11")) {
     for (const auto& c : s["fig11"]["currents"])
-      out += fmt::format("{} A: median |dV| {} mV (max {}); ", num(c["current_a"]), num(c["dv_median_abs_mv"]),
+      out += fmt::format("{} A: median |dV| {} mV (max {}); ", c["current_a"].get<double>(), num(c["dv_median_abs_mv"]),
                          num(c["dv_max_abs_mv"]));
     return out;
   }
@@ -185,7 +185,7 @@ std::string headline_table(const json& s) {
   for (const char* level : {"v0.02mV", "v0.2mV", "i0.5mA", "i5mA"}) {
     for (const auto& l : s.value("noise", json::array())) {
       if (l["level"] != level) continue;
-      t += fmt::format("| {} (worst cycle, mean +- std over {} seeds; noise's own share in brackets) | {} |",
+      t += fmt::format("| {} (worst cycle, mean +- std over up to {} seeds; [noise's own share]) | {} |",
                        rows.at(level).first, l["seeds"].get<int>(), rows.at(level).second);
       for (const auto& a : arms) {
         if (!l["arms"].contains(a)) {
@@ -193,17 +193,20 @@ std::string headline_table(const json& s) {
           continue;
         }
         const json& x = l["arms"][a];
-        t += fmt::format(" {} +- {} % ({} %) |", pct(x["err_worst_cycle_pct"]), pct(x["err_worst_cycle_pct"], "std"),
-                         pct(x["dev_from_noise_free_rms_pct"]));
+        const json& w = x["err_worst_cycle_pct"];
+        const std::string value = w.value("n", 0) > 1 ? pct(w) + " +- " + pct(w, "std") + " %" : pct(w) + " % (1 seed)";
+        t += fmt::format(" {} [{} %] |", value, pct(x["dev_from_noise_free_rms_pct"]));
       }
       t += "\n";
     }
   }
   const json ic = s.value("ic", json::object());
-  t += "| change of identified R_film for +-1 % initial-condition error (cycle 1) | 7 % |";
+  t += "| change of identified R_film for +-1 % initial-condition error (cycle 1 / worst of all cycles) | 7 % |";
   for (const auto& a : arms) {
     const json id = ic.value("identified_r_film_change", json::object());
-    t += id.contains(a) ? " " + num(id[a]["cycle1_change_max_pct"]) + " % |" : " - |";
+    t += id.contains(a) ? " " + num(id[a]["cycle1_change_max_pct"]) + " % / " +
+                              num(id[a].value("worst_cycle_change_max_pct", json())) + " % |"
+                        : " - |";
   }
   t += "\n| change of true R_film for +-1 % initial conditions (cycle 1 CC charge; at cycle ends in brackets) | 0.004 % |";
   const std::string tr = ic.contains("true") ? num(ic["true"]["cycle1_cc_charge_r_film_change_max_abs_pct"]) + " % (" +
