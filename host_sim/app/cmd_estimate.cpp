@@ -88,12 +88,7 @@ Runner add_estimate(CLI::App& app) {
       c->o.average_estimate = true;
     }
     const CellParameters cell = load_cell(c->cell);
-    if (!(std::abs(c->ic_error_pct) < 50.0)) throw InputError("--ic-error-pct: must be within +-50");
-    c->o.ic = default_initial_conditions(cell);
-    const double ic_scale = 1.0 + c->ic_error_pct / 100.0;
-    c->o.ic.stoich_neg *= ic_scale;
-    c->o.ic.stoich_pos *= ic_scale;
-    c->o.ic.electrolyte_mol_m3 *= ic_scale;
+    c->o.ic = perturbed_initial_conditions(cell, c->ic_error_pct);
     const EstimateData data = read_estimate_data(c->data);
     const bool quiet = c->quiet;
     auto progress = [quiet](std::size_t row, std::size_t rows) {

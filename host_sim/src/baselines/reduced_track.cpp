@@ -1,8 +1,5 @@
 #include "baselines/reduced_track.hpp"
 
-#include <algorithm>
-#include <cmath>
-
 #include <fmt/format.h>
 
 #include "bms/fw/mode_detector.hpp"
@@ -10,31 +7,10 @@
 
 namespace bms::baselines {
 
-namespace {
-
-// Times in a file carry round-off (3276.6000000000004): the tick is the median step rounded
-// to 1 ns, as `bmssim estimate` does, so both run the model with the same dt.
-double fixed_tick(const EstimateData& d) {
-  std::vector<double> dt(d.t_s.size() - 1);
-  for (std::size_t i = 1; i < d.t_s.size(); ++i) dt[i - 1] = d.t_s[i] - d.t_s[i - 1];
-  std::nth_element(dt.begin(), dt.begin() + static_cast<long>(dt.size() / 2), dt.end());
-  const double med = dt[dt.size() / 2];
-  for (std::size_t i = 1; i < d.t_s.size(); ++i) {
-    const double s = d.t_s[i] - d.t_s[i - 1];
-    if (std::abs(s - med) > 0.01 * med)
-      throw InputError(fmt::format("{}: the reduced model runs at a fixed tick; samples must be evenly spaced "
-                                   "(median {} s) but t_s = {} s follows {} s after the previous sample",
-                                   d.source, med, d.t_s[i], s));
-  }
-  return std::round(med * 1e9) / 1e9;
-}
-
-}  // namespace
-
 Track make_track(const EstimateData& d, double v_max, double v_min) {
   Track t;
   t.data = &d;
-  t.dt_s = fixed_tick(d);
+  t.dt_s = fixed_tick_s(d);
   const std::size_t n = d.t_s.size();
   fw::ModeDetector<double>::Config cfg;
   cfg.v_max = v_max;

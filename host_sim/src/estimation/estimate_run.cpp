@@ -45,9 +45,7 @@ EstimateData read_estimate_data(const std::string& file) {
   return d;
 }
 
-namespace {
-
-double uniform_step(const EstimateData& d) {
+double fixed_tick_s(const EstimateData& d) {
   std::vector<double> dt(d.t_s.size() - 1);
   for (std::size_t i = 1; i < d.t_s.size(); ++i) dt[i - 1] = d.t_s[i] - d.t_s[i - 1];
   std::nth_element(dt.begin(), dt.begin() + static_cast<long>(dt.size() / 2), dt.end());
@@ -56,13 +54,15 @@ double uniform_step(const EstimateData& d) {
     const double s = d.t_s[i] - d.t_s[i - 1];
     if (std::abs(s - med) > 0.01 * med)
       throw InputError(fmt::format("{}: the firmware runs at a fixed tick; samples must be evenly spaced (median "
-                                   "{} s) but t = {} s follows {} s after the previous sample",
+                                   "{} s) but t_s = {} s follows {} s after the previous sample",
                                    d.source, med, d.t_s[i], s));
   }
   // Times in a file carry round-off (t = k * 0.2 printed as 3276.6000000000004): the tick
   // is the median step rounded to 1 ns, so 0.2 s data runs with exactly the firmware's 0.2.
   return std::round(med * 1e9) / 1e9;
 }
+
+namespace {
 
 template <int Nc, class Model>
 void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, const CellParameters& cell,
@@ -144,7 +144,7 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
   if (!(o.warmup_s >= 0.0) || !std::isfinite(o.warmup_s)) throw InputError("--warmup must be >= 0 s");
   if (!(o.resync_current_a > 0.0) || !std::isfinite(o.resync_current_a))
     throw InputError("--resync-current must be a positive current in A");
-  const double dt_s = uniform_step(d);
+  const double dt_s = fixed_tick_s(d);
   const auto wall0 = std::chrono::steady_clock::now();
   EstimateResult res;
   if (o.model == "reduced") {

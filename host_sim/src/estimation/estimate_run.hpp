@@ -24,6 +24,10 @@ struct EstimateData {
 // Reads truth.csv (current_meas_a, voltage_meas_v; truth columns only for scoring).
 EstimateData read_estimate_data(const std::string& file);
 
+// The fixed tick the firmware model runs the data at: the median sample step rounded to
+// 1 ns. Throws InputError when any step is more than 1 % off the median.
+double fixed_tick_s(const EstimateData& d);
+
 struct EstimateOptions {
   std::string model = "reduced";  // reduced | full
   int nc = 1;                     // subsystem order, 1..8

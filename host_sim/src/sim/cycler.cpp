@@ -26,6 +26,16 @@ InitialConditions default_initial_conditions(const CellParameters& cell) {
   return ic;
 }
 
+InitialConditions perturbed_initial_conditions(const CellParameters& cell, double ic_error_pct) {
+  if (!(std::abs(ic_error_pct) < 50.0)) throw InputError("--ic-error-pct: must be within +-50");
+  InitialConditions ic = default_initial_conditions(cell);
+  const double s = 1.0 + ic_error_pct / 100.0;
+  ic.stoich_neg *= s;
+  ic.stoich_pos *= s;
+  ic.electrolyte_mol_m3 *= s;
+  return ic;
+}
+
 namespace {
 
 class Recorder {

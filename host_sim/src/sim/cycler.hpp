@@ -75,6 +75,9 @@ struct SimulationResult {
 using ProgressFn = std::function<void(double t_s, int cycle, Mode mode)>;
 
 InitialConditions default_initial_conditions(const CellParameters& cell);
+// The cell's initial state with the paper's initial-condition error: both stoichiometries and
+// the electrolyte concentration scaled by (1 + pct/100). Throws InputError outside +-50 %.
+InitialConditions perturbed_initial_conditions(const CellParameters& cell, double ic_error_pct);
 
 SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& protocol,
                           const ProgressFn& progress = {});

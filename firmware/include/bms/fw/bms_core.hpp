@@ -158,7 +158,7 @@ class BmsCore {
 
     const Mode mode = detector_.update(in.voltage_v, in.current_a);
     const bool in_cc_charge = mode == Mode::cc_charge;
-    if (!in_cc_charge && prev_in_cc_charge_) finish_reference_charge();
+    if (!in_cc_charge && cc_ticks_ > 0u) finish_reference_charge();
     cc_ticks_ = in_cc_charge ? (cc_ticks_ < 0xFFFFFFFFu ? cc_ticks_ + 1u : cc_ticks_) : 0u;
     const bool warm = static_cast<Scalar>(cc_ticks_) * config_.dt_s > config_.rcsi_warmup_s;
     const bool reference = in_cc_charge && warm && config_.calibrate_bias && !bias_calibrated_ &&
@@ -182,7 +182,6 @@ class BmsCore {
       st |= bit(FwStatus::kModelInvalid);
       if (cc_charge) st |= estimator_.advance_without_learning(last_j_side_);
       prev_cc_charge_ = cc_charge;
-      prev_in_cc_charge_ = in_cc_charge;
       status_ |= st;
       return held_output(st);
     }
@@ -218,12 +217,11 @@ class BmsCore {
       }
     }
     prev_cc_charge_ = cc_charge;
-    prev_in_cc_charge_ = in_cc_charge;
     last_j_side_ = r.j_side_a_m3;
     ++ticks_;
     Output out = base_output(mode);
     out.rcsi_active = active;
-    out.r_film_est_ohm_m2 = cc_charge ? r_held_ : u;
+    out.r_film_est_ohm_m2 = r_held_;  // u itself, or its charge average
     out.z_v = z;
     out.model_voltage_v = r.voltage_v;
     out.model_current_a = r.current_a;
@@ -240,7 +238,7 @@ class BmsCore {
     s.ticks = ticks_;
     s.stale_ticks = stale_ticks_;
     s.flags = (prev_cc_charge_ ? 1u : 0u) | (have_sample_ ? 2u : 0u) | (resynced_in_phase_ ? 4u : 0u) |
-              (bias_calibrated_ ? 8u : 0u) | (prev_in_cc_charge_ ? 16u : 0u);
+              (bias_calibrated_ ? 8u : 0u);
     s.cc_ticks = cc_ticks_;
     s.bias_samples = bias_samples_;
     s.bias_sum_v = bias_sum_;
@@ -258,8 +256,8 @@ class BmsCore {
 
   // All or nothing: a rejected image changes nothing but the sticky kRestoreRejected bit.
   bool restore(const State& s) {
-    const bool header_ok = s.layout_tag == kLayoutTag && (s.flags & ~31u) == 0u && std::isfinite(s.bias_sum_v) && std::isfinite(s.bias_v) &&
-                           std::isfinite(s.avg_sum_ohm_m2) &&
+    const bool header_ok = s.layout_tag == kLayoutTag && (s.flags & ~15u) == 0u && std::isfinite(s.bias_sum_v) &&
+                           std::isfinite(s.bias_v) && std::isfinite(s.avg_sum_ohm_m2) &&
                            std::isfinite(s.r_held_ohm_m2) && std::isfinite(s.last_current_a) &&
                            std::isfinite(s.last_j_side_a_m3);
     Detector d = detector_;
@@ -279,7 +277,6 @@ class BmsCore {
     have_sample_ = (s.flags & 2u) != 0u;
     resynced_in_phase_ = (s.flags & 4u) != 0u;
     bias_calibrated_ = (s.flags & 8u) != 0u;
-    prev_in_cc_charge_ = (s.flags & 16u) != 0u;
     cc_ticks_ = s.cc_ticks;
     bias_samples_ = s.bias_samples;
     bias_sum_ = s.bias_sum_v;
@@ -370,7 +367,6 @@ class BmsCore {
   bool prev_cc_charge_ = false;
   bool have_sample_ = false;
   bool resynced_in_phase_ = false;
-  bool prev_in_cc_charge_ = false;
   bool bias_calibrated_ = false;
   std::uint32_t resync_count_ = 0u;
   std::uint32_t cc_ticks_ = 0u;

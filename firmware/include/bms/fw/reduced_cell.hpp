@@ -249,11 +249,11 @@ class ReducedCell {
       s_ = base;
       return false;
     }
-    Scalar x = a;
+    Scalar x = a, fx = fa;
     int side = 0;
     for (int it = 0; it < kResyncIterations; ++it) {
       x = (a * fb - b * fa) / (fb - fa);
-      const Scalar fx = mismatch(x);
+      fx = mismatch(x);
       if (!std::isfinite(fx)) {
         s_ = base;
         return false;
@@ -269,8 +269,8 @@ class ReducedCell {
         side = 1;
       }
     }
-    apply(x);
-    if (!(std::fabs(peek_voltage(current_a, r_film_ohm_m2, dt_s) - voltage_v) < Scalar(kResyncAcceptV))) {
+    // s_ already holds the state at x (mismatch applied it).
+    if (!(std::fabs(fx) < Scalar(kResyncAcceptV))) {
       s_ = base;
       return false;
     }
