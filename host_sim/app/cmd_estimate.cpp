@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "commands.hpp"
 #include "estimation/estimate_output.hpp"
@@ -21,6 +22,7 @@ struct EstimateCli {
   double ic_error_pct = 0.0;
   bool beyond = false;
   bool quiet = false;
+  std::vector<std::string> model_effects;
 };
 }  // namespace
 
@@ -53,7 +55,15 @@ Runner add_estimate(CLI::App& app) {
       ->capture_default_str();
   sub->add_flag("--resync", c->o.resync,
                 "Beyond the paper: re-synchronise the firmware model's state at the end of each CV phase (measured "
-                "voltage, nominal lithium inventory minus the model's lithium loss); removes initial-condition errors");
+                "voltage, nominal lithium inventory minus the model's lithium loss) and once at the first sample "
+                "(power-up from rest); removes initial-condition errors");
+  sub->add_flag("!--no-start-resync", c->o.resync_at_start,
+                "With --resync: skip the re-synchronisation at the first sample (only at CV ends, as in session 3)");
+  sub->add_option("--resync-window", c->o.resync_window_ticks,
+                  "With --resync: ticks of measured voltage and current each re-synchronisation fits a straight line "
+                  "to (evaluated at the last tick), against measurement noise; 1 = the trigger sample alone")
+      ->check(CLI::Range(1u, 3000u))
+      ->capture_default_str();
   sub->add_option("--resync-current", c->o.resync_current_a,
                   "|current| [A] below which a CV phase counts as ended for --resync")
       ->capture_default_str();
@@ -70,7 +80,12 @@ Runner add_estimate(CLI::App& app) {
                 "Beyond the paper: report and hold the mean of RCSI's u_hat over each charge's learning window");
   sub->add_flag("--beyond-paper", c->beyond,
                 "Shorthand for the firmware's best settings (docs/results/firmware-model.md): --h-from-model "
-                "--p0 5e-7 --resync --warmup 600 --calibrate-bias --average");
+                "--p0 5e-7 --resync --resync-window 50 --warmup 600 --calibrate-bias --average");
+  sub->add_option("--model-effect", c->model_effects,
+                  "Add an effect to the main model NAME=VALUE (repeatable; e.g. the one 'bmssim diagnose' found): "
+                  "contact_resistance (ohm), hysteresis (V, half the gap between the OCV branches; starts on the "
+                  "charge branch), current_offset (A, what the sensor reads at zero current), current_gain (relative). "
+                  "Default: none (the paper's model)");
   sub->add_option("--points", c->o.mesh.n_neg, "Full model: finite volumes per region")->capture_default_str();
   sub->add_option("--out", c->out, "Output folder (estimates.csv, summary.json)")->required();
   sub->add_flag("--quiet", c->quiet, "No progress lines");
@@ -83,10 +98,12 @@ Runner add_estimate(CLI::App& app) {
       c->o.p0 = 5e-7;
       c->o.p0_y0 = 5e-7;
       c->o.resync = true;
+      c->o.resync_window_ticks = 50;
       c->o.warmup_s = 600.0;
       c->o.calibrate_bias = true;
       c->o.average_estimate = true;
     }
+    for (const auto& e : c->model_effects) add_model_effect(c->o, e);
     const CellParameters cell = load_cell(c->cell);
     c->o.ic = perturbed_initial_conditions(cell, c->ic_error_pct);
     const EstimateData data = read_estimate_data(c->data);
@@ -98,7 +115,15 @@ Runner add_estimate(CLI::App& app) {
     const std::filesystem::path dir(c->out);
     std::filesystem::create_directories(dir);
     write_estimates_csv(dir / "estimates.csv", r);
-    write_file_atomically(dir / "summary.json", estimate_summary_json(r, c->o).dump(2) + "\n");
+    nlohmann::json summary = estimate_summary_json(r, c->o);
+    const auto& fx = c->o.model_effects;
+    summary["options"]["model_effects"] =
+        c->o.model_effects_on ? nlohmann::json{{"contact_resistance_ohm", fx.contact_resistance_ohm},
+                                               {"hysteresis_v", fx.hysteresis_v},
+                                               {"current_offset_a", fx.current_offset_a},
+                                               {"current_gain", fx.current_gain}}
+                              : nlohmann::json::object();
+    write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
     if (!quiet) {
       for (const auto& cs : r.cycles)
         std::fprintf(stderr, "estimate: cycle %d: film-resistance error in CC charge: median %.3f %%, end %.3f %%\n",

@@ -1,10 +1,10 @@
 // bmssim hil: the truth simulator feeds the firmware process (bms-firmware) over SocketCAN.
-// Lock-step: the simulator owns the clock; one HOST_Measurement frame triggers one firmware
-// tick, and the host waits for that tick's BMS_Status before the next (deterministic, as fast
-// as the bus allows). Real time: one frame every 0.2 s of wall time.
+// Lock-step: the simulator owns the clock; the frames of one tick are sent, and the host
+// waits for one BMS_Status per tick trigger among them (deterministic, as fast as the bus
+// allows). Real time: one measurement every 0.2 s of wall time; the firmware's own timer
+// ticks. --fault injects bus faults into the measurement stream (host_sim/src/hil/fault_plan.hpp).
 // --bus uml re-runs this command inside a Linux kernel with vcan (scripts/vcan-run.sh).
 #include <fcntl.h>
-#include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string>
 #include <thread>
@@ -25,6 +26,9 @@
 #include "commands.hpp"
 #include "estimation/estimate_output.hpp"
 #include "estimation/estimate_run.hpp"
+#include "hil/fault_plan.hpp"
+#include "hil/firmware_process.hpp"
+#include "io/atomic_file.hpp"
 #include "io/candump_log.hpp"
 #include "io/input_error.hpp"
 #include "simulate_options.hpp"
@@ -38,19 +42,17 @@ namespace {
 
 namespace can = fw::can;
 
+// estimates.csv status column: bits 0..7 are the firmware's FaultBits; this host bit marks
+// a tick the firmware did not answer (killed, or the bus down): the row holds the last answer.
+constexpr std::uint32_t kHostNoAnswer = 1u << 8;
+
 struct HilCli {
   SimulateOptions sim;
-  std::string bus = "vcan0", out, firmware;
+  std::string bus = "vcan0", out, firmware, fault;
   bool lockstep = true, realtime = false;
-  double h = 0.01;
+  double h = 0.01, persist_every_s = 60.0;
+  std::size_t max_ticks = 0;
 };
-
-std::filesystem::path default_firmware_path() {
-  if (const char* e = std::getenv("BMS_FIRMWARE")) return e;
-  std::error_code ec;
-  const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
-  return self.parent_path().parent_path() / "hal" / "bms-firmware";
-}
 
 CanLogEntry log_entry(double t_s, const std::string& iface, const hal::CanFrame& f) {
   CanLogEntry e;
@@ -62,93 +64,181 @@ CanLogEntry log_entry(double t_s, const std::string& iface, const hal::CanFrame&
   return e;
 }
 
-class FirmwareProcess {
- public:
-  FirmwareProcess(const std::filesystem::path& exe, const std::vector<std::string>& args) {
-    if (!std::filesystem::exists(exe))
-      throw InputError("firmware binary not found: " + exe.string() + " (build it: ./bms build, or set BMS_FIRMWARE)");
-    int fds[2];
-    if (pipe(fds) != 0) throw RuntimeFailure("pipe failed");
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_adddup2(&fa, fds[1], STDOUT_FILENO);
-    posix_spawn_file_actions_addclose(&fa, fds[0]);
-    std::vector<char*> argv;
-    std::string exe_s = exe.string();
-    argv.push_back(exe_s.data());
-    std::vector<std::string> copy = args;
-    for (auto& a : copy) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    const int rc = posix_spawn(&pid_, exe_s.c_str(), &fa, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&fa);
-    close(fds[1]);
-    if (rc != 0) {
-      close(fds[0]);
-      throw RuntimeFailure("cannot start " + exe_s);
-    }
-    // Wait for "ready" (the firmware's socket is bound) or its exit.
-    std::string line;
-    char c = 0;
-    while (read(fds[0], &c, 1) == 1 && c != '\n') line += c;
-    close(fds[0]);
-    if (line.find("ready") == std::string::npos) {
-      int st = 0;
-      waitpid(pid_, &st, 0);
-      pid_ = -1;
-      throw RuntimeFailure("the firmware process exited before it was ready (see its message above)");
-    }
+// Re-runs this very command line inside a kernel with vcan0: the arguments as given,
+// --bus uml replaced by --bus vcan0 (the guest keeps the working directory and environment).
+[[noreturn]] void exec_in_uml() {
+  std::ifstream in("/proc/self/cmdline", std::ios::binary);
+  std::vector<std::string> args;
+  for (std::string a; std::getline(in, a, '\0');) args.push_back(a);
+  if (args.empty()) throw RuntimeFailure("cannot read /proc/self/cmdline");
+  std::error_code ec;
+  args[0] = std::filesystem::read_symlink("/proc/self/exe", ec).string();
+  for (std::size_t i = 1; i < args.size(); ++i) {
+    if (args[i] == "--bus" && i + 1 < args.size()) args[i + 1] = "vcan0";
+    if (args[i] == "--bus=uml") args[i] = "--bus=vcan0";
   }
-  ~FirmwareProcess() { stop(); }
-  int stop() {
-    if (pid_ <= 0) return exit_code_;
-    kill(pid_, SIGTERM);
-    int st = 0;
-    waitpid(pid_, &st, 0);
-    pid_ = -1;
-    exit_code_ = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-    return exit_code_;
+  const std::string runner = (std::filesystem::path(BMS_SOURCE_DIR) / "scripts" / "vcan-run.sh").string();
+  args.insert(args.begin(), {runner, "--"});
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  execv(runner.c_str(), argv.data());
+  throw RuntimeFailure("cannot run " + runner);
+}
+
+// `ip link set IFACE up|down` (the bus going away and coming back).
+void set_link(const std::string& iface, const char* state) {
+  std::vector<std::string> a = {"ip", "link", "set", iface, state};
+  std::vector<char*> argv;
+  for (auto& s : a) argv.push_back(s.data());
+  argv.push_back(nullptr);
+  pid_t pid = -1;
+  if (posix_spawnp(&pid, "ip", nullptr, nullptr, argv.data(), environ) != 0)
+    throw RuntimeFailure("cannot run ip link set " + iface + " " + state);
+  int st = 0;
+  waitpid(pid, &st, 0);
+  if (!WIFEXITED(st) || WEXITSTATUS(st) != 0) throw RuntimeFailure("ip link set " + iface + " " + state + " failed");
+}
+
+// Receive counters of BMS_RxStats come mod 256: the host adds up the differences.
+struct RxTotals {
+  std::uint64_t drop_length = 0, drop_crc = 0, drop_counter = 0, ignored_ids = 0, lost_frames = 0;
+  can::BmsRxStats last{};
+  void add(const can::BmsRxStats& s) {
+    auto d = [](std::uint8_t now, std::uint8_t before) { return static_cast<std::uint8_t>(now - before); };
+    drop_length += d(s.drop_length, last.drop_length);
+    drop_crc += d(s.drop_crc, last.drop_crc);
+    drop_counter += d(s.drop_counter, last.drop_counter);
+    ignored_ids += d(s.ignored_ids, last.ignored_ids);
+    lost_frames += d(s.lost_frames, last.lost_frames);
+    last = s;
+  }
+  void firmware_restarted() { last = can::BmsRxStats{}; }
+};
+
+// What the firmware said in one tick (the last BMS_Status closes it).
+struct Answer {
+  EstimateRow row{};
+  double theta[2] = {0, 0};
+  bool have = false;
+};
+
+// Builds the frames of one tick from the measurement and the tick's faults.
+class FaultyTransmitter {
+ public:
+  std::vector<hal::CanFrame> frames(std::size_t k, const can::Measurement& now, const can::Measurement& next,
+                                    const hil::TickFaults& tf) {
+    std::vector<hal::CanFrame> out;
+    if (tf.unknown) {
+      hal::CanFrame u{};
+      u.id = 0x555;
+      u.len = 8;
+      for (int i = 0; i < 8; ++i) u.data[i] = static_cast<std::uint8_t>(0xA0 + i);
+      out.push_back(u);
+    }
+    hal::CanFrame f{};
+    if (pending_) {  // the earlier half of a swapped pair
+      f = pending_frame_;
+      pending_ = false;
+    } else if (tf.reorder) {
+      hal::CanFrame first{};
+      encode(k, now, tf, first);
+      encode(k + 1, next, hil::TickFaults{}, f);
+      pending_frame_ = first;
+      pending_ = true;
+    } else {
+      encode(k, now, tf, f);
+    }
+    if (tf.crc) f.data[4] ^= 0x10;  // after the CRC: the receiver must catch it
+    const bool lost = tf.drop;
+    if (tf.length) f.len = static_cast<std::uint8_t>(f.len - 1);
+    if (!lost) {
+      out.push_back(f);
+      if (tf.dup) out.push_back(f);
+    }
+    if (lost || tf.length) {  // the clock still ticks (the firmware's timer would)
+      can::Control c;
+      c.lockstep = true;
+      c.tick_trigger = true;
+      c.tick = static_cast<std::uint32_t>(k);
+      hal::CanFrame t{};
+      tx_.encode(c, t);
+      out.push_back(t);
+    }
+    return out;
   }
 
  private:
-  pid_t pid_ = -1;
-  int exit_code_ = 0;
+  void encode(std::size_t k, can::Measurement m, const hil::TickFaults& tf, hal::CanFrame& f) {
+    m.seq = static_cast<std::uint16_t>(k & can::kSeqMask);
+    if (tf.range) m.voltage_v = 7.0;
+    if (tf.nan) m.voltage_v = std::nan("");
+    if (tf.stale && have_frozen_) {
+      can::encode(m, frozen_counter_, f);  // valid CRC, counter stuck
+      return;
+    }
+    frozen_counter_ = tx_.next_counter(can::Msg::measurement);
+    have_frozen_ = true;
+    tx_.encode(m, f);
+  }
+
+  can::Transmitter tx_;
+  hal::CanFrame pending_frame_{};
+  bool pending_ = false;
+  std::uint8_t frozen_counter_ = 0;
+  bool have_frozen_ = false;
 };
 
-int run_hil(HilCli& c) {
-  if (c.bus == "uml") {
-    // Re-run inside a kernel with vcan0, same arguments but --bus vcan0.
-    const std::filesystem::path runner = std::filesystem::path(BMS_SOURCE_DIR) / "scripts" / "vcan-run.sh";
-    std::vector<std::string> args = {runner.string(), "--", "/proc/self/exe"};
-    std::error_code ec;
-    args.back() = std::filesystem::read_symlink("/proc/self/exe", ec).string();
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    std::vector<std::string> rest = {"hil", "--bus", "vcan0", "--out", std::filesystem::absolute(c.out).string(),
-                                     "--cell", c.sim.cell, "--protocol", c.sim.protocol,
-                                     "--cycles", std::to_string(c.sim.cycles), "--seed", std::to_string(c.sim.seed),
-                                     "--current-a", fmt::format("{}", c.sim.current_a),
-                                     "--noise-v-mv", fmt::format("{}", c.sim.noise_v_mv), "--noise-i-ma",
-                                     fmt::format("{}", c.sim.noise_i_ma), "--ic-error-pct",
-                                     fmt::format("{}", c.sim.ic_error_pct), "--h", fmt::format("{}", c.h)};
-    for (const auto& e : c.sim.effects) {
-      rest.push_back("--effect");
-      rest.push_back(e);
+struct FaultCounts {
+  std::size_t drop = 0, dup = 0, reorder = 0, crc = 0, length = 0, unknown = 0, stale = 0, range = 0, nan = 0,
+              busdown = 0, kill = 0;
+};
+
+nlohmann::json fault_summary(const hil::FaultPlan& plan, const FaultCounts& inj, const RxTotals& rx,
+                             const std::vector<EstimateRow>& rows, std::size_t no_answer, std::uint64_t stale_ticks,
+                             int firmware_starts) {
+  nlohmann::json w = nlohmann::json::array();
+  for (const auto& win : plan.spec().windows) {
+    // Recovered: the first answered tick after the window with no stale/range fault bit.
+    const std::size_t end = win.start_tick + win.ticks;
+    std::ptrdiff_t recover = -1;
+    for (std::size_t k = end; k < rows.size(); ++k) {
+      const std::uint32_t bad = kHostNoAnswer | can::fault_bit::kMeasStale | can::fault_bit::kVoltageRange |
+                                can::fault_bit::kCurrentRange | can::fault_bit::kEstimator;
+      if ((rows[k].status & bad) == 0u) {
+        recover = static_cast<std::ptrdiff_t>(k - end);
+        break;
+      }
     }
-    if (!c.firmware.empty()) {
-      rest.push_back("--firmware");
-      rest.push_back(std::filesystem::absolute(c.firmware).string());
-    }
-    if (c.realtime) rest.push_back("--realtime");
-    for (auto& a : rest) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    execv(args[0].c_str(), argv.data());
-    throw RuntimeFailure("cannot run " + args[0]);
+    w.push_back({{"kind", hil::window_kind_name(win.kind)},
+                 {"start", win.start_text},
+                 {"start_tick", win.start_tick},
+                 {"ticks", win.ticks},
+                 {"recover_ticks_after_window", recover}});
   }
-  std::fprintf(stderr, "hil: simulating the truth (%d cycles)...\n", c.sim.cycles);
+  return {{"spec", plan.spec().text},
+          {"injected",
+           {{"drop", inj.drop}, {"dup", inj.dup}, {"reorder", inj.reorder}, {"crc", inj.crc}, {"length", inj.length},
+            {"unknown", inj.unknown}, {"stale", inj.stale}, {"range", inj.range}, {"nan", inj.nan},
+            {"busdown_ticks", inj.busdown}, {"kill_ticks", inj.kill}}},
+          {"firmware_counters",
+           {{"dropped_length", rx.drop_length}, {"dropped_crc", rx.drop_crc}, {"dropped_counter", rx.drop_counter},
+            {"ignored_ids", rx.ignored_ids}, {"lost_frames", rx.lost_frames}}},
+          {"ticks_with_stale_fault", stale_ticks},
+          {"ticks_without_answer", no_answer},
+          {"firmware_starts", firmware_starts},
+          {"windows", w}};
+}
+
+int run_hil(HilCli& c) {
+  if (c.bus == "uml") exec_in_uml();
+  if (c.realtime && !c.fault.empty()) throw InputError("--fault: lock-step only (drop it or --realtime)");
+  const hil::FaultSpec spec = hil::parse_fault_spec(c.fault);
+  if (!c.sim.quiet) std::fprintf(stderr, "hil: simulating the truth (%d cycles)...\n", c.sim.cycles);
   SimulateRun run = run_simulation(c.sim, {});
   // What goes on the bus: the measured values at the bus resolution (10 uV, 0.1 mA). The
   // truth.csv records exactly these, so `bmssim estimate` on it sees what the firmware saw.
-  const std::size_t n = run.result.samples.size();
+  std::size_t n = run.result.samples.size();
   for (std::size_t i = 0; i < n; ++i) {
     can::Measurement m;
     m.voltage_v = run.measured.voltage_v[i];
@@ -160,6 +250,10 @@ int run_hil(HilCli& c) {
     run.measured.voltage_v[i] = back.voltage_v;
     run.measured.current_a[i] = back.current_a;
   }
+  if (c.max_ticks > 0 && c.max_ticks < n) n = c.max_ticks;
+  std::vector<fw::Mode> modes;
+  for (std::size_t k = 0; k < n; ++k) modes.push_back(run.result.samples[k].mode);
+  const hil::FaultPlan plan(spec, modes, c.sim.dt_s);
   const std::filesystem::path dir(c.out);
   std::filesystem::create_directories(dir);
   write_truth_csv(dir / "truth.csv", run.result, run.measured);
@@ -170,93 +264,184 @@ int run_hil(HilCli& c) {
                          " (on a machine without kernel CAN use --bus uml)");
   const std::filesystem::path nvm = dir / "firmware.nvm";
   std::filesystem::remove(nvm);
-  std::vector<std::string> fw_args = {"--can", c.bus, c.realtime ? "--realtime" : "--lockstep", "--nvm", nvm.string(),
-                                      "--h", fmt::format("{}", c.h)};
-  FirmwareProcess fw(c.firmware.empty() ? default_firmware_path() : std::filesystem::path(c.firmware), fw_args);
+  const std::vector<std::string> fw_args = {"--can", c.bus, c.realtime ? "--realtime" : "--lockstep", "--nvm",
+                                            nvm.string(), "--h", fmt::format("{}", c.h), "--persist-every-s",
+                                            fmt::format("{}", c.persist_every_s)};
+  hil::FirmwareProcess fw(c.firmware.empty() ? hil::default_firmware_path() : std::filesystem::path(c.firmware),
+                          fw_args);
 
   CandumpWriter log(dir / "can.log");
   const double t_epoch = 1700000000.0;  // fixed: lock-step logs are identical run to run
-  can::Transmitter tx;
+  FaultyTransmitter tx;
   can::Receiver rx(can::Node::host);
+  can::LockstepTicks mirror;  // the firmware's trigger rule, to know how many answers to expect
+  RxTotals rx_totals;
+  FaultCounts inj;
+  std::size_t no_answer = 0;
+  std::uint64_t stale_ticks = 0, status_frames = 0, restored_answers = 0;
+  double first_status_wall_s = -1, last_status_wall_s = -1;
+  std::uint32_t first_tick_count = 0, last_tick_count = 0;
   EstimateResult res;
   res.rows.reserve(n);
+  Answer last;
   const auto wall0 = std::chrono::steady_clock::now();
-  for (std::size_t k = 0; k < n; ++k) {
-    const auto& s = run.result.samples[k];
-    can::Measurement m;
-    m.seq = static_cast<std::uint16_t>(k & can::kSeqMask);
-    m.voltage_v = run.measured.voltage_v[k];
-    m.current_a = run.measured.current_a[k];
-    hal::CanFrame f{};
-    tx.encode(m, f);
-    if (c.realtime) std::this_thread::sleep_until(wall0 + std::chrono::milliseconds(static_cast<long>(200 * k)));
-    if (bus.send(f) != hal::Status::ok) throw RuntimeFailure(std::string("CAN send failed: ") + bus.last_error());
-    const double t_log = c.realtime ? t_epoch + std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count()
-                                    : t_epoch + s.t_s;
-    log.write(log_entry(t_log, c.bus, f));
-    EstimateRow row{};
-    row.t_s = s.t_s;
-    row.cycle = s.cycle;
-    row.r_film_true_ohm_m2 = s.r_film_ohm_m2;
-    std::vector<double> theta(2, 0.0);
-    bool done = false;
-    while (!done) {
+  auto wall_s = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count(); };
+
+  // Reads frames until `expected` BMS_Status frames arrived (lock-step), or until `until_s`
+  // of wall time (real time, expected ignored). Updates `last` with what arrived.
+  auto collect = [&](std::size_t k, std::size_t expected, double t_log, double until_s) {
+    std::size_t got = 0;
+    while (c.realtime ? wall_s() < until_s : got < expected) {
       hal::CanFrame r{};
-      const hal::Status st = bus.receive(r, 2000);
-      if (st == hal::Status::timeout)
+      const auto wait_ms = c.realtime ? std::max(1, static_cast<int>((until_s - wall_s()) * 1000.0)) : 2000;
+      const hal::Status st = bus.receive(r, wait_ms);
+      if (st == hal::Status::timeout) {
+        if (c.realtime) continue;
         throw RuntimeFailure(fmt::format("the firmware did not answer tick {} within 2 s", k));
+      }
       if (st != hal::Status::ok) throw RuntimeFailure(std::string("CAN receive failed: ") + bus.last_error());
-      log.write(log_entry(t_log, c.bus, r));
+      log.write(log_entry(c.realtime ? t_epoch + wall_s() : t_log, c.bus, r));
       can::RxMessage msg{};
       if (rx.accept(r, msg) != can::RxResult::accepted) continue;
       switch (msg.msg) {
         case can::Msg::estimate1:
-          row.r_film_est_ohm_m2 = msg.estimate1.r_film_ohm_m2;
-          row.mode = msg.estimate1.mode;
-          row.rcsi_active = msg.estimate1.rcsi_active;
+          last.row.r_film_est_ohm_m2 = msg.estimate1.r_film_ohm_m2;
+          last.row.mode = msg.estimate1.mode;
+          last.row.rcsi_active = msg.estimate1.rcsi_active;
           break;
-        case can::Msg::estimate2: theta[0] = msg.estimate2.theta0; break;
-        case can::Msg::estimate3: theta[1] = msg.estimate3.theta1; break;
+        case can::Msg::estimate2: last.theta[0] = msg.estimate2.theta0; break;
+        case can::Msg::estimate3: last.theta[1] = msg.estimate3.theta1; break;
         case can::Msg::health:
-          row.z_v = msg.health.z_v;
-          row.li_loss_ah = msg.health.li_loss_ah;
+          last.row.z_v = msg.health.z_v;
+          last.row.li_loss_ah = msg.health.li_loss_ah;
           break;
+        case can::Msg::rx_stats: rx_totals.add(msg.rx_stats); break;
         case can::Msg::status:
-          row.status = msg.status.fault_bits;
-          done = true;
+          last.row.status = msg.status.fault_bits;
+          last.have = true;
+          if ((msg.status.status_bits & can::status_bit::kNvmRestored) != 0u) ++restored_answers;
+          if ((msg.status.fault_bits & can::fault_bit::kMeasStale) != 0u) ++stale_ticks;
+          ++got;
+          ++status_frames;
+          last_status_wall_s = wall_s();
+          last_tick_count = msg.status.tick_count;
+          if (first_status_wall_s < 0) {
+            first_status_wall_s = last_status_wall_s;
+            first_tick_count = msg.status.tick_count;
+          }
           break;
         default: break;
       }
     }
+    return got;
+  };
+
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto& s = run.result.samples[k];
+    const hil::TickFaults& tf = plan.at(k);
+    if (tf.kill_now) fw.kill_hard();
+    if (tf.restart_now) {
+      fw.start();
+      rx.reset();  // its alive counters start again at 0
+      rx_totals.firmware_restarted();
+    }
+    if (tf.down_now) set_link(c.bus, "down");
+    if (tf.up_now) set_link(c.bus, "up");
+    can::Measurement now, next;
+    now.voltage_v = run.measured.voltage_v[k];
+    now.current_a = run.measured.current_a[k];
+    if (k + 1 < n) {
+      next.voltage_v = run.measured.voltage_v[k + 1];
+      next.current_a = run.measured.current_a[k + 1];
+    }
+    inj.drop += tf.drop;
+    inj.dup += tf.dup;
+    inj.reorder += tf.reorder;
+    inj.crc += tf.crc;
+    inj.length += tf.length;
+    inj.unknown += tf.unknown;
+    inj.stale += tf.stale;
+    inj.range += tf.range;
+    inj.nan += tf.nan;
+    inj.busdown += tf.bus_down;
+    inj.kill += tf.fw_down;
+    const auto frames = tx.frames(k, now, next, tf);
+    if (c.realtime) {  // the firmware's timer ticks: answers are read while waiting for the next send time
+      collect(k, 0, 0.0, 0.2 * static_cast<double>(k));
+    }
+    const double t_log = t_epoch + s.t_s;
+    std::size_t triggers = 0;
+    for (const auto& f : frames) {
+      const hal::Status st = bus.send(f);
+      if (st != hal::Status::ok) {
+        if (tf.bus_down) continue;  // expected: ENETDOWN while the link is down
+        throw RuntimeFailure(std::string("CAN send failed: ") + bus.last_error());
+      }
+      log.write(log_entry(c.realtime ? t_epoch + wall_s() : t_log, c.bus, f));
+      std::uint32_t t = 0;
+      if (mirror.classify(f, t)) ++triggers;
+    }
+    std::size_t answers = 0;
+    if (!c.realtime && fw.running()) answers = collect(k, triggers, t_log, 0.0);
+    EstimateRow row = last.row;
+    if (!c.realtime && answers == 0) {
+      row.status |= kHostNoAnswer;
+      ++no_answer;
+    }
+    row.t_s = s.t_s;
+    row.cycle = s.cycle;
+    row.r_film_true_ohm_m2 = s.r_film_ohm_m2;
+    if (!last.have) row.mode = s.mode;  // before the first answer
     row.model_voltage_v = std::nan("");
     row.model_current_a = std::nan("");
     row.j_side_a_m3 = std::nan("");
     res.rows.push_back(row);
-    res.theta_rows.push_back(theta);
-    if (k % 20000 == 0) std::fprintf(stderr, "hil: tick %zu / %zu\n", k, n);
+    res.theta_rows.push_back({last.theta[0], last.theta[1]});
+    if (!c.sim.quiet && k % 20000 == 0) std::fprintf(stderr, "hil: tick %zu / %zu\n", k, n);
   }
-  res.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  if (c.realtime) collect(n, 0, 0.0, 0.2 * static_cast<double>(n));
+  res.wall_s = wall_s();
   const int fw_exit = fw.stop();
   log.commit();
   res.theta = res.theta_rows.back();
-  std::vector<fw::Mode> modes;
-  for (const auto& s : run.result.samples) modes.push_back(s.mode);
   res.cycles = score_cycles(res.rows, true, modes);
   write_estimates_csv(dir / "estimates.csv", res);
   EstimateOptions eo;
   eo.h_v_per_ohm_m2 = c.h;
   auto summary = estimate_summary_json(res, eo);
+  const double sim_s = run.result.samples[n - 1].t_s - run.result.samples[0].t_s + c.sim.dt_s;
   summary["simulation"] = summary_json(run.result);
   summary["simulation"]["options"] = options_json(c.sim);
-  summary["hil"] = {{"bus", c.bus}, {"lockstep", !c.realtime}, {"ticks", n}, {"wall_s", res.wall_s},
-                    {"sim_s_per_wall_s", run.result.sim_s / res.wall_s}, {"firmware_exit", fw_exit},
-                    {"frames_dropped_by_host", rx.counters().dropped_total()}};
+  summary["hil"] = {{"bus", c.bus},
+                    {"lockstep", !c.realtime},
+                    {"ticks", n},
+                    {"wall_s", res.wall_s},
+                    {"sim_s", sim_s},
+                    {"sim_s_per_wall_s", sim_s / res.wall_s},
+                    {"firmware_exit", fw_exit},
+                    {"frames_dropped_by_host", rx.counters().dropped_total()},
+                    {"status_frames", status_frames},
+                    {"answers_after_nvm_restore", restored_answers},
+                    {"first_status_wall_s", first_status_wall_s},
+                    {"last_status_wall_s", last_status_wall_s},
+                    {"firmware_tick_count_first", first_tick_count},
+                    {"firmware_tick_count_last", last_tick_count}};
+  if (spec.any())
+    summary["hil"]["faults"] = fault_summary(plan, inj, rx_totals, res.rows, no_answer, stale_ticks, fw.starts());
+  else
+    summary["hil"]["firmware_counters"] = {{"dropped_length", rx_totals.drop_length},
+                                           {"dropped_crc", rx_totals.drop_crc},
+                                           {"dropped_counter", rx_totals.drop_counter},
+                                           {"ignored_ids", rx_totals.ignored_ids},
+                                           {"lost_frames", rx_totals.lost_frames}};
   write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
-  std::fprintf(stderr, "hil: %zu ticks in %.2f s wall (%.0f x real time), firmware exit %d -> %s\n", n, res.wall_s,
-               run.result.sim_s / res.wall_s, fw_exit, dir.c_str());
-  for (const auto& cs : res.cycles)
-    std::fprintf(stderr, "hil: cycle %d: film-resistance error in CC charge: median %.3f %%, end %.3f %%\n", cs.cycle,
-                 cs.r_film_err_median_pct, cs.r_film_err_end_pct);
+  if (!c.sim.quiet) {
+    std::fprintf(stderr, "hil: %zu ticks in %.2f s wall (%.0f x real time), firmware exit %d -> %s\n", n, res.wall_s,
+                 sim_s / res.wall_s, fw_exit, dir.c_str());
+    for (const auto& cs : res.cycles)
+      std::fprintf(stderr, "hil: cycle %d: film-resistance error in CC charge: median %.3f %%, end %.3f %%\n",
+                   cs.cycle, cs.r_film_err_median_pct, cs.r_film_err_end_pct);
+  }
   return fw_exit == 0 ? 0 : 1;
 }
 
@@ -269,9 +454,22 @@ Runner add_hil(CLI::App& app) {
   sub->add_option("--bus", c->bus, "vcan0 (or any SocketCAN interface), or 'uml' to run inside a kernel with vcan")
       ->capture_default_str();
   sub->add_flag("--lockstep", c->lockstep, "Simulator-driven ticks, as fast as possible (default)");
-  sub->add_flag("--realtime", c->realtime, "One tick every 0.2 s of wall time");
+  sub->add_flag("--realtime", c->realtime, "One measurement every 0.2 s of wall time; the firmware's timer ticks");
   sub->add_option("--h", c->h, "RCSI Markov parameter passed to the firmware")->capture_default_str();
   sub->add_option("--firmware", c->firmware, "Path of bms-firmware (default: beside bmssim in the build tree)");
+  sub->add_option("--persist-every-s", c->persist_every_s,
+                  "Firmware commits its state to NVM every this many seconds of ticks (and at each CC-charge end)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 86400.0));
+  sub->add_option("--max-ticks", c->max_ticks, "Stop after this many ticks (0: the whole profile; truth.csv keeps the whole profile)")
+      ->capture_default_str();
+  sub->add_option("--fault", c->fault,
+                  "Bus faults, lock-step only: comma-separated KEY=VALUE.\n"
+                  "Rates (probability per tick): drop=P dup=P reorder=P crc=P length=P unknown=P seed=K.\n"
+                  "Windows START:TICKS, START = tick or MODE+SECONDS (e.g. cc_charge+600):\n"
+                  "burst= (frames lost) stale= (alive counter frozen) range= (7 V) nan= (voltage NaN)\n"
+                  "busdown= (ip link down/up) kill= (firmware SIGKILLed, restarted after TICKS).\n"
+                  "Example: --fault drop=0.01,crc=0.01,kill=cc_charge+600:25,seed=3");
   sub->add_option("--out", c->out, "Output folder (truth.csv, estimates.csv, summary.json, can.log)")->required();
   return [c]() { return run_hil(*c); };
 }

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Checks a host-in-the-loop run with clients nobody in this project wrote.
 
-usage: hil_check.py DBC HIL_DIR OFFLINE_DIR [SECOND_HIL_DIR]
+usage: hil_check.py DBC HIL_DIR OFFLINE_DIR [SECOND_HIL_DIR] [--replay REPLAY_DIR]
 
 1. python3-can reads HIL_DIR/can.log (candump format); python3-canmatrix decodes every
    BMS_Estimate1 / BMS_Health frame with the DBC; the decoded values must equal
@@ -10,6 +10,10 @@ usage: hil_check.py DBC HIL_DIR OFFLINE_DIR [SECOND_HIL_DIR]
    must give the same film resistance on the bus's 1e-10 ohm m2 grid in every tick
    (bit for bit at the bus resolution).
 3. With SECOND_HIL_DIR: the two lock-step logs must be byte-identical (determinism).
+4. With --replay (tests/cli/hil_replay.sh: canplayer replayed HIL_DIR/can.log's host frames
+   into a fresh firmware, candump recorded its answers): the firmware's frames of the replay
+   must equal the original run's frame for frame, identifier and all 8 data bytes (so the
+   estimates, theta, residual, status and alive counters are bit-identical on the bus).
 Prints one line per check; exit 0 when all pass, 1 otherwise.
 """
 import csv
@@ -27,9 +31,20 @@ def to_raw(value, factor=decimal.Decimal("1e-10")):
     return int(d.to_integral_value(rounding=decimal.ROUND_HALF_UP))
 
 
+def bms_frames(path):
+    return [(m.arbitration_id, bytes(m.data)) for m in can.CanutilsLogReader(path)
+            if 0x200 <= m.arbitration_id <= 0x2FF]
+
+
 def main():
-    dbc, hil, offline = sys.argv[1:4]
-    second = sys.argv[4] if len(sys.argv) > 4 else None
+    args = sys.argv[1:]
+    replay = None
+    if "--replay" in args:
+        i = args.index("--replay")
+        replay = args[i + 1]
+        del args[i:i + 2]
+    dbc, hil, offline = args[0:3]
+    second = args[3] if len(args) > 3 else None
     db = canmatrix.formats.loadp_flat(dbc)
     est1 = db.frame_by_id(canmatrix.ArbitrationId(0x200))
     health = db.frame_by_id(canmatrix.ArbitrationId(0x203))
@@ -68,6 +83,14 @@ def main():
         same = open(hil + "/can.log", "rb").read() == open(second + "/can.log", "rb").read()
         ok &= same
         print(f"{'PASS' if same else 'FAIL'} two lock-step runs give byte-identical can.log")
+    if replay:
+        orig = bms_frames(hil + "/can.log")
+        again = bms_frames(replay + "/replay_out.log")
+        first_diff = next((i for i, (a, b) in enumerate(zip(orig, again)) if a != b), None)
+        same = len(orig) == len(again) and first_diff is None
+        ok &= same
+        print(f"{'PASS' if same else 'FAIL'} canplayer replay into a fresh firmware: {len(again)} of {len(orig)} "
+              f"firmware frames recorded, first difference at frame {first_diff}")
     return 0 if ok else 1
 
 

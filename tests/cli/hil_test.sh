@@ -1,16 +1,24 @@
 #!/usr/bin/env bash
-# Host-in-the-loop acceptance (issue 4): one paper CCCV cycle in lock-step over vcan inside a
-# kernel with CAN (scripts/vcan-run.sh), twice; then the DBC/python-can client check, the
-# offline-equality check and determinism. (A canplayer replay check is not here yet: replayed
-# into UML without flow control, the firmware's socket loses frames; see issue 4's notes.)
-# usage: hil_test.sh BMSSIM SOURCE_DIR WORK_DIR. Exit 77 (skipped) when no vcan backend works.
+# Host-in-the-loop acceptance (issues 4 and 8 item 3), one guest boot: inside a kernel with
+# vcan (scripts/vcan-run.sh) tests/cli/hil_inside.sh runs two clean lock-step cycles, a
+# canplayer replay, a run with every bus fault and a short real-time run; then, outside,
+# the DBC/python-can client check, the offline-equality, determinism and replay checks
+# (hil_check.py) and the fault and real-time checks (hil_fault_check.py).
+# usage: hil_test.sh BMSSIM SOURCE_DIR WORK_DIR [FIRMWARE]. Exit 77 (skipped) when no vcan backend works.
 set -euo pipefail
 bmssim="$1"; src="$2"; work="$3"
+fw="${4:-$(dirname "$(dirname "$bmssim")")/hal/bms-firmware}"
 if ! "$src/scripts/vcan-run.sh" --probe >/dev/null 2>&1; then
   echo "SKIP: no kernel with vcan available (scripts/vcan-run.sh --probe)"; exit 77
 fi
+for t in canplayer candump; do
+  command -v "$t" >/dev/null || { echo "SKIP: $t (can-utils) not installed: scripts/install-deps.sh can"; exit 77; }
+done
 rm -rf "$work"; mkdir -p "$work"
-"$bmssim" hil --bus uml --cycles 1 --quiet --out "$work/a"
-"$bmssim" hil --bus uml --cycles 1 --quiet --out "$work/b"
+"$src/scripts/vcan-run.sh" -- bash "$src/tests/cli/hil_inside.sh" "$bmssim" "$fw" "$src" "$work"
 "$bmssim" estimate --data "$work/a/truth.csv" --quiet --out "$work/offline"
-/usr/bin/python3 "$src/tests/cli/hil_check.py" "$src/firmware/can/bms.dbc" "$work/a" "$work/offline" "$work/b"
+rc=0
+/usr/bin/python3 "$src/tests/cli/hil_check.py" "$src/firmware/can/bms.dbc" "$work/a" "$work/offline" "$work/b" \
+  --replay "$work/replay" 2> >(grep -v 'is not supported' >&2) || rc=1
+/usr/bin/python3 "$src/tests/cli/hil_fault_check.py" "$work/a" "$work/faults" "$work/realtime" || rc=1
+exit $rc

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <random>
 
 #include "bms/fw/bms_core.hpp"
 
@@ -133,6 +134,84 @@ TEST(BmsCoreBiasCalibration, SaveRestoreCarriesTheCalibration) {
   ASSERT_TRUE(b.restore(image));
   EXPECT_TRUE(b.bias_calibrated());
   EXPECT_EQ(b.bias_v(), a.core.bias_v());
+}
+
+// Power-up re-synchronisation: a model started 1 % off (the paper's initial-condition case)
+// is moved onto the plant's state from a window of the first measurements, before the first
+// discharge can clip its particle profiles.
+struct StartRig {
+  Model plant, model;
+  Core core;
+  std::mt19937 rng{11};
+  std::normal_distribution<double> noise{0.0, 1.0};
+  double sigma_v = 0.0;
+  explicit StartRig(const Core::Config& cfg) : core(cfg, model) {
+    plant.init_default();
+    model.init(0.8408 * 1.01, 0.1592 * 1.01, 1266.9 * 1.01);
+  }
+  void ticks(int n) {
+    for (int k = 0; k < n; ++k) {
+      const auto r = plant.step_current(2.5, kFilm, 0.2);
+      core.tick({r.voltage_v + sigma_v * noise(rng), 2.5, true});
+    }
+  }
+  double stoich_error() const { return std::abs(model.mean_stoich_neg() - plant.mean_stoich_neg()); }
+};
+
+Core::Config start_config(std::uint32_t window) {
+  Core::Config cfg;
+  cfg.resync_at_start = true;
+  cfg.resync_window_ticks = window;
+  cfg.nominal_inventory_mol = Model::inventory_of(0.8408, 0.1592);
+  return cfg;
+}
+
+TEST(BmsCoreStartResync, RemovesTheInitialConditionErrorAfterItsWindow) {
+  StartRig rig(start_config(50));
+  rig.ticks(49);
+  EXPECT_EQ(rig.core.resync_count(), 0u);
+  EXPECT_GT(rig.stoich_error(), 5e-3);  // still the 1 % initial-condition error
+  rig.ticks(1);
+  EXPECT_EQ(rig.core.resync_count(), 1u);
+  EXPECT_LT(rig.stoich_error(), 5e-4);
+  EXPECT_EQ(rig.core.status() & bms::fw::bit(FwStatus::kResyncFailed), 0u);
+  rig.ticks(200);
+  EXPECT_EQ(rig.core.resync_count(), 1u);  // once per power-up, not again in CC discharge
+
+  Core::Config off = start_config(50);
+  off.resync_at_start = false;
+  StartRig plain(off);
+  plain.ticks(250);
+  EXPECT_GT(plain.stoich_error(), 5e-3);
+}
+
+TEST(BmsCoreStartResync, TheWindowAveragesOutVoltageNoise) {
+  double err_one = 0.0, err_window = 0.0;
+  for (int seed = 0; seed < 8; ++seed) {
+    StartRig one(start_config(1)), window(start_config(50));
+    one.rng.seed(100 + seed);
+    window.rng.seed(100 + seed);
+    one.sigma_v = window.sigma_v = 0.2e-3;
+    one.ticks(50);
+    window.ticks(50);
+    err_one += one.stoich_error();
+    err_window += window.stoich_error();
+  }
+  EXPECT_LT(err_window, 0.5 * err_one);
+}
+
+TEST(BmsCoreStartResync, SaveAndRestoreInsideTheWindowContinueIdentically) {
+  StartRig a(start_config(50));
+  a.ticks(20);
+  const auto image = a.core.save();
+  const auto plant = a.plant.state();
+  StartRig b(start_config(50));
+  ASSERT_TRUE(b.core.restore(image));
+  ASSERT_TRUE(b.plant.restore(plant));
+  a.ticks(60);
+  b.ticks(60);
+  EXPECT_EQ(b.core.resync_count(), 1u);
+  EXPECT_EQ(std::memcmp(&a.model.state(), &b.model.state(), sizeof(a.model.state())), 0);
 }
 
 }  // namespace

@@ -2,12 +2,22 @@
 // file as non-volatile memory). Same application and core as the board image.
 //
 //   bms-firmware --can vcan0 --lockstep|--realtime [--nvm FILE] [--h H] [--h-from-model]
+//                [--persist-every-s S] [--rcvbuf-bytes N]
 //
 // Lock-step: the host's HOST_Measurement frames trigger the ticks (deterministic, as fast
 // as the host sends). Real time: a 0.2 s timerfd drives the ticks. SIGTERM or SIGINT: the
-// state is saved to the NVM file and the process exits 0.
+// state is saved to the NVM file and the process exits 0. The state is also committed at
+// the end of every constant-current charge (the estimate just learned) and every S seconds
+// of ticks, so a process killed without warning restarts from at most S seconds back.
+// A failing bus (interface down) is not fatal: the error is logged and counted, and the
+// firmware keeps waiting for frames, as a BMS on a vehicle bus must.
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <string>
@@ -56,13 +66,33 @@ class RamOnlyNvm final : public bms::hal::NonVolatileMemory {
 void usage(FILE* to) {
   std::fprintf(to,
                "usage: bms-firmware --can IFACE (--lockstep | --realtime) [--nvm FILE] [--h H] [--h-from-model]\n"
-               "  --can IFACE     SocketCAN interface (e.g. vcan0)\n"
-               "  --lockstep      ticks triggered by the host's HOST_Measurement frames (deterministic)\n"
-               "  --realtime      ticks from a 0.2 s timer\n"
-               "  --nvm FILE      keep the estimator state in FILE (two slots, CRC); restored at start\n"
-               "  --h H           RCSI Markov parameter [V per ohm m2] (default 0.01, the paper's)\n"
-               "  --h-from-model  H from the model at each charge start\n"
+               "                    [--persist-every-s S] [--rcvbuf-bytes N]\n"
+               "  --can IFACE          SocketCAN interface (e.g. vcan0)\n"
+               "  --lockstep           ticks triggered by the host's HOST_Measurement frames (deterministic)\n"
+               "  --realtime           ticks from a 0.2 s timer\n"
+               "  --nvm FILE           keep the estimator state in FILE (two slots, CRC); restored at start\n"
+               "  --h H                RCSI Markov parameter [V per ohm m2] (default 0.01, the paper's)\n"
+               "  --h-from-model       H from the model at each charge start\n"
+               "  --persist-every-s S  commit the state every S s of ticks (default 60; 0: only at the end\n"
+               "                       of each CC charge and at exit)\n"
+               "  --rcvbuf-bytes N     socket receive buffer (default 8388608: a replay sent faster than\n"
+               "                       the ticks run queues in the kernel instead of being dropped)\n"
+               "On exit the receive counters are printed on stderr as one line of key=value.\n"
                "exit codes: 0 stopped by SIGTERM/SIGINT, 1 runtime failure, 2 bad arguments\n");
+}
+
+bool parse_number(const std::string& text, double& out) {
+  char* end = nullptr;
+  out = std::strtod(text.c_str(), &end);
+  return end != text.c_str() && *end == '\0' && std::isfinite(out);
+}
+
+// The kernel caps SO_RCVBUF at net.core.rmem_max; as root SO_RCVBUFFORCE passes the cap.
+// Not fatal when both fail: lock-step traffic needs only a few frames of buffer.
+void enlarge_receive_buffer(int fd, int bytes) {
+  if (setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &bytes, sizeof bytes) == 0) return;
+  if (setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &bytes, sizeof bytes) != 0)
+    std::fprintf(stderr, "bms-firmware: cannot set the socket receive buffer to %d bytes (errno %d)\n", bytes, errno);
 }
 
 }  // namespace
@@ -70,7 +100,7 @@ void usage(FILE* to) {
 int main(int argc, char** argv) {
   std::string iface, nvm_path;
   bool lockstep = false, realtime = false, h_from_model = false;
-  double h = 0.01;
+  double h = 0.01, persist_every_s = 60.0, rcvbuf_bytes = 8388608.0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&](const char* name) -> std::string {
@@ -87,10 +117,20 @@ int main(int argc, char** argv) {
     else if (a == "--h-from-model") h_from_model = true;
     else if (a == "--h") {
       const std::string v = value("--h");
-      char* end = nullptr;
-      h = std::strtod(v.c_str(), &end);
-      if (end == v.c_str() || *end != '\0' || h == 0.0) {
+      if (!parse_number(v, h) || h == 0.0) {
         std::fprintf(stderr, "bms-firmware: --h must be a nonzero number (got '%s')\n", v.c_str());
+        return 2;
+      }
+    } else if (a == "--persist-every-s") {
+      const std::string v = value("--persist-every-s");
+      if (!parse_number(v, persist_every_s) || persist_every_s < 0.0 || persist_every_s > 86400.0) {
+        std::fprintf(stderr, "bms-firmware: --persist-every-s must be 0..86400 (got '%s')\n", v.c_str());
+        return 2;
+      }
+    } else if (a == "--rcvbuf-bytes") {
+      const std::string v = value("--rcvbuf-bytes");
+      if (!parse_number(v, rcvbuf_bytes) || rcvbuf_bytes < 1024.0 || rcvbuf_bytes > 1073741824.0) {
+        std::fprintf(stderr, "bms-firmware: --rcvbuf-bytes must be 1024..1073741824 (got '%s')\n", v.c_str());
         return 2;
       }
     } else if (a == "--help" || a == "-h") {
@@ -116,6 +156,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bms-firmware: cannot open CAN interface %s: %s\n", iface.c_str(), can.last_error());
     return 1;
   }
+  enlarge_receive_buffer(can.native_handle(), static_cast<int>(rcvbuf_bytes));
   bms::hal::lnx::FileNvm file_nvm;
   RamOnlyNvm ram_nvm;
   bms::hal::NonVolatileMemory* nvm = &ram_nvm;
@@ -134,6 +175,10 @@ int main(int argc, char** argv) {
   Core::Config cfg;
   cfg.estimator.markov_v_per_ohm_m2 = h;
   cfg.markov_from_model = h_from_model;
+  // Plausibility window of the measured voltage: the paper cell's limits with 0.5 V margin,
+  // so a sensor reading of 0 V (what a NaN becomes on the bus) is rejected, not modelled.
+  cfg.voltage_min_v = bms::fw::paper::kLowerVoltage_v - 0.5;
+  cfg.voltage_max_v = bms::fw::paper::kUpperVoltage_v + 0.5;
   static Core core(cfg, model);
 
   bms::fw::can::LockstepTicks ticks_classifier;
@@ -156,20 +201,46 @@ int main(int argc, char** argv) {
   App::Options ao;
   ao.lockstep = lockstep;
   ao.tick_timeout_ms = 200;
+  const double tick_s = cfg.dt_s;
+  ao.persist_every_ticks = static_cast<std::uint32_t>(std::lround(persist_every_s / tick_s));
   static App app(core, *bus, *ticks, log, *nvm, ao);
   app.restore_from_nvm();
   // The host waits for this line before its first frame (a frame sent before the socket
   // is bound would be lost).
   std::printf("bms-firmware: ready\n");
   std::fflush(stdout);
+  unsigned long bus_errors = 0, commits = 0, commit_failures = 0;
+  bool was_cc_charge = false;
   while (g_stop == 0) {
     const bms::hal::Status s = app.step();
-    if (s == bms::hal::Status::ok || s == bms::hal::Status::timeout) continue;
+    if (s == bms::hal::Status::ok) {
+      // The end of a CC charge is when the estimate changed: commit it then, not a minute later.
+      const bool cc_charge = app.last_output().mode == bms::fw::Mode::cc_charge;
+      if (was_cc_charge && !cc_charge) {
+        ++commits;
+        if (!app.persist()) ++commit_failures;
+      }
+      was_cc_charge = cc_charge;
+      continue;
+    }
+    if (s == bms::hal::Status::timeout) continue;
     if (g_stop != 0) break;  // a signal interrupted the wait
-    std::fprintf(stderr, "bms-firmware: bus or timer failed: %s\n", bms::hal::status_name(s));
-    app.persist();
-    return 1;
+    if (s != bms::hal::Status::io_error) {
+      std::fprintf(stderr, "bms-firmware: bus or timer failed: %s\n", bms::hal::status_name(s));
+      app.persist();
+      return 1;
+    }
+    // The interface went down (ENETDOWN) or the timer hiccuped: wait and carry on.
+    if (bus_errors++ % 50 == 0)
+      std::fprintf(stderr, "bms-firmware: bus error (%s: %s), retrying\n", bms::hal::status_name(s), can.last_error());
+    usleep(20000);
   }
   app.persist();
+  const auto& rc = app.receiver().counters();
+  std::fprintf(stderr,
+               "bms-firmware: counters accepted=%u ignored_id=%u dropped_length=%u dropped_crc=%u dropped_counter=%u "
+               "lost_frames=%u stale_events=%u bus_errors=%lu cc_end_commits=%lu commit_failures=%lu\n",
+               rc.accepted, rc.ignored_id, rc.dropped_length, rc.dropped_crc, rc.dropped_counter, rc.lost_frames,
+               rc.stale_events, bus_errors, commits, commit_failures);
   return 0;
 }

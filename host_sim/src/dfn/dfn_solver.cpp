@@ -335,7 +335,8 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
   // overhead when output is dense (0.2 s) and steps are long.
   // IDA may already have stepped past tout; then the interpolated state is used and a
   // following restart() re-initialises from it.
-  if (exact && im.tn < tout) check(IDASetStopTime(im.ida, tout), "IDASetStopTime");
+  // With a root pending IDA's own time is already past it (possibly past tout): no stop time.
+  if (exact && im.tn < tout && !im.root_pending) check(IDASetStopTime(im.ida, tout), "IDASetStopTime");
   else exact = false;
   const int n = model_.size();
   while (!im.root_pending && im.tn < tout) {

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <map>
 #include <memory>
+#include <stdexcept>
+#include <string>
 
 #include <fmt/format.h>
 
@@ -79,7 +81,9 @@ void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, con
       o.r_film_init_ohm_m2 >= 0.0 ? o.r_film_init_ohm_m2 : cell.side.initial_film_resistance_ohm_m2;
   cfg.markov_from_model = o.markov_from_model;
   cfg.resync_at_cv_end = o.resync;
+  cfg.resync_at_start = o.resync && o.resync_at_start;
   cfg.resync_current_a = o.resync_current_a;
+  cfg.resync_window_ticks = o.resync_window_ticks;
   cfg.nominal_inventory_mol = o.nominal_inventory_mol;
   cfg.rcsi_warmup_s = o.warmup_s;
   cfg.calibrate_bias = o.calibrate_bias;
@@ -115,6 +119,16 @@ void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, con
   res.theta = res.theta_rows.back();
 }
 
+fw::EffectParameters<double> effect_parameters(const EstimateOptions& o, const CellParameters& cell) {
+  fw::EffectParameters<double> p = o.model_effects;
+  p.nominal_capacity_ah = cell.nominal_capacity_ah;
+  static const char* const kField[] = {"", "contact_resistance", "hysteresis", "hysteresis rate", "hysteresis branch",
+                                       "nominal capacity (needed by hysteresis)", "current_offset", "current_gain"};
+  if (const int bad = fw::invalid_effect_parameter(p); bad != 0)
+    throw InputError(fmt::format("--model-effect {}: not usable with cell '{}'", kField[bad], cell.name));
+  return p;
+}
+
 template <class Model>
 void dispatch_nc(Model& model, const EstimateData& d, const EstimateOptions& o, const CellParameters& cell,
                  double dt_s, EstimateResult& res, const EstimateProgress& progress) {
@@ -132,6 +146,40 @@ void dispatch_nc(Model& model, const EstimateData& d, const EstimateOptions& o, 
 }
 
 }  // namespace
+
+void add_model_effect(EstimateOptions& o, const std::string& spec) {
+  const auto eq = spec.find('=');
+  if (eq == std::string::npos) throw InputError("--model-effect '" + spec + "': expected NAME=VALUE");
+  const std::string name = spec.substr(0, eq), text = spec.substr(eq + 1);
+  double value = 0.0;
+  try {
+    std::size_t used = 0;
+    value = std::stod(text, &used);
+    if (used != text.size()) throw std::invalid_argument(text);
+  } catch (const std::exception&) {
+    throw InputError("--model-effect '" + spec + "': VALUE must be a number");
+  }
+  if (!std::isfinite(value)) throw InputError("--model-effect '" + spec + "': VALUE must be a finite number");
+  auto& p = o.model_effects;
+  if (name == "contact_resistance") {
+    if (value < 0.0) throw InputError("--model-effect contact_resistance: must be >= 0 ohm");
+    p.contact_resistance_ohm = value;
+  } else if (name == "hysteresis") {
+    if (value < 0.0 || value > 0.5)
+      throw InputError("--model-effect hysteresis: must be in [0, 0.5] V (half the gap between the branches)");
+    p.hysteresis_v = value;
+  } else if (name == "current_offset") {
+    p.current_offset_a = value;
+  } else if (name == "current_gain") {
+    if (std::abs(value) >= 0.5) throw InputError("--model-effect current_gain: must be within +-0.5");
+    p.current_gain = value;
+  } else {
+    throw InputError("--model-effect '" + name +
+                     "': unknown effect (the firmware model has contact_resistance, hysteresis, current_offset, "
+                     "current_gain)");
+  }
+  o.model_effects_on = true;
+}
 
 EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, const EstimateOptions& options,
                             const EstimateProgress& progress) {
@@ -155,7 +203,12 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
     // The nominal inventory is the cell's design state, not the (possibly wrong) model start.
     const InitialConditions nominal = default_initial_conditions(cell);
     o.nominal_inventory_mol = fw::ReducedCell<double>::inventory_of(nominal.stoich_neg, nominal.stoich_pos);
-    dispatch_nc(model, d, o, cell, dt_s, res, progress);
+    if (o.model_effects_on) {
+      fw::EffectsModel<fw::ReducedCell<double>, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
+      dispatch_nc(augmented, d, o, cell, dt_s, res, progress);
+    } else {
+      dispatch_nc(model, d, o, cell, dt_s, res, progress);
+    }
   } else if (o.model == "full") {
     if (o.resync) throw InputError("--resync is a feature of the firmware model; use --model reduced");
     SolverSettings s;
@@ -163,7 +216,12 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
     InitialConditions ic = o.ic;
     ic.r_film_ohm_m2 = o.r_film_init_ohm_m2 >= 0.0 ? o.r_film_init_ohm_m2 : cell.side.initial_film_resistance_ohm_m2;
     FullDfnMainModel model(cell, o.mesh, s, ic, cell.thermal.initial_temperature_k);
-    dispatch_nc(model, d, o, cell, dt_s, res, progress);
+    if (o.model_effects_on) {
+      fw::EffectsModel<FullDfnMainModel, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
+      dispatch_nc(augmented, d, o, cell, dt_s, res, progress);
+    } else {
+      dispatch_nc(model, d, o, cell, dt_s, res, progress);
+    }
   } else {
     throw InputError("--model must be 'reduced' or 'full' (got '" + o.model + "')");
   }

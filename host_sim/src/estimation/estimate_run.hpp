@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "bms/fw/cell_effects.hpp"
 #include "bms/fw/operating_mode.hpp"
 #include "cell/cell_parameters.hpp"
 #include "sim/cycler.hpp"
@@ -40,12 +41,18 @@ struct EstimateOptions {
   double r_film_init_ohm_m2 = -1.0;  // < 0: the cell's initial film resistance
   InitialConditions ic;              // of the model (not the truth)
   bool resync = false;               // state re-synchronisation at the end of each CV phase
+  bool resync_at_start = true;      // with --resync: also at the first sample (power-up from rest)
   double resync_current_a = 0.25;
+  unsigned resync_window_ticks = 1;  // ticks of measurement each resync fits a line to
   double nominal_inventory_mol = 0.0;  // set by run_estimate from the cell's nominal state
   double warmup_s = 0.0;             // RCSI learns only after this long in each CC charge
   bool calibrate_bias = false;       // first CC charge = reference charge at the initial film resistance
   unsigned reference_after_resyncs = 1;  // with --resync: resyncs before the reference charge
   bool average_estimate = false;     // report the mean of u_hat over each charge's learning window
+  // Effects added to the main model (bms/fw/cell_effects.hpp), e.g. the one `bmssim diagnose`
+  // found; none by default. nominal_capacity_ah is taken from the cell.
+  fw::EffectParameters<double> model_effects;
+  bool model_effects_on = false;
   DfnMesh mesh;                      // full model only
   double rtol = 1e-6;                // full model only
 };
@@ -75,6 +82,11 @@ struct EstimateResult {
   std::uint32_t status = 0;   // OR of all tick status words
   std::size_t newton_cap_hits = 0;
 };
+
+// Sets one main-model effect from "NAME=VALUE" (contract names: contact_resistance [ohm],
+// hysteresis [V, half the branch gap], current_offset [A], current_gain [relative]).
+// Throws InputError naming the option and the field for anything else.
+void add_model_effect(EstimateOptions& o, const std::string& spec);
 
 using EstimateProgress = std::function<void(std::size_t row, std::size_t rows)>;
 

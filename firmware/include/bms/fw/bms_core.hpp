@@ -32,6 +32,7 @@
 #include "bms/fw/operating_mode.hpp"
 #include "bms/fw/rcsi_estimator.hpp"
 #include "bms/fw/reduced_cell.hpp"
+#include "bms/fw/resync_window.hpp"
 
 namespace bms::fw {
 
@@ -83,7 +84,15 @@ class BmsCore {
     // model's own lithium loss (MainModel::resync). Removes initial-condition errors and the
     // model's drift before the next CC phase. Off by default (the paper has no observer).
     bool resync_at_cv_end = false;
+    // Beyond the paper: the same re-synchronisation once, at the first accepted sample after
+    // power-up with no restored state (a BMS wakes up from rest: uniform particles). Removes
+    // an initial-condition error before the first discharge can clip the model's particle
+    // profiles at the stoichiometry limits, which a later uniform shift cannot repair.
+    bool resync_at_start = false;
     Scalar resync_current_a = Scalar(0.25);
+    // Each re-synchronisation matches a straight line fitted to this many ticks of measured
+    // voltage and current (ResyncWindow), taken from the trigger on; 1 = the trigger sample.
+    std::uint32_t resync_window_ticks = 1u;
     Scalar nominal_inventory_mol = Scalar(0);
     // Beyond the paper: RCSI learns only after this long in a CC charge. The first seconds
     // after a deep CV discharge are where the reduced model is least accurate (a reaction
@@ -123,8 +132,10 @@ class BmsCore {
     std::uint32_t stale_ticks;
     std::uint32_t flags;  // bit 0: previous tick was CC charge, bit 1: a sample was accepted,
                           // bit 2: the model was re-synchronised in this CV phase,
-                          // bit 3: the voltage bias is calibrated
+                          // bit 3: the voltage bias is calibrated,
+                          // bit 4: the open re-synchronisation window is the power-up one
     std::uint32_t cc_ticks;
+    std::uint32_t resync_count;
     std::uint32_t bias_samples;
     Scalar bias_sum_v;
     Scalar bias_v;
@@ -135,6 +146,7 @@ class BmsCore {
     Scalar last_j_side_a_m3;
     typename Detector::State detector;
     typename Estimator::State estimator;
+    typename ResyncWindow<Scalar>::State resync_window;
     ModelState model;
   };
   static constexpr std::uint32_t kLayoutTag =
@@ -153,6 +165,7 @@ class BmsCore {
     st |= validate(in);
     if ((st & kTickRejectMask) != 0u) return held_output(raise_stale(st));
     stale_ticks_ = 0;
+    const bool first_sample = !have_sample_;
     have_sample_ = true;
     last_current_ = in.current_a;
 
@@ -173,6 +186,10 @@ class BmsCore {
       avg_samples_ = 0u;
     }
     const Scalar u = cc_charge ? estimator_.predict() : r_held_;
+    if (first_sample && config_.resync_at_start) {
+      window_.open(config_.resync_window_ticks);
+      start_window_ = true;
+    }
 
     const Mode raw = detector_.raw_mode();
     const bool voltage_driven = (raw == Mode::cv_charge || raw == Mode::cv_discharge) && raw == mode;
@@ -188,13 +205,25 @@ class BmsCore {
     if (!r.converged) st |= bit(FwStatus::kModelNotConverged);
     if (!voltage_driven) {
       resynced_in_phase_ = false;
-    } else if (config_.resync_at_cv_end && !resynced_in_phase_ && std::fabs(in.current_a) <= config_.resync_current_a) {
+      if (!start_window_) window_.close();  // the CV phase ended before its window filled
+    } else if (config_.resync_at_cv_end && !resynced_in_phase_ && !window_.is_open() &&
+               std::fabs(in.current_a) <= config_.resync_current_a) {
       resynced_in_phase_ = true;
-      const Scalar target_mol = config_.nominal_inventory_mol - model_.li_loss_mol();
-      if (model_.resync(in.voltage_v, in.current_a, u, config_.dt_s, target_mol)) {
-        ++resync_count_;
-      } else {
-        st |= bit(FwStatus::kResyncFailed);
+      window_.open(config_.resync_window_ticks);
+      start_window_ = false;
+    }
+    if (window_.is_open()) {
+      window_.add(in.voltage_v, in.current_a);
+      if (window_.full()) {
+        const auto m = window_.fit();
+        window_.close();
+        start_window_ = false;
+        const Scalar target_mol = config_.nominal_inventory_mol - model_.li_loss_mol();
+        if (model_.resync(m.voltage_v, m.current_a, u, config_.dt_s, target_mol)) {
+          ++resync_count_;
+        } else {
+          st |= bit(FwStatus::kResyncFailed);
+        }
       }
     }
     const Scalar z = r.voltage_v - in.voltage_v;
@@ -238,8 +267,9 @@ class BmsCore {
     s.ticks = ticks_;
     s.stale_ticks = stale_ticks_;
     s.flags = (prev_cc_charge_ ? 1u : 0u) | (have_sample_ ? 2u : 0u) | (resynced_in_phase_ ? 4u : 0u) |
-              (bias_calibrated_ ? 8u : 0u);
+              (bias_calibrated_ ? 8u : 0u) | (start_window_ ? 16u : 0u);
     s.cc_ticks = cc_ticks_;
+    s.resync_count = resync_count_;
     s.bias_samples = bias_samples_;
     s.bias_sum_v = bias_sum_;
     s.bias_v = bias_v_;
@@ -250,20 +280,23 @@ class BmsCore {
     s.last_j_side_a_m3 = last_j_side_;
     s.detector = detector_.state();
     s.estimator = estimator_.save();
+    s.resync_window = window_.state();
     s.model = model_.state();
     return s;
   }
 
   // All or nothing: a rejected image changes nothing but the sticky kRestoreRejected bit.
   bool restore(const State& s) {
-    const bool header_ok = s.layout_tag == kLayoutTag && (s.flags & ~15u) == 0u && std::isfinite(s.bias_sum_v) &&
+    const bool header_ok = s.layout_tag == kLayoutTag && (s.flags & ~31u) == 0u && std::isfinite(s.bias_sum_v) &&
                            std::isfinite(s.bias_v) && std::isfinite(s.avg_sum_ohm_m2) &&
                            std::isfinite(s.r_held_ohm_m2) && std::isfinite(s.last_current_a) &&
                            std::isfinite(s.last_j_side_a_m3);
     Detector d = detector_;
     Estimator e = estimator_;
+    ResyncWindow<Scalar> w;
     const ModelState model_backup = model_.state();
-    const bool ok = header_ok && d.restore(s.detector) && e.restore(s.estimator) && model_.restore(s.model);
+    const bool ok = header_ok && d.restore(s.detector) && e.restore(s.estimator) && w.restore(s.resync_window) &&
+                    model_.restore(s.model);
     if (!ok) {
       model_.restore(model_backup);
       status_ |= bit(FwStatus::kRestoreRejected);
@@ -271,13 +304,16 @@ class BmsCore {
     }
     detector_ = d;
     estimator_ = e;
+    window_ = w;
     ticks_ = s.ticks;
     stale_ticks_ = s.stale_ticks;
     prev_cc_charge_ = (s.flags & 1u) != 0u;
     have_sample_ = (s.flags & 2u) != 0u;
     resynced_in_phase_ = (s.flags & 4u) != 0u;
     bias_calibrated_ = (s.flags & 8u) != 0u;
+    start_window_ = (s.flags & 16u) != 0u;
     cc_ticks_ = s.cc_ticks;
+    resync_count_ = s.resync_count;
     bias_samples_ = s.bias_samples;
     bias_sum_ = s.bias_sum_v;
     bias_v_ = s.bias_v;
@@ -368,6 +404,8 @@ class BmsCore {
   bool have_sample_ = false;
   bool resynced_in_phase_ = false;
   bool bias_calibrated_ = false;
+  bool start_window_ = false;
+  ResyncWindow<Scalar> window_;
   std::uint32_t resync_count_ = 0u;
   std::uint32_t cc_ticks_ = 0u;
   std::uint32_t bias_samples_ = 0u;
