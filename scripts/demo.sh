@@ -22,14 +22,14 @@ bmssim="${BMSSIM:-$root/build/host/host_sim/bmssim}"
 "$root/scripts/install-deps.sh" can >/dev/null 2>&1 || echo "demo: could not install the 'can' packages; trying anyway" >&2
 rm -rf "$out"; mkdir -p "$out"
 if "$root/scripts/vcan-run.sh" --probe >/dev/null 2>&1; then
-  how="host-in-the-loop: \`bmssim hil --bus uml --cycles $cycles\` (firmware process fed over vcan0 inside User-Mode Linux, lock-step)"
-  "$bmssim" hil --bus uml --cycles "$cycles" --out "$out"
+  how="host-in-the-loop: \`bmssim hil --bus uml --cycles $cycles --beyond-paper\` (firmware process fed over vcan0 inside User-Mode Linux, lock-step)"
+  "$bmssim" hil --bus uml --cycles "$cycles" --beyond-paper --out "$out"
 else
   echo "demo: no kernel with vcan here (scripts/vcan-run.sh --probe failed; see docs/results/vcan-runner.md):" \
        "running the same firmware core offline instead of over the bus" >&2
   how="**offline fallback** (no kernel with vcan: \`scripts/vcan-run.sh --probe\` failed): \`bmssim simulate\` + \`bmssim estimate\`, the same firmware core without the bus"
   "$bmssim" simulate --cell paper --protocol cccv --cycles "$cycles" --out "$out/truth"
-  "$bmssim" estimate --data "$out/truth/truth.csv" --out "$out"
+  "$bmssim" estimate --data "$out/truth/truth.csv" --beyond-paper --out "$out"
   cp "$out/truth/truth.csv" "$out/truth.csv"
 fi
 

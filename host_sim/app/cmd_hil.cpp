@@ -45,11 +45,14 @@ namespace can = fw::can;
 // estimates.csv status column: bits 0..7 are the firmware's FaultBits; this host bit marks
 // a tick the firmware did not answer (killed, or the bus down): the row holds the last answer.
 constexpr std::uint32_t kHostNoAnswer = 1u << 8;
+// ... and this one a tick whose frames were all repeats or late (duplicated, reordered), so
+// they triggered no firmware tick: nothing was asked, the row holds the last answer.
+constexpr std::uint32_t kHostNotAsked = 1u << 9;
 
 struct HilCli {
   SimulateOptions sim;
   std::string bus = "vcan0", out, firmware, fault;
-  bool lockstep = true, realtime = false;
+  bool lockstep = true, realtime = false, beyond_paper = false;
   double h = 0.01, persist_every_s = 60.0;
   std::size_t max_ticks = 0;
 };
@@ -172,7 +175,7 @@ class FaultyTransmitter {
   void encode(std::size_t k, can::Measurement m, const hil::TickFaults& tf, hal::CanFrame& f) {
     m.seq = static_cast<std::uint16_t>(k & can::kSeqMask);
     if (tf.range) m.voltage_v = 7.0;
-    if (tf.nan) m.voltage_v = std::nan("");
+    if (tf.nan) (k % 2u == 0u ? m.voltage_v : m.current_a) = std::nan("");  // a failed ADC read of either channel
     if (tf.stale && have_frozen_) {
       can::encode(m, frozen_counter_, f);  // valid CRC, counter stuck
       return;
@@ -264,9 +267,10 @@ int run_hil(HilCli& c) {
                          " (on a machine without kernel CAN use --bus uml)");
   const std::filesystem::path nvm = dir / "firmware.nvm";
   std::filesystem::remove(nvm);
-  const std::vector<std::string> fw_args = {"--can", c.bus, c.realtime ? "--realtime" : "--lockstep", "--nvm",
+  std::vector<std::string> fw_args = {"--can", c.bus, c.realtime ? "--realtime" : "--lockstep", "--nvm",
                                             nvm.string(), "--h", fmt::format("{}", c.h), "--persist-every-s",
                                             fmt::format("{}", c.persist_every_s)};
+  if (c.beyond_paper) fw_args.emplace_back("--beyond-paper");
   hil::FirmwareProcess fw(c.firmware.empty() ? hil::default_firmware_path() : std::filesystem::path(c.firmware),
                           fw_args);
 
@@ -384,7 +388,10 @@ int run_hil(HilCli& c) {
     std::size_t answers = 0;
     if (!c.realtime && fw.running()) answers = collect(k, triggers, t_log, 0.0);
     EstimateRow row = last.row;
-    if (!c.realtime && answers == 0) {
+    // A tick whose frames were all repeats or late (duplicated, reordered) asks for nothing.
+    const bool asked = triggers > 0 || tf.bus_down || !fw.running();
+    if (!c.realtime && !asked) row.status |= kHostNotAsked;
+    if (!c.realtime && asked && answers == 0) {
       row.status |= kHostNoAnswer;
       ++no_answer;
     }
@@ -414,6 +421,7 @@ int run_hil(HilCli& c) {
   summary["simulation"]["options"] = options_json(c.sim);
   summary["hil"] = {{"bus", c.bus},
                     {"lockstep", !c.realtime},
+                    {"estimator", c.beyond_paper ? "beyond-paper" : "paper"},
                     {"ticks", n},
                     {"wall_s", res.wall_s},
                     {"sim_s", sim_s},
@@ -456,6 +464,8 @@ Runner add_hil(CLI::App& app) {
   sub->add_flag("--lockstep", c->lockstep, "Simulator-driven ticks, as fast as possible (default)");
   sub->add_flag("--realtime", c->realtime, "One measurement every 0.2 s of wall time; the firmware's timer ticks");
   sub->add_option("--h", c->h, "RCSI Markov parameter passed to the firmware")->capture_default_str();
+  sub->add_flag("--beyond-paper", c->beyond_paper,
+                "The firmware's best settings (as `bmssim estimate --beyond-paper`; --h is then not used)");
   sub->add_option("--firmware", c->firmware, "Path of bms-firmware (default: beside bmssim in the build tree)");
   sub->add_option("--persist-every-s", c->persist_every_s,
                   "Firmware commits its state to NVM every this many seconds of ticks (and at each CC-charge end)")

@@ -27,8 +27,8 @@ import csv
 import json
 import sys
 
-STALE, V_RANGE = 1, 4
-NO_ANSWER = 1 << 8
+STALE, V_RANGE, I_RANGE = 1, 4, 8
+NO_ANSWER, NOT_ASKED = 1 << 8, 1 << 9
 EPOCH, TICK_S = 1700000000.0, 0.2
 
 
@@ -115,8 +115,11 @@ def main():
             if kind in ("burst", "stale"):
                 bits = all((status[k] & STALE) == 0 for k in range(a, a + 2)) and \
                        all(status[k] & STALE for k in range(a + 2, b))
-            else:  # the frames arrive (not stale); the sample is rejected
+            elif kind == "range":  # the frames arrive (not stale); the sample is rejected
                 bits = all(status[k] & V_RANGE for k in range(a, b))
+            else:  # nan: voltage and current in turn; NaN is sent as a raw value outside the range
+                bits = all(status[k] & (V_RANGE | I_RANGE) for k in range(a, b)) and \
+                       any(status[k] & I_RANGE for k in range(a, b))
             rec = w["recover_ticks_after_window"]
             resumed = 0 <= rec <= 2 and any(active[k] for k in range(b, b + 3))
             ok &= report(frozen and bits and resumed,
@@ -132,9 +135,10 @@ def main():
         # the first estimate after the restart lies within what the estimate was in that minute.
         recent = est[max(0, a - 301):a]
         cont = min(recent) * 0.98 <= est[b] <= max(recent) * 1.02 and est[b] != est[0]
-        ok &= report(f["firmware_starts"] == 2 and s["answers_after_nvm_restore"] >= len(rows) - b and cont,
+        asked_after = sum(1 for k in range(b, len(rows)) if not status[k] & (NO_ANSWER | NOT_ASKED))
+        ok &= report(f["firmware_starts"] == 2 and s["answers_after_nvm_restore"] >= asked_after and cont,
                      f"firmware killed at tick {a}, restarted at {b}: starts {f['firmware_starts']}, answers with "
-                     f"'restored from NVM' {s['answers_after_nvm_restore']} (ticks after restart {len(rows) - b}), "
+                     f"'restored from NVM' {s['answers_after_nvm_restore']} (ticks asked after restart {asked_after}), "
                      f"estimate {est[b]:.6g} after, {min(recent):.6g}..{max(recent):.6g} in the minute before")
 
     rt = json.load(open(realtime + "/summary.json"))["hil"]

@@ -75,6 +75,36 @@ TEST(BmsCore, MissingSamplesFreezeThenResume) {
   EXPECT_EQ(back.tick, before.ticks + 1);
 }
 
+// Lost samples in CC: at the next accepted sample the model steps through the missed ticks,
+// so it stays with the cell instead of falling 0.2 s of charge behind per lost sample.
+TEST(BmsCore, CatchUpKeepsTheModelWithTheCellAcrossLostSamples) {
+  for (const std::uint32_t max_ticks : {150u, 0u}) {
+    Core::Config cfg;
+    cfg.catch_up_max_ticks = max_ticks;
+    Model truth, model;
+    truth.init_default();
+    model.init_default();
+    Core core(cfg, model);
+    const double film = cfg.estimator.r_film_init_ohm_m2;  // plant = model: only the lag differs
+    auto sample = [&](bool delivered) {
+      const auto r = truth.step_current(2.5, film, 0.2);
+      return core.tick({r.voltage_v, 2.5, delivered});
+    };
+    for (int i = 0; i < 20; ++i) sample(true);
+    for (int i = 0; i < 10; ++i) sample(false);
+    const auto back = sample(true);
+    const double lag = std::abs(model.mean_stoich_neg() - truth.mean_stoich_neg());
+    if (max_ticks > 0u) {
+      EXPECT_EQ(core.catch_up_ticks(), 10u);
+      EXPECT_LT(lag, 1e-12);
+      EXPECT_LT(std::abs(back.z_v), 1e-9);
+    } else {
+      EXPECT_EQ(core.catch_up_ticks(), 0u);
+      EXPECT_GT(lag, 1e-5);  // 10 ticks of 2.5 A behind
+    }
+  }
+}
+
 TEST(BmsCore, RcsiLearnsOnlyInConstantCurrentChargeAndTracksTheFilm) {
   Rig rig;
   int active_outside = 0, active_inside = 0;

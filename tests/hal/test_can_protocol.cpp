@@ -171,9 +171,13 @@ TEST(RoundTrip, MeasurementSaturatesAndWrapsSeq) {
   r = round_trip(m);
   EXPECT_DOUBLE_EQ(r.voltage_v, 0.0);
   EXPECT_DOUBLE_EQ(r.current_a, can::sig::kMeasCurrent.max);
+  // NaN (a failed ADC read) goes to the end of the raw range a plausibility check rejects,
+  // never to 0, which would read as a plausible 0 A.
   m.voltage_v = std::numeric_limits<double>::quiet_NaN();
+  m.current_a = std::numeric_limits<double>::quiet_NaN();
   r = round_trip(m);
-  EXPECT_DOUBLE_EQ(r.voltage_v, 0.0);
+  EXPECT_DOUBLE_EQ(r.voltage_v, can::sig::kMeasVoltage.max);
+  EXPECT_DOUBLE_EQ(r.current_a, can::sig::kMeasCurrent.min);
 }
 
 TEST(RoundTrip, Control) {

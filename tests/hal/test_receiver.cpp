@@ -215,6 +215,10 @@ TEST(LockstepTicks, MeasurementSeqUnwrapsTo32Bits) {
   EXPECT_EQ(tick, 4096u);
   EXPECT_TRUE(lt.classify(measurement(3, 5), tick));
   EXPECT_EQ(tick, 4101u);
+  // A duplicated or late (reordered) frame is not a new tick.
+  EXPECT_FALSE(lt.classify(measurement(9, 5), tick));
+  EXPECT_FALSE(lt.classify(measurement(9, 3), tick));
+  EXPECT_EQ(lt.last_tick(), 4101u);
   // A corrupted measurement still triggers the next tick (the receiver then drops it).
   CanFrame bad = measurement(4, 6);
   bad.data[2] ^= 0xFF;

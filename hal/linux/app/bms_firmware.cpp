@@ -66,6 +66,7 @@ class RamOnlyNvm final : public bms::hal::NonVolatileMemory {
 void usage(FILE* to) {
   std::fprintf(to,
                "usage: bms-firmware --can IFACE (--lockstep | --realtime) [--nvm FILE] [--h H] [--h-from-model]\n"
+               "                    [--beyond-paper]\n"
                "                    [--persist-every-s S] [--rcvbuf-bytes N]\n"
                "  --can IFACE          SocketCAN interface (e.g. vcan0)\n"
                "  --lockstep           ticks triggered by the host's HOST_Measurement frames (deterministic)\n"
@@ -73,6 +74,9 @@ void usage(FILE* to) {
                "  --nvm FILE           keep the estimator state in FILE (two slots, CRC); restored at start\n"
                "  --h H                RCSI Markov parameter [V per ohm m2] (default 0.01, the paper's)\n"
                "  --h-from-model       H from the model at each charge start\n"
+               "  --beyond-paper       the firmware's best settings (as bmssim estimate --beyond-paper): H from\n"
+               "                       the model, state re-synchronisation, 600 s warm-up, bias calibration,\n"
+               "                       charge-averaged estimate (--h is then not used)\n"
                "  --persist-every-s S  commit the state every S s of ticks (default 60; 0: only at the end\n"
                "                       of each CC charge and at exit)\n"
                "  --rcvbuf-bytes N     socket receive buffer (default 8388608: a replay sent faster than\n"
@@ -99,7 +103,7 @@ void enlarge_receive_buffer(int fd, int bytes) {
 
 int main(int argc, char** argv) {
   std::string iface, nvm_path;
-  bool lockstep = false, realtime = false, h_from_model = false;
+  bool lockstep = false, realtime = false, h_from_model = false, beyond_paper = false;
   double h = 0.01, persist_every_s = 60.0, rcvbuf_bytes = 8388608.0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -115,6 +119,7 @@ int main(int argc, char** argv) {
     else if (a == "--lockstep") lockstep = true;
     else if (a == "--realtime") realtime = true;
     else if (a == "--h-from-model") h_from_model = true;
+    else if (a == "--beyond-paper") beyond_paper = true;
     else if (a == "--h") {
       const std::string v = value("--h");
       if (!parse_number(v, h) || h == 0.0) {
@@ -172,9 +177,14 @@ int main(int argc, char** argv) {
   using Core = bms::fw::BmsCore<double, Model, 1, 0>;
   static Model model;  // static storage: the firmware's objects are not on the stack
   model.init_default();
-  Core::Config cfg;
-  cfg.estimator.markov_v_per_ohm_m2 = h;
-  cfg.markov_from_model = h_from_model;
+  using Cell = bms::fw::PaperCellTraits;
+  Core::Config cfg = beyond_paper ? Core::beyond_paper_config(Model::inventory_of(Cell::kNeg.stoich_init,
+                                                                                   Cell::kPos.stoich_init))
+                                  : Core::Config{};
+  if (!beyond_paper) {
+    cfg.estimator.markov_v_per_ohm_m2 = h;
+    cfg.markov_from_model = h_from_model;
+  }
   // Plausibility window of the measured voltage: the paper cell's limits with 0.5 V margin,
   // so a sensor reading of 0 V (what a NaN becomes on the bus) is rejected, not modelled.
   cfg.voltage_min_v = bms::fw::paper::kLowerVoltage_v - 0.5;

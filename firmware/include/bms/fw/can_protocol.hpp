@@ -315,9 +315,11 @@ constexpr std::int64_t raw_max(const SignalLayout& s) {
                                          : static_cast<std::int64_t>((std::uint64_t{1} << s.length) - 1u);
 }
 
-/// Physical value (DBC unit) -> raw integer: nearest step, saturated, NaN -> 0.
+/// Physical value (DBC unit) -> raw integer: nearest step, saturated. NaN -> the end of the
+/// raw range a receiver's plausibility check rejects (unsigned: the largest raw value, e.g.
+/// 10.49 V; signed: the most negative, e.g. -52.4 A), never 0, which reads as a plausible 0 A.
 inline std::int64_t to_raw(const SignalLayout& s, double physical) {
-  if (std::isnan(physical)) return 0;
+  if (std::isnan(physical)) return s.type == ValueType::signed_int ? raw_min(s) : raw_max(s);
   const double scaled = (physical - s.offset) / s.factor;
   const auto lo = static_cast<double>(raw_min(s));
   const auto hi = static_cast<double>(raw_max(s));
@@ -738,6 +740,9 @@ class Receiver {
 ///   the previous tick (the next tick whose low 12 bits equal Seq). With a bad CRC it
 ///   still triggers (tick = previous + 1): the host did send the tick, and the Receiver
 ///   then drops and counts the frame, so the tick runs with the measurement missing.
+///   A good frame whose Seq repeats the previous tick's, or lies behind it (a duplicated or
+///   reordered frame), triggers nothing: the host sent no new tick, and running one would
+///   step the model twice for one 0.2 s of cell time.
 /// - HOST_Control with a good CRC and TickTrigger = 1: tick = its 32-bit Tick.
 /// Use with LockstepBus through a captureless lambda:
 ///   [](const hal::CanFrame& f, uint32_t& t, void* c) {
@@ -751,7 +756,9 @@ class LockstepTicks {
         tick = have_ ? last_ + 1u : 0u;
       } else {
         const auto seq = static_cast<std::uint32_t>(get_uint(frame.data, sig::kSeq));
-        tick = have_ ? last_ + ((seq - (last_ & kSeqMask)) & kSeqMask) : seq;
+        const std::uint32_t ahead = (seq - (last_ & kSeqMask)) & kSeqMask;
+        if (have_ && (ahead == 0u || ahead > kSeqMask / 2u)) return false;
+        tick = have_ ? last_ + ahead : seq;
       }
       have_ = true;
       last_ = tick;

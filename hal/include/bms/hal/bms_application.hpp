@@ -21,7 +21,20 @@ namespace bms::hal {
 template <class Core>
 class BmsApplication {
  public:
-  using Store = fw::nvm::RecordStore<typename Core::State, Core::kLayoutTag, NonVolatileMemory>;
+  // What survives a power cut: the core's state and the tick it belongs to, so that after a
+  // restart in lock-step the firmware knows how many ticks it missed (the core then steps its
+  // model over them, BmsCore::Config::catch_up_max_ticks).
+  struct Persisted {
+    typename Core::State core;
+    std::uint32_t tick;
+    std::uint32_t reserved;
+  };
+  static constexpr std::uint32_t kPersistedTag =
+      (0x41u << 24) | (static_cast<std::uint32_t>(sizeof(Persisted) & 0xFFFFu) << 8) |
+      (Core::kLayoutTag & 0xFFu);
+  using Store = fw::nvm::RecordStore<Persisted, kPersistedTag, NonVolatileMemory>;
+  // Longest gap fed to the core as missed ticks (10 minutes); a longer one is a new start.
+  static constexpr std::uint32_t kMaxMissedTicks = 3000u;
 
   struct Options {
     bool lockstep = true;
@@ -36,8 +49,14 @@ class BmsApplication {
   // Restores the saved state if there is one; returns true if a state was restored.
   bool restore_from_nvm() {
     const fw::nvm::StoreStatus s = store_.load(image_);
-    if (s == fw::nvm::StoreStatus::ok && core_.restore(image_)) {
+    if (s == fw::nvm::StoreStatus::ok && core_.restore(image_.core)) {
       restored_ = true;
+      // Lock-step tick numbers restart from the host's 12-bit sequence number: the first tick
+      // after the restart is compared modulo that. Real time has no common clock across a
+      // restart, so the gap is unknown there.
+      have_tick_ = o_.lockstep;
+      tick_after_restart_ = o_.lockstep;
+      last_tick_ = image_.tick;
       log_.write(LogLevel::info, "nvm: estimator state restored");
       return true;
     }
@@ -49,7 +68,9 @@ class BmsApplication {
   }
 
   bool persist() {
-    image_ = core_.save();
+    image_.core = core_.save();
+    image_.tick = last_tick_;
+    image_.reserved = 0u;
     const bool ok = store_.save(image_) == fw::nvm::StoreStatus::ok;
     if (!ok) fault_bits_ |= fw::can::fault_bit::kNvm;
     return ok;
@@ -61,6 +82,14 @@ class BmsApplication {
     std::uint32_t tick = 0;
     const Status ws = ticks_.wait_next_tick(tick, o_.tick_timeout_ms);
     if (ws != Status::ok) return ws;
+    // Ticks that came and went without reaching this loop (lock-step: frames lost on the bus,
+    // the bus down, the process dead; real time: a late process) are ticks without a sample.
+    const std::uint32_t missed = missed_ticks(tick);
+    for (std::uint32_t k = 0; k < missed; ++k) core_.tick(fw::TickInput<double>{0.0, 0.0, false});
+    missed_total_ += missed;
+    last_tick_ = tick;
+    have_tick_ = true;
+    tick_after_restart_ = false;
     fw::TickInput<double> in{0.0, 0.0, false};
     CanFrame f{};
     // Lock-step: the LockstepBus hands out exactly this tick's frames. Real time: drain
@@ -86,8 +115,17 @@ class BmsApplication {
 
   const typename Core::Output& last_output() const { return last_; }
   const fw::can::Receiver& receiver() const { return receiver_; }
+  std::uint32_t missed_ticks_total() const { return missed_total_; }
 
  private:
+  std::uint32_t missed_ticks(std::uint32_t tick) const {
+    if (!have_tick_) return 0u;
+    std::uint32_t ahead = tick - last_tick_;
+    if (tick_after_restart_) ahead &= fw::can::kSeqMask;
+    if (ahead == 0u || ahead > kMaxMissedTicks) return 0u;
+    return ahead - 1u;
+  }
+
   void send_outputs(const typename Core::Output& out, bool stale) {
     namespace can = fw::can;
     CanFrame f{};
@@ -148,7 +186,7 @@ class BmsApplication {
   LogSink& log_;
   Options o_;
   Store store_;
-  typename Core::State image_{};  // save/restore buffer: a member, not a stack object (it is large)
+  Persisted image_{};  // save/restore buffer: a member, not a stack object (it is large)
   fw::can::Receiver receiver_{fw::can::Node::bms};
   fw::can::Transmitter tx_;
   typename Core::Output last_{};
@@ -157,6 +195,10 @@ class BmsApplication {
   std::uint32_t dropped_seen_ = 0;
   std::uint8_t fault_bits_ = 0;
   bool restored_ = false;
+  bool have_tick_ = false;
+  bool tick_after_restart_ = false;
+  std::uint32_t last_tick_ = 0;
+  std::uint32_t missed_total_ = 0;
 };
 
 }  // namespace bms::hal
