@@ -5,12 +5,16 @@
 #
 # usage: tests/cli/hil_fault_sweep.sh BMSSIM OUT_DIR [CYCLES] [SEED]
 #   e.g. tests/cli/hil_fault_sweep.sh build/host/host_sim/bmssim out/fault-sweep 1 3
-# Windows are placed 1500 s into the first CC charge (where the estimator learns).
+# Windows are placed 1500 s into the first CC charge (where the estimator learns), or at
+# HIL_FAULT_AT (a tick number or MODE+SECONDS); HIL_EXTRA adds hil options to every run, e.g.
+#   HIL_EXTRA=--beyond-paper HIL_FAULT_AT=63132 tests/cli/hil_fault_sweep.sh B out/fs-beyond 2 3
+# (tick 63132 = 1500 s into the second CC charge, the first one the beyond-paper estimator learns in).
 # Writes OUT_DIR/<scenario>/ (hil outputs) and OUT_DIR/table.md.
 set -euo pipefail
 bmssim="$(realpath "$1")"; out="$(realpath -m "$2")"; cycles="${3:-1}"; seed="${4:-3}"
 src="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-at="cc_charge+1500"
+at="${HIL_FAULT_AT:-cc_charge+1500}"
+read -r -a extra <<< "${HIL_EXTRA:-}"
 scenarios=(
   "clean|"
   "drop 1 %|drop=0.01"
@@ -36,7 +40,7 @@ job="$out/sweep_inside.sh"
     spec="${s#*|}"
     fault=()
     [ -n "$spec" ] && fault=(--fault "$spec,seed=$seed")
-    printf '%q ' "$bmssim" hil --bus vcan0 --cycles "$cycles" --quiet --out "$out/s$i" "${fault[@]}"
+    printf '%q ' "$bmssim" hil --bus vcan0 --cycles "$cycles" --quiet --out "$out/s$i" "${extra[@]}" "${fault[@]}"
     echo
     i=$((i + 1))
   done
