@@ -73,6 +73,21 @@ int main() {
   std::printf("# newton_cap_probe iterations %u converged %u instructions %lu\n",
               static_cast<unsigned>(probe.newton_iterations), probe.converged ? 1u : 0u,
               static_cast<unsigned long>(p1 - p0));
+  // The beyond-paper paths the paper-settings replay does not take: a state
+  // re-synchronisation, and the tick after a 2-minute gap (last: it changes the firmware).
+  const std::uint64_t r0 = bms::target::platform_instructions();
+  const bool resync_ok = bms::target::resync_probe(fw);
+  const std::uint64_t r1 = bms::target::platform_instructions();
+  std::printf("# resync_probe converged %u instructions %lu\n", resync_ok ? 1u : 0u,
+              static_cast<unsigned long>(r1 - r0));
+  const std::size_t last = kReplayTicks - 1u;
+  const Scalar last_v = static_cast<Scalar>(static_cast<double>(bms_replay_voltage_10uv[last]) * 1e-5);
+  const Scalar last_i = static_cast<Scalar>(static_cast<double>(bms_replay_current_100ua[last]) * 1e-4);
+  const std::uint64_t g0 = bms::target::platform_instructions();
+  const bms::target::TickOutput after_gap = bms::target::catch_up_probe(fw, 600u, last_v, last_i);
+  const std::uint64_t g1 = bms::target::platform_instructions();
+  std::printf("# catch_up_probe gap 600 finite %u instructions %lu\n",
+              std::isfinite(after_gap.z_v) ? 1u : 0u, static_cast<unsigned long>(g1 - g0));
   std::printf("# ticks %u\n", static_cast<unsigned>(kReplayTicks));
   std::printf("# scalar %s\n", sizeof(Scalar) == sizeof(double) ? "double" : "float");
   std::printf("# status_or 0x%08x\n", static_cast<unsigned>(status_or));
