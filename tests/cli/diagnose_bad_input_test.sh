@@ -9,15 +9,14 @@
 # contact resistance injected): exit 0 and the answer `none` with a reason that says why,
 # never a guess between the effects that one current cannot separate.
 set -u
+HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 [ "$#" -eq 1 ] && [ -x "$1" ] || { echo "usage: $0 BMSSIM" >&2; exit 2; }
 BMSSIM=$1
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/bmssim_diagnose.XXXXXX") || exit 1
 trap 'rm -rf "$WORK"' EXIT
 cd "$WORK" || exit 1
-PASSED=0
-FAILED=0
-pass() { PASSED=$((PASSED + 1)); echo "ok - $1"; }
-fail() { FAILED=$((FAILED + 1)); echo "not ok - $1: $2"; }
+# shellcheck source=input_error_check.sh
+. "$HERE/input_error_check.sh"
 
 # About:Energy format, I negative on discharge; rows 0..N-1 at 1 s, 1 A discharge.
 make_csv() { # NAME ROWS [awk filter applied to each data line]
@@ -27,16 +26,7 @@ make_csv() { # NAME ROWS [awk filter applied to each data line]
 # expect_bad NAME NEEDLE(extended regex, case-insensitive) ARGS...
 expect_bad() {
   local name=$1 needle=$2; shift 2
-  local out="$WORK/out_$name"
-  "$BMSSIM" diagnose "$@" --cell paper --out "$out" --quiet 2> "$WORK/err_$name" >/dev/null
-  local rc=$?
-  local first
-  first=$(head -n 1 "$WORK/err_$name")
-  if [ "$rc" -ne 2 ]; then fail "$name" "exit code $rc, expected 2 (stderr: $first)"; return; fi
-  if [ "$(wc -l < "$WORK/err_$name")" -ne 1 ]; then fail "$name" "stderr is not one line: $(cat "$WORK/err_$name")"; return; fi
-  if ! grep -qiE "$needle" <<< "$first"; then fail "$name" "stderr '$first' does not match '$needle'"; return; fi
-  if [ -e "$out/summary.json" ]; then fail "$name" "summary.json written for bad input"; return; fi
-  pass "$name"
+  check_input_error "$name" "$needle" "$WORK/out_$name" -- "$BMSSIM" diagnose "$@" --cell paper --out "$WORK/out_$name" --quiet
 }
 
 make_csv short.csv 10

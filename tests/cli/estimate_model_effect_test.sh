@@ -8,31 +8,21 @@
 # no summary.json. A valid run: summary.json records the effects, and a 1 mohm contact
 # resistance lowers the model voltage of a 1 A discharge by 1 mV against the plain model.
 set -u
+HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 [ "$#" -eq 1 ] && [ -x "$1" ] || { echo "usage: $0 BMSSIM" >&2; exit 2; }
 BMSSIM=$(realpath "$1")
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/bmssim_estimate_effect.XXXXXX") || exit 1
 trap 'rm -rf "$WORK"' EXIT
 cd "$WORK" || exit 1
-PASSED=0
-FAILED=0
-pass() { PASSED=$((PASSED + 1)); echo "ok - $1"; }
-fail() { FAILED=$((FAILED + 1)); echo "not ok - $1: $2"; }
+# shellcheck source=input_error_check.sh
+. "$HERE/input_error_check.sh"
 
 # truth.csv columns the estimator reads: 60 s of a 1 A discharge at 0.2 s.
 awk 'BEGIN { print "t_s,current_meas_a,voltage_meas_v"; for (k = 0; k < 300; k++) printf "%.1f,1.0,%.4f\n", 0.2 * k, 3.3 - 0.00001 * k }' > data.csv
 
 expect_bad() { # NAME NEEDLE EFFECT
   local name=$1 needle=$2 effect=$3
-  local out="$WORK/out_$name"
-  "$BMSSIM" estimate --data data.csv --model-effect "$effect" --out "$out" --quiet 2> "$WORK/err_$name" >/dev/null
-  local rc=$?
-  local first
-  first=$(head -n 1 "$WORK/err_$name")
-  if [ "$rc" -ne 2 ]; then fail "$name" "exit code $rc, expected 2 (stderr: $first)"; return; fi
-  if [ "$(wc -l < "$WORK/err_$name")" -ne 1 ]; then fail "$name" "stderr is not one line: $(cat "$WORK/err_$name")"; return; fi
-  if ! grep -qiE "$needle" <<< "$first"; then fail "$name" "stderr '$first' does not match '$needle'"; return; fi
-  if [ -e "$out/summary.json" ]; then fail "$name" "summary.json written for bad input"; return; fi
-  pass "$name"
+  check_input_error "$name" "$needle" "$WORK/out_$name" -- "$BMSSIM" estimate --data data.csv --model-effect "$effect" --out "$WORK/out_$name" --quiet
 }
 
 expect_bad unknown_name "model-effect.*thermal.*unknown effect" thermal=0.05
