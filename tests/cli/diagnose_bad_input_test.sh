@@ -11,7 +11,7 @@
 set -u
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 [ "$#" -eq 1 ] && [ -x "$1" ] || { echo "usage: $0 BMSSIM" >&2; exit 2; }
-BMSSIM=$1
+BMSSIM=$(realpath "$1")
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/bmssim_diagnose.XXXXXX") || exit 1
 trap 'rm -rf "$WORK"' EXIT
 cd "$WORK" || exit 1
