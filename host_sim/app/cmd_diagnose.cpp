@@ -41,7 +41,7 @@ std::vector<diagnosis::Effect> parse_candidates(const std::string& list) {
     if (!diagnosis::parse_effect(name, e) || e == Effect::none)
       throw InputError("--candidates: unknown effect '" + name +
                        "'; use all or a comma-separated list of contact_resistance, hysteresis, current_offset, "
-                       "current_gain, thermal");
+                       "current_gain, thermal, particle_size");
     out.push_back(e);
   }
   if (out.empty()) throw InputError("--candidates: empty list");
@@ -76,7 +76,8 @@ Runner add_diagnose(CLI::App& app) {
       ->required();
   sub->add_option("--cell", o->cell, "paper | aboutenergy | FILE.bpx.json")->required();
   sub->add_option("--out", o->out, "Output folder (summary.json, report.md, residual.csv, PNG plots)")->required();
-  sub->add_option("--candidates", o->candidates, "all, or a comma-separated subset of the candidate effects")
+  sub->add_option("--candidates", o->candidates, "all (contact_resistance, hysteresis, current_offset, current_gain, thermal), or a comma-separated "
+                  "list of those and particle_size (cathode particle-size spread, only when listed)")
       ->capture_default_str();
   sub->add_option("--points", o->points, "Final mesh: finite volumes per region")->capture_default_str()->check(CLI::Range(2, 400));
   sub->add_option("--radial", o->radial, "Final mesh: finite volumes per particle")->capture_default_str()->check(CLI::Range(3, 400));

@@ -26,7 +26,9 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
                  "Undeclared effect NAME=VALUE (repeatable): contact_resistance (ohm), hysteresis (V, half the "
                  "gap between the charge and discharge OCV branches; starts on the charge branch), current_offset "
                  "(A), current_gain (relative), thermal (lumped thermal model with Arrhenius properties; VALUE = "
-                 "heat-transfer coefficient to ambient in W/K, e.g. 0.05 for an 18650 in still air), none");
+                 "heat-transfer coefficient to ambient in W/K, e.g. 0.05 for an 18650 in still air), particle_size (cathode "
+                 "particle-size distribution: VALUE = log-space standard deviation sigma of a lognormal of radii, "
+                 "3 populations, same surface area), none");
   sub.add_option("--v-min", o.v_min, "Lower voltage limit (V); default: the cell's");
   sub.add_option("--v-max", o.v_max, "Upper voltage limit (V); default: the cell's");
   sub.add_option("--cv-end-current-a", o.cv_end_current_a, "CV phases end below this current (A)")->capture_default_str();
@@ -100,9 +102,14 @@ SimulateRun run_simulation(const SimulateOptions& o, const ProgressFn& progress)
     } else if (name == "thermal") {
       if (!(value > 0.0)) throw InputError("--effect thermal: heat-transfer coefficient must be > 0 W/K");
       cfg.effects.thermal_h_w_per_k = value;
+    } else if (name == "particle_size") {
+      if (!(value >= 0.0 && value <= 1.5))
+        throw InputError("--effect particle_size: log-space standard deviation of the cathode radius must be in [0, 1.5]");
+      cfg.effects.particle_size_sigma = value;
     } else if (name != "none") {
       throw InputError("--effect '" + name +
-                       "': unknown; use contact_resistance, hysteresis, current_offset, current_gain, thermal or none");
+                       "': unknown; use contact_resistance, hysteresis, current_offset, current_gain, thermal, "
+                       "particle_size or none");
     }
   }
 

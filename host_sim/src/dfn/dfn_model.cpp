@@ -61,6 +61,11 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
   if (!(std::abs(effects.hysteresis_initial_branch) <= 1.0)) bad("hysteresis initial branch: must be in [-1, 1]");
   if (!(std::isfinite(effects.thermal_h_w_per_k) && effects.thermal_h_w_per_k >= 0.0))
     bad("thermal: heat-transfer coefficient must be a finite value >= 0 W/K");
+  if (!(std::isfinite(effects.particle_size_sigma) && effects.particle_size_sigma >= 0.0 &&
+        effects.particle_size_sigma <= 1.5))
+    bad("particle_size: log-space standard deviation of the cathode radius must be in [0, 1.5]");
+  if (effects.particle_size_populations != 3 && effects.particle_size_populations != 5)
+    bad("particle_size populations: must be 3 or 5");
   if (!(temperature_k > 150.0 && temperature_k < 500.0))
     bad("temperature " + std::to_string(temperature_k) + " K: outside 150-500 K");
   if (effects.hysteresis_on() && !(cell.nominal_capacity_ah > 0.0))
@@ -85,6 +90,32 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
     n_ += nx_;
     idx_temp_ = n_++;
   }
+  if (effects.particle_size_on()) {
+    // Probabilists' Gauss-Hermite nodes z and weights w (sum 1) for a standard normal in
+    // ln(radius); node 0 is the centre, so population 0 is the plain model's particle moved.
+    static constexpr double k3z[] = {0.0, -1.7320508075688772, 1.7320508075688772};
+    static constexpr double k3w[] = {2.0 / 3.0, 1.0 / 6.0, 1.0 / 6.0};
+    static constexpr double k5z[] = {0.0, -1.3556261799742659, 1.3556261799742659, -2.8569700138728056,
+                                     2.8569700138728056};
+    static constexpr double k5w[] = {0.53333333333333333, 0.22207592200561265, 0.22207592200561265,
+                                     0.011257411327720691, 0.011257411327720691};
+    n_pop_ = effects.particle_size_populations;
+    const double* z = n_pop_ == 3 ? k3z : k5z;
+    const double* w = n_pop_ == 3 ? k3w : k5w;
+    // Median so that sum w / R_p = 1 / R (Sauter mean = R): the total area is the cell's.
+    double inv_scale_sum = 0.0;
+    for (int p = 0; p < n_pop_; ++p) inv_scale_sum += w[p] * std::exp(-effects.particle_size_sigma * z[p]);
+    pop_scale_.resize(n_pop_);
+    pop_weight_.resize(n_pop_);
+    for (int p = 0; p < n_pop_; ++p) {
+      pop_scale_[p] = inv_scale_sum * std::exp(effects.particle_size_sigma * z[p]);
+      pop_weight_[p] = w[p];
+    }
+    idx_pop_cs0_ = n_;
+    n_ += (n_pop_ - 1) * mesh.n_pos * mesh.n_r;
+    idx_pop_j0_ = n_;
+    n_ += (n_pop_ - 1) * mesh.n_pos;
+  }
 
   dx_.resize(nx_);
   eps_.resize(nx_);
@@ -108,17 +139,24 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
       a_[k] = cell.positive.surface_area_per_volume_m();
     }
   }
+  a_pop_.assign(n_pop_, 0.0);
+  for (int p = 0; p < n_pop_; ++p)
+    a_pop_[p] = 3.0 * cell.positive.solid_fraction * pop_weight_[p] / (cell.positive.particle_radius_m * pop_scale_[p]);
+  if (n_pop_ > 1)
+    for (int k = mesh.n_neg + mesh.n_sep; k < nx_; ++k) a_[k] = a_pop_[0];
   const int nr = mesh.n_r;
-  shell_vol_.resize(2 * nr);
-  face_r2_.resize(2 * (nr + 1));
+  const int n_geom = 1 + n_pop_;
+  shell_vol_.resize(n_geom * nr);
+  face_r2_.resize(n_geom * (nr + 1));
   // Shells are finer towards the surface, where the concentration gradient is steepest:
   // face i sits at R f(i/n) with f(s) = s + b s (1 - s), so the surface shell is (1 - b)
   // times and the centre shell (1 + b) times the uniform width.
   constexpr double kSurfaceRefinement = 0.6;
-  center_dist_.resize(2 * (nr - 1));
-  surface_half_.resize(2);
-  for (int side = 0; side < 2; ++side) {
-    const double radius = side == 0 ? cell.negative.particle_radius_m : cell.positive.particle_radius_m;
+  center_dist_.resize(n_geom * (nr - 1));
+  surface_half_.resize(n_geom);
+  for (int side = 0; side < n_geom; ++side) {
+    const double radius =
+        side == 0 ? cell.negative.particle_radius_m : cell.positive.particle_radius_m * pop_scale_[side - 1];
     std::vector<double> face(nr + 1);
     for (int i = 0; i <= nr; ++i) {
       const double u = static_cast<double>(i) / nr;
@@ -139,11 +177,14 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
     atol_scale_[idx_ce(k)] = cell.initial_electrolyte_mol_m3;
   }
   for (int e = 0; e < ne_; ++e) {
-    const int side = e < mesh.n_neg ? 0 : 1;
-    const double cmax = side == 0 ? cell.negative.max_concentration_mol_m3 : cell.positive.max_concentration_mol_m3;
-    for (int r = 0; r < nr; ++r) {
-      mass_[idx_cs(e, r)] = shell_vol_[side * nr + r];
-      atol_scale_[idx_cs(e, r)] = cmax;
+    const double cmax =
+        e < mesh.n_neg ? cell.negative.max_concentration_mol_m3 : cell.positive.max_concentration_mol_m3;
+    for (int p = 0; p < n_populations(e); ++p) {
+      const int side = geom(e, p);
+      for (int r = 0; r < nr; ++r) {
+        mass_[idx_cs_pop(e, p, r)] = shell_vol_[side * nr + r];
+        atol_scale_[idx_cs_pop(e, p, r)] = cmax;
+      }
     }
   }
   mass_[idx_film()] = 1.0;
@@ -188,9 +229,11 @@ std::vector<double> DfnModel::initial_state(double stoich_neg, double stoich_pos
     const bool neg = e < mesh_.n_neg;
     const double c = neg ? stoich_neg * cell_.negative.max_concentration_mol_m3
                          : stoich_pos * cell_.positive.max_concentration_mol_m3;
-    for (int r = 0; r < mesh_.n_r; ++r) y[idx_cs(e, r)] = c;
+    for (int p = 0; p < n_populations(e); ++p) {
+      for (int r = 0; r < mesh_.n_r; ++r) y[idx_cs_pop(e, p, r)] = c;
+      y[idx_j_pop(e, p)] = 0.0;
+    }
     y[idx_phis(e)] = neg ? 0.0 : up - un;
-    y[idx_j(e)] = 0.0;
   }
   y[idx_current()] = 0.0;
   y[idx_film()] = r_film;
@@ -294,7 +337,9 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
     T source = T(0.0);  // volumetric reaction current J (A/m3) times dx
     if (a_[k] > 0.0) {
       const int e = k < nn ? k : k - ns;
-      source = a_[k] * y[idx_j(e)] * dx_[k];
+      T a_j = a_[k] * y[idx_j(e)];
+      for (int pop = 1; pop < n_populations(e); ++pop) a_j = a_j + a_pop_[pop] * y[idx_j_pop(e, pop)];
+      source = a_j * dx_[k];
     }
     g[idx_ce(k)] = flux_right - flux_left + (1.0 - tplus) / kFaraday_c_mol * source;
     g[idx_phie(k)] = ie_right - ie_left - source;
@@ -318,53 +363,59 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
     const T is_left = e == first ? (neg ? i_app : T(0.0)) : -sigma * (y[idx_phis(e)] - y[idx_phis(e - 1)]) / h;
     const T is_right = e == last ? (neg ? T(0.0) : i_app) : -sigma * (y[idx_phis(e + 1)] - y[idx_phis(e)]) / h;
     const T j = y[idx_j(e)];
-    g[idx_phis(e)] = is_right - is_left + a_[k] * j * h;
+    T a_j = a_[k] * j;  // reaction current per volume (A/m3), all populations
+    for (int pop = 1; pop < n_populations(e); ++pop) a_j = a_j + a_pop_[pop] * y[idx_j_pop(e, pop)];
+    g[idx_phis(e)] = is_right - is_left + a_j * h;
     if (want_heat && e != last) add_heat(k, is_right * (y[idx_phis(e)] - y[idx_phis(e + 1)]), q_joule);
 
-    // Particle: finite volumes in r; molar flux out of the surface from the intercalation part.
-    const int side = neg ? 0 : 1;
     const double ds = p.solid_diffusivity_m2_s;
     const T arr_ds = temp_dep ? arrhenius(p.diffusivity_activation_j_mol, temp) : T(1.0);
     const T phis = y[idx_phis(e)], phie = y[idx_phie(k)];
-    T js = T(0.0);
-    if (neg && side_on) js = side_current(phis, phie, j, r_film, minus_alpha_f_side);
-    const T flux_out = (j - js) / kFaraday_c_mol;
-    for (int r = 0; r < nr; ++r) {
-      const T c = y[idx_cs(e, r)];
-      T in_right = r + 1 < nr ? face_r2_[side * (nr + 1) + r + 1] * ds * (y[idx_cs(e, r + 1)] - c) /
-                                    center_dist_[side * (nr - 1) + r]
-                              : -face_r2_[side * (nr + 1) + nr] * flux_out;
-      T in_left = r > 0 ? face_r2_[side * (nr + 1) + r] * ds * (c - y[idx_cs(e, r - 1)]) /
-                              center_dist_[side * (nr - 1) + r - 1]
-                        : T(0.0);
-      if (temp_dep) {  // diffusive faces only: the surface flux is set by the reaction
-        if (r + 1 < nr) in_right = in_right * arr_ds;
-        if (r > 0) in_left = in_left * arr_ds;
-      }
-      g[idx_cs(e, r)] = in_right - in_left;
-    }
-    const double cmax = p.max_concentration_mol_m3;
-    const T surface_drop = temp_dep ? surface_half_[side] * flux_out / (ds * arr_ds) : surface_half_[side] * flux_out / ds;
-    const T c_surf = clamp_between(y[idx_cs(e, nr - 1)] - surface_drop, 1e-6 * cmax, (1.0 - 1e-6) * cmax);
     const T ce = clamp_above(y[idx_ce(k)], 1e-3);
-    T i0 = p.i0_coefficient * sqrt(ce * c_surf * (cmax - c_surf));
-    if (temp_dep) i0 = i0 * arrhenius(p.rate_activation_j_mol, temp);
-    T ocp = apply(*p.ocp_v, c_surf / cmax);
-    T dudt = T(0.0);
-    if ((temp_dep || want_heat) && p.entropic_v_k) dudt = apply(*p.entropic_v_k, c_surf / cmax);
-    if (temp_dep && p.entropic_v_k) ocp = ocp + (temp - cell_.thermal.reference_temperature_k) * dudt;
-    T eta = phis - phie - ocp;
-    if (neg) eta = eta - j * r_film;
-    // Saturating the exponent keeps wild Newton trial states (consistent initialisation after
-    // a large current step) finite; converged states are far inside the limit.
-    g[idx_j(e)] = j - (2.0 * i0 * sinh(clamp_between(half_f * eta, -60.0, 60.0)) + js);
-    if (neg) js_weighted_sum = js_weighted_sum + js * h;
-    if (want_heat) {
-      // Irreversible: the whole drop phi_s - phi_e - U (kinetics and film); reversible: j T dU/dT.
-      const T ajh = a_[k] * h * j;
-      add_heat(k, ajh * (phis - phie - ocp), q_reaction);
-      if (p.entropic_v_k) add_heat(k, ajh * temp * dudt, q_reversible);
-      if (heat) p_chemical = p_chemical - ajh * ocp;
+    for (int pop = 0; pop < n_populations(e); ++pop) {
+      // Particle: finite volumes in r; molar flux out of the surface from the intercalation part.
+      const int side = geom(e, pop);
+      const T jp = pop == 0 ? j : y[idx_j_pop(e, pop)];
+      T js = T(0.0);
+      if (neg && side_on) js = side_current(phis, phie, jp, r_film, minus_alpha_f_side);
+      const T flux_out = (jp - js) / kFaraday_c_mol;
+      for (int r = 0; r < nr; ++r) {
+        const T c = y[idx_cs_pop(e, pop, r)];
+        T in_right = r + 1 < nr ? face_r2_[side * (nr + 1) + r + 1] * ds * (y[idx_cs_pop(e, pop, r + 1)] - c) /
+                                      center_dist_[side * (nr - 1) + r]
+                                : -face_r2_[side * (nr + 1) + nr] * flux_out;
+        T in_left = r > 0 ? face_r2_[side * (nr + 1) + r] * ds * (c - y[idx_cs_pop(e, pop, r - 1)]) /
+                                center_dist_[side * (nr - 1) + r - 1]
+                          : T(0.0);
+        if (temp_dep) {  // diffusive faces only: the surface flux is set by the reaction
+          if (r + 1 < nr) in_right = in_right * arr_ds;
+          if (r > 0) in_left = in_left * arr_ds;
+        }
+        g[idx_cs_pop(e, pop, r)] = in_right - in_left;
+      }
+      const double cmax = p.max_concentration_mol_m3;
+      const T surface_drop =
+          temp_dep ? surface_half_[side] * flux_out / (ds * arr_ds) : surface_half_[side] * flux_out / ds;
+      const T c_surf = clamp_between(y[idx_cs_pop(e, pop, nr - 1)] - surface_drop, 1e-6 * cmax, (1.0 - 1e-6) * cmax);
+      T i0 = p.i0_coefficient * sqrt(ce * c_surf * (cmax - c_surf));
+      if (temp_dep) i0 = i0 * arrhenius(p.rate_activation_j_mol, temp);
+      T ocp = apply(*p.ocp_v, c_surf / cmax);
+      T dudt = T(0.0);
+      if ((temp_dep || want_heat) && p.entropic_v_k) dudt = apply(*p.entropic_v_k, c_surf / cmax);
+      if (temp_dep && p.entropic_v_k) ocp = ocp + (temp - cell_.thermal.reference_temperature_k) * dudt;
+      T eta = phis - phie - ocp;
+      if (neg) eta = eta - jp * r_film;
+      // Saturating the exponent keeps wild Newton trial states (consistent initialisation after
+      // a large current step) finite; converged states are far inside the limit.
+      g[idx_j_pop(e, pop)] = jp - (2.0 * i0 * sinh(clamp_between(half_f * eta, -60.0, 60.0)) + js);
+      if (neg) js_weighted_sum = js_weighted_sum + js * h;
+      if (want_heat) {
+        // Irreversible: the whole drop phi_s - phi_e - U (kinetics and film); reversible: j T dU/dT.
+        const T ajh = (pop == 0 ? a_[k] : a_pop_[pop]) * h * jp;
+        add_heat(k, ajh * (phis - phie - ocp), q_reaction);
+        if (p.entropic_v_k) add_heat(k, ajh * temp * dudt, q_reversible);
+        if (heat) p_chemical = p_chemical - ajh * ocp;
+      }
     }
   }
 
@@ -473,12 +524,16 @@ double DfnModel::lithium_inventory_mol(const double* y) const {
   for (int k = 0; k < nx_; ++k) total += eps_[k] * y[idx_ce(k)] * dx_[k];
   for (int e = 0; e < ne_; ++e) {
     const bool neg = e < nn;
-    const int k = neg ? e : e + ns, side = neg ? 0 : 1;
+    const int k = neg ? e : e + ns;
     const ElectrodeParameters& p = neg ? cell_.negative : cell_.positive;
-    const double radius = p.particle_radius_m;
-    double moles_per_particle_scaled = 0.0;
-    for (int r = 0; r < nr; ++r) moles_per_particle_scaled += y[idx_cs(e, r)] * shell_vol_[side * nr + r];
-    total += p.solid_fraction * dx_[k] * moles_per_particle_scaled * 3.0 / (radius * radius * radius);
+    for (int pop = 0; pop < n_populations(e); ++pop) {
+      const int side = geom(e, pop);
+      const double radius = p.particle_radius_m * (neg ? 1.0 : pop_scale_[pop]);
+      double moles_per_particle_scaled = 0.0;
+      for (int r = 0; r < nr; ++r) moles_per_particle_scaled += y[idx_cs_pop(e, pop, r)] * shell_vol_[side * nr + r];
+      const double fraction = p.solid_fraction * (neg ? 1.0 : pop_weight_[pop]);
+      total += fraction * dx_[k] * moles_per_particle_scaled * 3.0 / (radius * radius * radius);
+    }
   }
   return total * cell_.electrode_area_m2;
 }
@@ -487,11 +542,16 @@ double DfnModel::mean_stoich(const double* y, bool negative) const {
   const int nr = mesh_.n_r;
   const int first = negative ? 0 : mesh_.n_neg, count = negative ? mesh_.n_neg : mesh_.n_pos;
   const ElectrodeParameters& p = negative ? cell_.negative : cell_.positive;
-  const int side = negative ? 0 : 1;
-  const double r3 = p.particle_radius_m * p.particle_radius_m * p.particle_radius_m;
   double sum = 0.0;
-  for (int e = first; e < first + count; ++e)
-    for (int r = 0; r < nr; ++r) sum += y[idx_cs(e, r)] * shell_vol_[side * nr + r] * 3.0 / r3;
+  for (int e = first; e < first + count; ++e) {
+    for (int pop = 0; pop < n_populations(e); ++pop) {
+      const int side = geom(e, pop);
+      const double radius = p.particle_radius_m * (negative ? 1.0 : pop_scale_[pop]);
+      const double r3 = radius * radius * radius;
+      const double weight = negative ? 1.0 : pop_weight_[pop];
+      for (int r = 0; r < nr; ++r) sum += weight * (y[idx_cs_pop(e, pop, r)] * shell_vol_[side * nr + r] * 3.0 / r3);
+    }
+  }
   return sum / count / p.max_concentration_mol_m3;
 }
 

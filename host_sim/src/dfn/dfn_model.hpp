@@ -50,9 +50,19 @@ struct ModelEffects {
   // Lumped thermal model: one cell temperature, heat capacity from the cell parameters,
   // Joule + reaction + entropic heat, loss h (T - T_ambient). 0 = isothermal.
   double thermal_h_w_per_k = 0.0;
+  // Positive-electrode particle-size distribution (a multi-particle model): the active
+  // material of every cathode control volume is split into populations whose radii sample a
+  // volume-weighted lognormal of log-space standard deviation sigma (Gauss-Hermite nodes and
+  // weights). Each population has its own shells and its own reaction current; they share the
+  // volume's phi_s, phi_e and c_e. The quadrature keeps the Sauter (area-weighted) mean radius
+  // at the cell's R, so the electrode's surface area per volume - and with it the kinetics at
+  // low rate - is unchanged; only the spread of diffusion times R^2/D is added.
+  double particle_size_sigma = 0.0;   // 0 = one size (off)
+  int particle_size_populations = 3;  // quadrature nodes: 3 or 5
 
   bool hysteresis_on() const { return hysteresis_v > 0.0; }
   bool thermal_on() const { return thermal_h_w_per_k > 0.0; }
+  bool particle_size_on() const { return particle_size_sigma > 0.0; }
 };
 
 // Heat sources of one state (W, whole cell). joule: electrolyte and solid ohmic heat,
@@ -91,6 +101,16 @@ class DfnModel {
   // Present only with the matching effect (-1 otherwise).
   int idx_hysteresis() const { return idx_hyst_; }
   int idx_temperature() const { return idx_temp_; }
+  // Particle populations of electrode node e (1 in the anode, and in the cathode without the
+  // particle-size effect). Population 0 is the plain model's particle (idx_cs, idx_j).
+  int n_populations(int e) const { return e < mesh_.n_neg ? 1 : n_pop_; }
+  int idx_cs_pop(int e, int p, int r) const {
+    return p == 0 ? idx_cs(e, r) : idx_pop_cs0_ + ((p - 1) * mesh_.n_pos + (e - mesh_.n_neg)) * mesh_.n_r + r;
+  }
+  int idx_j_pop(int e, int p) const { return p == 0 ? idx_j(e) : idx_pop_j0_ + (p - 1) * mesh_.n_pos + (e - mesh_.n_neg); }
+  // Cathode population p: radius / the cell's radius, and share of the active volume.
+  double population_radius_scale(int p) const { return pop_scale_[p]; }
+  double population_volume_fraction(int p) const { return pop_weight_[p]; }
   // Running sum of the local heat over x cells 0..k (W/m2): keeps the temperature row sparse.
   int idx_heat_sum(int k) const { return idx_heat0_ + k; }
   bool is_differential(int i) const { return mass_[i] != 0.0; }
@@ -149,14 +169,19 @@ class DfnModel {
   double f_rt_;
   int nx_, ne_, cs_end_, n_;
   int idx_hyst_ = -1, idx_temp_ = -1, idx_heat0_ = -1;
+  int n_pop_ = 1, idx_pop_cs0_ = -1, idx_pop_j0_ = -1;
+  std::vector<double> pop_scale_{1.0}, pop_weight_{1.0};
+  // Geometry index of a particle: 0 = anode, 1 + p = cathode population p.
+  int geom(int e, int p) const { return e < mesh_.n_neg ? 0 : 1 + p; }
+  std::vector<double> a_pop_;  // cathode surface area per volume of each population (1/m)
   // Off when isothermal at the reference temperature: then no temperature term is evaluated
   // and the residual is the isothermal model's, bit for bit.
   bool temperature_dependent_ = false;
   double heat_capacity_j_k_ = 0.0;
   std::vector<double> dx_, eps_, te_, a_;  // per x cell (a_ = 0 in separator)
-  std::vector<double> shell_vol_, face_r2_;  // per electrode (2 x n_r, n_r + 1)
-  std::vector<double> center_dist_;          // per electrode, n_r - 1 distances between shell centres
-  std::vector<double> surface_half_;         // per electrode, centre of the last shell to the surface
+  std::vector<double> shell_vol_, face_r2_;  // per geometry (n_r, n_r + 1 each)
+  std::vector<double> center_dist_;          // per geometry, n_r - 1 distances between shell centres
+  std::vector<double> surface_half_;         // per geometry, centre of the last shell to the surface
   std::vector<double> mass_, atol_scale_;
   Control control_;
   ModelEffects effects_;

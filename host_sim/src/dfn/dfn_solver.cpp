@@ -191,10 +191,11 @@ std::vector<std::vector<int>> detect_pattern_uncached(DfnModel& m, const std::ve
 // in studies and benchmarks, pays for it once).
 std::vector<std::vector<int>> detect_pattern(DfnModel& m, const std::vector<double>& y0) {
   static std::mutex mutex;
-  static std::map<std::tuple<int, int, int, int, bool, bool, bool, bool>, std::vector<std::vector<int>>> cache;
+  static std::map<std::tuple<int, int, int, int, bool, bool, bool, bool, int>, std::vector<std::vector<int>>> cache;
   const auto& mesh = m.mesh();
   const auto key = std::make_tuple(mesh.n_neg, mesh.n_sep, mesh.n_pos, mesh.n_r, m.side_reaction_enabled(),
-                                   m.idx_hysteresis() >= 0, m.idx_temperature() >= 0, m.temperature_dependent());
+                                   m.idx_hysteresis() >= 0, m.idx_temperature() >= 0, m.temperature_dependent(),
+                                   m.size());  // the size tells the particle-size effect's populations apart
   {
     std::lock_guard<std::mutex> lock(mutex);
     if (auto it = cache.find(key); it != cache.end()) return it->second;

@@ -10,13 +10,14 @@ const char* effect_name(Effect e) {
     case Effect::current_offset: return "current_offset";
     case Effect::current_gain: return "current_gain";
     case Effect::thermal: return "thermal";
+    case Effect::particle_size: return "particle_size";
   }
   return "none";
 }
 
 bool parse_effect(std::string_view name, Effect& out) {
   for (Effect e : {Effect::none, Effect::contact_resistance, Effect::hysteresis, Effect::current_offset,
-                   Effect::current_gain, Effect::thermal}) {
+                   Effect::current_gain, Effect::thermal, Effect::particle_size}) {
     if (name == effect_name(e)) {
       out = e;
       return true;
@@ -33,6 +34,7 @@ const char* parameter_name(Effect e) {
     case Effect::current_offset: return "current_offset_a";
     case Effect::current_gain: return "current_gain";
     case Effect::thermal: return "thermal_h_w_per_k";
+    case Effect::particle_size: return "particle_size_sigma";
   }
   return "";
 }

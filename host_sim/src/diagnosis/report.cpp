@@ -18,6 +18,7 @@ std::string fmt_value(Effect e, double v) {
     case Effect::current_offset: return fmt::format("{:.4g} mA", 1e3 * v);
     case Effect::current_gain: return fmt::format("{:.4g} %", 100.0 * v);
     case Effect::thermal: return fmt::format("{:.4g} W/K", v);
+    case Effect::particle_size: return fmt::format("sigma {:.4g}", v);
     case Effect::none: break;
   }
   return "-";

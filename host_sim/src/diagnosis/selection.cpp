@@ -11,6 +11,7 @@ Effect constant_current_twin(Effect e) {
     case Effect::current_offset: return Effect::current_gain;
     case Effect::current_gain: return Effect::current_offset;
     case Effect::thermal:
+    case Effect::particle_size:
     case Effect::none: break;
   }
   return Effect::none;

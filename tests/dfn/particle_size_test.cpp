@@ -1,0 +1,118 @@
+// The truth model's cathode particle-size distribution (issue 7, About:Energy knee): off it
+// adds nothing; on, charge is conserved across the populations, the total surface area is the
+// cell's, and small particles fill before large ones on discharge.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "dfn/dfn_solver.hpp"
+#include "io/input_error.hpp"
+#include "sim/cell_catalog.hpp"
+#include "sim/cycler.hpp"
+
+namespace bms {
+namespace {
+
+const DfnMesh kCoarse{6, 3, 6, 6};
+
+// Mean stoichiometry of one cathode population over the electrode, from its shells.
+double population_stoich(const DfnModel& m, const double* y, int pop) {
+  const int nr = m.mesh().n_r;
+  double moles = 0.0, volume = 0.0;
+  for (int e = m.mesh().n_neg; e < m.n_electrode_nodes(); ++e) {
+    // Shell volumes are mass-matrix entries: sum of c * shell volume / sum of shell volumes.
+    for (int r = 0; r < nr; ++r) {
+      const int i = m.idx_cs_pop(e, pop, r);
+      moles += y[i] * m.mass()[i];
+      volume += m.mass()[i];
+    }
+  }
+  return moles / volume / m.cell().positive.max_concentration_mol_m3;
+}
+
+TEST(ParticleSize, OffAddsNoStateAndLeavesTheResidualUnchanged) {
+  const CellParameters cell = load_cell("aboutenergy");
+  DfnModel plain(cell, kCoarse, 298.15);
+  ModelEffects off;
+  off.particle_size_populations = 5;  // a node count without a spread changes nothing
+  DfnModel same(cell, kCoarse, 298.15, off);
+  ASSERT_EQ(plain.size(), same.size());
+  EXPECT_EQ(same.n_populations(kCoarse.n_neg), 1);
+  const auto ic = default_initial_conditions(cell);
+  auto y = plain.initial_state(ic.stoich_neg, ic.stoich_pos, ic.electrolyte_mol_m3, 0.0);
+  for (size_t i = 0; i < y.size(); ++i) y[i] *= 1.0 + 1e-4 * std::sin(static_cast<double>(i));
+  std::vector<double> g1(y.size()), g2(y.size());
+  plain.set_control({ControlKind::current, 2.0});
+  same.set_control({ControlKind::current, 2.0});
+  plain.eval_g(0.0, y.data(), g1.data());
+  same.eval_g(0.0, y.data(), g2.data());
+  for (size_t i = 0; i < y.size(); ++i) ASSERT_EQ(g1[i], g2[i]) << "row " << i;
+}
+
+TEST(ParticleSize, PopulationsKeepTheSurfaceAreaAndSpreadTheRadius) {
+  const CellParameters cell = load_cell("aboutenergy");
+  for (int n : {3, 5}) {
+    ModelEffects eff;
+    eff.particle_size_sigma = 0.4;
+    eff.particle_size_populations = n;
+    DfnModel m(cell, kCoarse, 298.15, eff);
+    ASSERT_EQ(m.n_populations(kCoarse.n_neg), n);
+    EXPECT_EQ(m.n_populations(0), 1);  // anode untouched
+    double weight = 0.0, inverse_radius = 0.0, lo = 1e9, hi = 0.0;
+    for (int p = 0; p < n; ++p) {
+      weight += m.population_volume_fraction(p);
+      inverse_radius += m.population_volume_fraction(p) / m.population_radius_scale(p);
+      lo = std::min(lo, m.population_radius_scale(p));
+      hi = std::max(hi, m.population_radius_scale(p));
+    }
+    EXPECT_NEAR(weight, 1.0, 1e-12);
+    EXPECT_NEAR(inverse_radius, 1.0, 1e-12);  // Sauter mean = the cell's radius
+    EXPECT_GT(hi / lo, std::exp(2.0 * 0.4));   // nodes beyond +-1 sigma
+  }
+}
+
+TEST(ParticleSize, DischargeConservesChargeAndFillsSmallParticlesFirst) {
+  const CellParameters cell = load_cell("aboutenergy");
+  ModelEffects eff;
+  eff.particle_size_sigma = 0.5;
+  DfnModel m(cell, kCoarse, 298.15, eff);
+  DfnSolver solver(m, SolverSettings{});
+  m.set_control({ControlKind::current, 0.0});
+  const auto ic = default_initial_conditions(cell);
+  solver.start(0.0, m.initial_state(ic.stoich_neg, ic.stoich_pos, ic.electrolyte_mol_m3, 0.0));
+  const double inventory0 = m.lithium_inventory_mol(solver.y().data());
+  const double cathode0 = m.mean_stoich(solver.y().data(), false);
+  solver.switch_control({ControlKind::current, 2.0}, StopConditions{});  // about 1C
+  ASSERT_EQ(solver.advance_to(1200.0), DfnSolver::Result::reached);
+  const double* y = solver.y().data();
+  const auto& p = cell.positive;
+  const double cathode_mol = (m.mean_stoich(y, false) - cathode0) * p.max_concentration_mol_m3 * p.solid_fraction *
+                             p.thickness_m * cell.electrode_area_m2;
+  const double passed_mol = y[m.idx_charge()] * 3600.0 / kFaraday_c_mol;
+  ASSERT_GT(passed_mol, 0.0);
+  EXPECT_NEAR(cathode_mol, passed_mol, 1e-4 * passed_mol);
+  EXPECT_NEAR(m.lithium_inventory_mol(y), inventory0, 1e-6 * inventory0);
+  // Smallest population (shortest diffusion time) is fuller than the largest.
+  int small = 0, large = 0;
+  for (int q = 1; q < m.n_populations(kCoarse.n_neg); ++q) {
+    if (m.population_radius_scale(q) < m.population_radius_scale(small)) small = q;
+    if (m.population_radius_scale(q) > m.population_radius_scale(large)) large = q;
+  }
+  EXPECT_GT(population_stoich(m, y, small), population_stoich(m, y, large) + 1e-3);
+}
+
+TEST(ParticleSize, BadValuesAreInputErrors) {
+  const CellParameters cell = load_cell("aboutenergy");
+  ModelEffects eff;
+  eff.particle_size_sigma = -0.1;
+  EXPECT_THROW(DfnModel(cell, kCoarse, 298.15, eff), InputError);
+  eff.particle_size_sigma = NAN;
+  EXPECT_THROW(DfnModel(cell, kCoarse, 298.15, eff), InputError);
+  eff.particle_size_sigma = 0.3;
+  eff.particle_size_populations = 4;
+  EXPECT_THROW(DfnModel(cell, kCoarse, 298.15, eff), InputError);
+}
+
+}  // namespace
+}  // namespace bms
