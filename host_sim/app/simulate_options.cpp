@@ -28,7 +28,8 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
                  "(A), current_gain (relative), thermal (lumped thermal model with Arrhenius properties; VALUE = "
                  "heat-transfer coefficient to ambient in W/K, e.g. 0.05 for an 18650 in still air), particle_size (cathode "
                  "particle-size distribution: VALUE = log-space standard deviation sigma of a lognormal of radii, "
-                 "3 populations, same surface area), none");
+                 "3 populations, same surface area), particle_size_negative (the same for the anode; not with the side "
+                 "reaction), none");
   sub.add_option("--v-min", o.v_min, "Lower voltage limit (V); default: the cell's");
   sub.add_option("--v-max", o.v_max, "Upper voltage limit (V); default: the cell's");
   sub.add_option("--cv-end-current-a", o.cv_end_current_a, "CV phases end below this current (A)")->capture_default_str();
@@ -106,10 +107,14 @@ SimulateRun run_simulation(const SimulateOptions& o, const ProgressFn& progress)
       if (!(value >= 0.0 && value <= 1.5))
         throw InputError("--effect particle_size: log-space standard deviation of the cathode radius must be in [0, 1.5]");
       cfg.effects.particle_size_sigma = value;
+    } else if (name == "particle_size_negative") {
+      if (!(value >= 0.0 && value <= 1.5))
+        throw InputError("--effect particle_size_negative: log-space standard deviation of the anode radius must be in [0, 1.5]");
+      cfg.effects.particle_size_negative_sigma = value;
     } else if (name != "none") {
       throw InputError("--effect '" + name +
                        "': unknown; use contact_resistance, hysteresis, current_offset, current_gain, thermal, "
-                       "particle_size or none");
+                       "particle_size, particle_size_negative or none");
     }
   }
 

@@ -58,13 +58,13 @@ TEST(ParticleSize, PopulationsKeepTheSurfaceAreaAndSpreadTheRadius) {
     eff.particle_size_populations = n;
     DfnModel m(cell, kCoarse, 298.15, eff);
     ASSERT_EQ(m.n_populations(kCoarse.n_neg), n);
-    EXPECT_EQ(m.n_populations(0), 1);  // anode untouched
+    EXPECT_EQ(m.n_populations(0), 1);  // anode untouched without its own sigma
     double weight = 0.0, inverse_radius = 0.0, lo = 1e9, hi = 0.0;
     for (int p = 0; p < n; ++p) {
-      weight += m.population_volume_fraction(p);
-      inverse_radius += m.population_volume_fraction(p) / m.population_radius_scale(p);
-      lo = std::min(lo, m.population_radius_scale(p));
-      hi = std::max(hi, m.population_radius_scale(p));
+      weight += m.population_volume_fraction(false, p);
+      inverse_radius += m.population_volume_fraction(false, p) / m.population_radius_scale(false, p);
+      lo = std::min(lo, m.population_radius_scale(false, p));
+      hi = std::max(hi, m.population_radius_scale(false, p));
     }
     EXPECT_NEAR(weight, 1.0, 1e-12);
     EXPECT_NEAR(inverse_radius, 1.0, 1e-12);  // Sauter mean = the cell's radius
@@ -76,13 +76,16 @@ TEST(ParticleSize, DischargeConservesChargeAndFillsSmallParticlesFirst) {
   const CellParameters cell = load_cell("aboutenergy");
   ModelEffects eff;
   eff.particle_size_sigma = 0.5;
+  eff.particle_size_negative_sigma = 0.3;  // both electrodes: the anode's states come first
   DfnModel m(cell, kCoarse, 298.15, eff);
+  ASSERT_EQ(m.n_populations(0), 3);
   DfnSolver solver(m, SolverSettings{});
   m.set_control({ControlKind::current, 0.0});
   const auto ic = default_initial_conditions(cell);
   solver.start(0.0, m.initial_state(ic.stoich_neg, ic.stoich_pos, ic.electrolyte_mol_m3, 0.0));
   const double inventory0 = m.lithium_inventory_mol(solver.y().data());
   const double cathode0 = m.mean_stoich(solver.y().data(), false);
+  const double negative0 = m.mean_stoich(solver.y().data(), true);
   solver.switch_control({ControlKind::current, 2.0}, StopConditions{});  // about 1C
   ASSERT_EQ(solver.advance_to(1200.0), DfnSolver::Result::reached);
   const double* y = solver.y().data();
@@ -93,11 +96,15 @@ TEST(ParticleSize, DischargeConservesChargeAndFillsSmallParticlesFirst) {
   ASSERT_GT(passed_mol, 0.0);
   EXPECT_NEAR(cathode_mol, passed_mol, 1e-4 * passed_mol);
   EXPECT_NEAR(m.lithium_inventory_mol(y), inventory0, 1e-6 * inventory0);
+  const auto& n = cell.negative;
+  const double anode_mol = (negative0 - m.mean_stoich(y, true)) * n.max_concentration_mol_m3 * n.solid_fraction *
+                           n.thickness_m * cell.electrode_area_m2;
+  EXPECT_NEAR(anode_mol, passed_mol, 1e-4 * passed_mol);
   // Smallest population (shortest diffusion time) is fuller than the largest.
   int small = 0, large = 0;
   for (int q = 1; q < m.n_populations(kCoarse.n_neg); ++q) {
-    if (m.population_radius_scale(q) < m.population_radius_scale(small)) small = q;
-    if (m.population_radius_scale(q) > m.population_radius_scale(large)) large = q;
+    if (m.population_radius_scale(false, q) < m.population_radius_scale(false, small)) small = q;
+    if (m.population_radius_scale(false, q) > m.population_radius_scale(false, large)) large = q;
   }
   EXPECT_GT(population_stoich(m, y, small), population_stoich(m, y, large) + 1e-3);
 }
@@ -112,6 +119,14 @@ TEST(ParticleSize, BadValuesAreInputErrors) {
   eff.particle_size_sigma = 0.3;
   eff.particle_size_populations = 4;
   EXPECT_THROW(DfnModel(cell, kCoarse, 298.15, eff), InputError);
+  // The film row follows the plain anode particle only: an anode spread refuses the side reaction.
+  eff.particle_size_populations = 3;
+  eff.particle_size_negative_sigma = 0.3;
+  CellParameters with_side = cell;
+  with_side.side.enabled = true;
+  EXPECT_THROW(DfnModel(with_side, kCoarse, 298.15, eff), InputError);
+  DfnModel m(cell, kCoarse, 298.15, eff);
+  EXPECT_THROW(m.set_side_reaction_enabled(true), InputError);
 }
 
 }  // namespace

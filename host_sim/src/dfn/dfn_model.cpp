@@ -61,9 +61,12 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
   if (!(std::abs(effects.hysteresis_initial_branch) <= 1.0)) bad("hysteresis initial branch: must be in [-1, 1]");
   if (!(std::isfinite(effects.thermal_h_w_per_k) && effects.thermal_h_w_per_k >= 0.0))
     bad("thermal: heat-transfer coefficient must be a finite value >= 0 W/K");
-  if (!(std::isfinite(effects.particle_size_sigma) && effects.particle_size_sigma >= 0.0 &&
-        effects.particle_size_sigma <= 1.5))
-    bad("particle_size: log-space standard deviation of the cathode radius must be in [0, 1.5]");
+  for (const double sigma : {effects.particle_size_sigma, effects.particle_size_negative_sigma})
+    if (!(std::isfinite(sigma) && sigma >= 0.0 && sigma <= 1.5))
+      bad("particle_size: log-space standard deviation of the particle radius must be in [0, 1.5]");
+  // The film row and its Jacobian follow the plain anode particle only.
+  if (effects.particle_size_negative_sigma > 0.0 && cell.side.enabled)
+    bad("particle_size_negative: not available together with the side reaction");
   if (effects.particle_size_populations != 3 && effects.particle_size_populations != 5)
     bad("particle_size populations: must be 3 or 5");
   if (!(temperature_k > 150.0 && temperature_k < 500.0))
@@ -90,7 +93,13 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
     n_ += nx_;
     idx_temp_ = n_++;
   }
-  if (effects.particle_size_on()) {
+  nodes_[0] = mesh.n_neg;
+  nodes_[1] = mesh.n_pos;
+  for (int side = 0; side < 2; ++side) {
+    pop_scale_[side] = {1.0};
+    pop_weight_[side] = {1.0};
+    const double sigma = side == 0 ? effects.particle_size_negative_sigma : effects.particle_size_sigma;
+    if (!(sigma > 0.0)) continue;
     // Probabilists' Gauss-Hermite nodes z and weights w (sum 1) for a standard normal in
     // ln(radius); node 0 is the centre, so population 0 is the plain model's particle moved.
     static constexpr double k3z[] = {0.0, -1.7320508075688772, 1.7320508075688772};
@@ -99,22 +108,23 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
                                      2.8569700138728056};
     static constexpr double k5w[] = {0.53333333333333333, 0.22207592200561265, 0.22207592200561265,
                                      0.011257411327720691, 0.011257411327720691};
-    n_pop_ = effects.particle_size_populations;
-    const double* z = n_pop_ == 3 ? k3z : k5z;
-    const double* w = n_pop_ == 3 ? k3w : k5w;
+    const int n_pop = effects.particle_size_populations;
+    const double* z = n_pop == 3 ? k3z : k5z;
+    const double* w = n_pop == 3 ? k3w : k5w;
     // Median so that sum w / R_p = 1 / R (Sauter mean = R): the total area is the cell's.
     double inv_scale_sum = 0.0;
-    for (int p = 0; p < n_pop_; ++p) inv_scale_sum += w[p] * std::exp(-effects.particle_size_sigma * z[p]);
-    pop_scale_.resize(n_pop_);
-    pop_weight_.resize(n_pop_);
-    for (int p = 0; p < n_pop_; ++p) {
-      pop_scale_[p] = inv_scale_sum * std::exp(effects.particle_size_sigma * z[p]);
-      pop_weight_[p] = w[p];
+    for (int p = 0; p < n_pop; ++p) inv_scale_sum += w[p] * std::exp(-sigma * z[p]);
+    pop_scale_[side].resize(n_pop);
+    pop_weight_[side].resize(n_pop);
+    for (int p = 0; p < n_pop; ++p) {
+      pop_scale_[side][p] = inv_scale_sum * std::exp(sigma * z[p]);
+      pop_weight_[side][p] = w[p];
     }
-    idx_pop_cs0_ = n_;
-    n_ += (n_pop_ - 1) * mesh.n_pos * mesh.n_r;
-    idx_pop_j0_ = n_;
-    n_ += (n_pop_ - 1) * mesh.n_pos;
+    n_pop_[side] = n_pop;
+    pop_cs0_[side] = n_;
+    n_ += (n_pop - 1) * nodes_[side] * mesh.n_r;
+    pop_j0_[side] = n_;
+    n_ += (n_pop - 1) * nodes_[side];
   }
 
   dx_.resize(nx_);
@@ -139,13 +149,18 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
       a_[k] = cell.positive.surface_area_per_volume_m();
     }
   }
-  a_pop_.assign(n_pop_, 0.0);
-  for (int p = 0; p < n_pop_; ++p)
-    a_pop_[p] = 3.0 * cell.positive.solid_fraction * pop_weight_[p] / (cell.positive.particle_radius_m * pop_scale_[p]);
-  if (n_pop_ > 1)
-    for (int k = mesh.n_neg + mesh.n_sep; k < nx_; ++k) a_[k] = a_pop_[0];
+  for (int side = 0; side < 2; ++side) {
+    const ElectrodeParameters& el = side == 0 ? cell.negative : cell.positive;
+    a_pop_[side].assign(n_pop_[side], 0.0);
+    for (int p = 0; p < n_pop_[side]; ++p)
+      a_pop_[side][p] = 3.0 * el.solid_fraction * pop_weight_[side][p] / (el.particle_radius_m * pop_scale_[side][p]);
+    if (n_pop_[side] > 1) {  // a_ of the electrode's cells becomes population 0's
+      const int k0 = side == 0 ? 0 : mesh.n_neg + mesh.n_sep, k1 = side == 0 ? mesh.n_neg : nx_;
+      for (int k = k0; k < k1; ++k) a_[k] = a_pop_[side][0];
+    }
+  }
   const int nr = mesh.n_r;
-  const int n_geom = 1 + n_pop_;
+  const int n_geom = n_pop_[0] + n_pop_[1];
   shell_vol_.resize(n_geom * nr);
   face_r2_.resize(n_geom * (nr + 1));
   // Shells are finer towards the surface, where the concentration gradient is steepest:
@@ -155,8 +170,8 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
   center_dist_.resize(n_geom * (nr - 1));
   surface_half_.resize(n_geom);
   for (int side = 0; side < n_geom; ++side) {
-    const double radius =
-        side == 0 ? cell.negative.particle_radius_m : cell.positive.particle_radius_m * pop_scale_[side - 1];
+    const double radius = side < n_pop_[0] ? cell.negative.particle_radius_m * pop_scale_[0][side]
+                                           : cell.positive.particle_radius_m * pop_scale_[1][side - n_pop_[0]];
     std::vector<double> face(nr + 1);
     for (int i = 0; i <= nr; ++i) {
       const double u = static_cast<double>(i) / nr;
@@ -257,6 +272,11 @@ double DfnModel::current_setpoint_a(double t) const {
   return control_.value;
 }
 
+void DfnModel::set_side_reaction_enabled(bool on) {
+  if (on && n_pop_[0] > 1) throw InputError("particle_size_negative: not available together with the side reaction");
+  cell_.side.enabled = on;
+}
+
 double DfnModel::film_growth_factor() const {
   const auto& s = cell_.side;
   return s.molar_mass_kg_mol / (s.density_kg_m3 * kFaraday_c_mol * s.film_conductivity_s_m);
@@ -338,7 +358,7 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
     if (a_[k] > 0.0) {
       const int e = k < nn ? k : k - ns;
       T a_j = a_[k] * y[idx_j(e)];
-      for (int pop = 1; pop < n_populations(e); ++pop) a_j = a_j + a_pop_[pop] * y[idx_j_pop(e, pop)];
+      for (int pop = 1; pop < n_populations(e); ++pop) a_j = a_j + a_pop_[side_of(e)][pop] * y[idx_j_pop(e, pop)];
       source = a_j * dx_[k];
     }
     g[idx_ce(k)] = flux_right - flux_left + (1.0 - tplus) / kFaraday_c_mol * source;
@@ -364,7 +384,7 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
     const T is_right = e == last ? (neg ? T(0.0) : i_app) : -sigma * (y[idx_phis(e + 1)] - y[idx_phis(e)]) / h;
     const T j = y[idx_j(e)];
     T a_j = a_[k] * j;  // reaction current per volume (A/m3), all populations
-    for (int pop = 1; pop < n_populations(e); ++pop) a_j = a_j + a_pop_[pop] * y[idx_j_pop(e, pop)];
+    for (int pop = 1; pop < n_populations(e); ++pop) a_j = a_j + a_pop_[side_of(e)][pop] * y[idx_j_pop(e, pop)];
     g[idx_phis(e)] = is_right - is_left + a_j * h;
     if (want_heat && e != last) add_heat(k, is_right * (y[idx_phis(e)] - y[idx_phis(e + 1)]), q_joule);
 
@@ -411,7 +431,7 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
       if (neg) js_weighted_sum = js_weighted_sum + js * h;
       if (want_heat) {
         // Irreversible: the whole drop phi_s - phi_e - U (kinetics and film); reversible: j T dU/dT.
-        const T ajh = (pop == 0 ? a_[k] : a_pop_[pop]) * h * jp;
+        const T ajh = (pop == 0 ? a_[k] : a_pop_[side_of(e)][pop]) * h * jp;
         add_heat(k, ajh * (phis - phie - ocp), q_reaction);
         if (p.entropic_v_k) add_heat(k, ajh * temp * dudt, q_reversible);
         if (heat) p_chemical = p_chemical - ajh * ocp;
@@ -528,10 +548,10 @@ double DfnModel::lithium_inventory_mol(const double* y) const {
     const ElectrodeParameters& p = neg ? cell_.negative : cell_.positive;
     for (int pop = 0; pop < n_populations(e); ++pop) {
       const int side = geom(e, pop);
-      const double radius = p.particle_radius_m * (neg ? 1.0 : pop_scale_[pop]);
+      const double radius = p.particle_radius_m * pop_scale_[side_of(e)][pop];
       double moles_per_particle_scaled = 0.0;
       for (int r = 0; r < nr; ++r) moles_per_particle_scaled += y[idx_cs_pop(e, pop, r)] * shell_vol_[side * nr + r];
-      const double fraction = p.solid_fraction * (neg ? 1.0 : pop_weight_[pop]);
+      const double fraction = p.solid_fraction * pop_weight_[side_of(e)][pop];
       total += fraction * dx_[k] * moles_per_particle_scaled * 3.0 / (radius * radius * radius);
     }
   }
@@ -546,9 +566,9 @@ double DfnModel::mean_stoich(const double* y, bool negative) const {
   for (int e = first; e < first + count; ++e) {
     for (int pop = 0; pop < n_populations(e); ++pop) {
       const int side = geom(e, pop);
-      const double radius = p.particle_radius_m * (negative ? 1.0 : pop_scale_[pop]);
+      const double radius = p.particle_radius_m * pop_scale_[side_of(e)][pop];
       const double r3 = radius * radius * radius;
-      const double weight = negative ? 1.0 : pop_weight_[pop];
+      const double weight = pop_weight_[side_of(e)][pop];
       for (int r = 0; r < nr; ++r) sum += weight * (y[idx_cs_pop(e, pop, r)] * shell_vol_[side * nr + r] * 3.0 / r3);
     }
   }

@@ -57,12 +57,13 @@ struct ModelEffects {
   // volume's phi_s, phi_e and c_e. The quadrature keeps the Sauter (area-weighted) mean radius
   // at the cell's R, so the electrode's surface area per volume - and with it the kinetics at
   // low rate - is unchanged; only the spread of diffusion times R^2/D is added.
-  double particle_size_sigma = 0.0;   // 0 = one size (off)
-  int particle_size_populations = 3;  // quadrature nodes: 3 or 5
+  double particle_size_sigma = 0.0;           // cathode; 0 = one size (off)
+  double particle_size_negative_sigma = 0.0;  // the same for the anode (not with the side reaction)
+  int particle_size_populations = 3;          // quadrature nodes per electrode: 3 or 5
 
   bool hysteresis_on() const { return hysteresis_v > 0.0; }
   bool thermal_on() const { return thermal_h_w_per_k > 0.0; }
-  bool particle_size_on() const { return particle_size_sigma > 0.0; }
+  bool particle_size_on() const { return particle_size_sigma > 0.0 || particle_size_negative_sigma > 0.0; }
 };
 
 // Heat sources of one state (W, whole cell). joule: electrolyte and solid ohmic heat,
@@ -101,16 +102,20 @@ class DfnModel {
   // Present only with the matching effect (-1 otherwise).
   int idx_hysteresis() const { return idx_hyst_; }
   int idx_temperature() const { return idx_temp_; }
-  // Particle populations of electrode node e (1 in the anode, and in the cathode without the
-  // particle-size effect). Population 0 is the plain model's particle (idx_cs, idx_j).
-  int n_populations(int e) const { return e < mesh_.n_neg ? 1 : n_pop_; }
+  // Particle populations of electrode node e (1 without the particle-size effect). Population
+  // 0 is the plain model's particle (idx_cs, idx_j); the others' states follow the effects'.
+  int n_populations(int e) const { return n_pop_[side_of(e)]; }
   int idx_cs_pop(int e, int p, int r) const {
-    return p == 0 ? idx_cs(e, r) : idx_pop_cs0_ + ((p - 1) * mesh_.n_pos + (e - mesh_.n_neg)) * mesh_.n_r + r;
+    const int s = side_of(e);
+    return p == 0 ? idx_cs(e, r) : pop_cs0_[s] + ((p - 1) * nodes_[s] + local_node(e)) * mesh_.n_r + r;
   }
-  int idx_j_pop(int e, int p) const { return p == 0 ? idx_j(e) : idx_pop_j0_ + (p - 1) * mesh_.n_pos + (e - mesh_.n_neg); }
-  // Cathode population p: radius / the cell's radius, and share of the active volume.
-  double population_radius_scale(int p) const { return pop_scale_[p]; }
-  double population_volume_fraction(int p) const { return pop_weight_[p]; }
+  int idx_j_pop(int e, int p) const {
+    const int s = side_of(e);
+    return p == 0 ? idx_j(e) : pop_j0_[s] + (p - 1) * nodes_[s] + local_node(e);
+  }
+  // Population p of an electrode: radius / the cell's radius, and share of the active volume.
+  double population_radius_scale(bool negative, int p) const { return pop_scale_[negative ? 0 : 1][p]; }
+  double population_volume_fraction(bool negative, int p) const { return pop_weight_[negative ? 0 : 1][p]; }
   // Running sum of the local heat over x cells 0..k (W/m2): keeps the temperature row sparse.
   int idx_heat_sum(int k) const { return idx_heat0_ + k; }
   bool is_differential(int i) const { return mass_[i] != 0.0; }
@@ -124,7 +129,7 @@ class DfnModel {
   void set_contact_resistance_ohm(double r) { effects_.contact_resistance_ohm = r; }
   bool side_reaction_enabled() const { return cell_.side.enabled; }
   bool temperature_dependent() const { return temperature_dependent_; }
-  void set_side_reaction_enabled(bool on) { cell_.side.enabled = on; }
+  void set_side_reaction_enabled(bool on);
   // When frozen, the film row becomes dR/dt = 0 (the film resistance is an input).
   void set_film_frozen(bool frozen) { film_frozen_ = frozen; }
 
@@ -169,11 +174,15 @@ class DfnModel {
   double f_rt_;
   int nx_, ne_, cs_end_, n_;
   int idx_hyst_ = -1, idx_temp_ = -1, idx_heat0_ = -1;
-  int n_pop_ = 1, idx_pop_cs0_ = -1, idx_pop_j0_ = -1;
-  std::vector<double> pop_scale_{1.0}, pop_weight_{1.0};
-  // Geometry index of a particle: 0 = anode, 1 + p = cathode population p.
-  int geom(int e, int p) const { return e < mesh_.n_neg ? 0 : 1 + p; }
-  std::vector<double> a_pop_;  // cathode surface area per volume of each population (1/m)
+  // Per electrode side (0 = anode, 1 = cathode): populations, where their extra states start,
+  // electrode nodes, radius scales, volume fractions, surface area per volume (1/m).
+  int n_pop_[2] = {1, 1}, pop_cs0_[2] = {-1, -1}, pop_j0_[2] = {-1, -1}, nodes_[2] = {0, 0};
+  std::vector<double> pop_scale_[2], pop_weight_[2], a_pop_[2];
+  int side_of(int e) const { return e < mesh_.n_neg ? 0 : 1; }
+  int local_node(int e) const { return e < mesh_.n_neg ? e : e - mesh_.n_neg; }
+  // Geometry index of a particle: anode populations first (0 = the plain anode particle), so
+  // without the effect the anode is 0 and the cathode 1, as before.
+  int geom(int e, int p) const { return e < mesh_.n_neg ? p : n_pop_[0] + p; }
   // Off when isothermal at the reference temperature: then no temperature term is evaluated
   // and the residual is the isothermal model's, bit for bit.
   bool temperature_dependent_ = false;
