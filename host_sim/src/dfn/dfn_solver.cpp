@@ -128,8 +128,22 @@ int root_fn(realtype, N_Vector y, N_Vector, realtype* gout, void* user) {
   return 0;
 }
 
+// IDA's own error text, kept for the exception instead of IDA printing it to stderr: a caller
+// that recovers from a failed step (the estimator's full main model) must not flood the
+// terminal, and one that does not gets the text in its error message.
+thread_local std::string last_ida_message;
+
+void keep_ida_message(int /*code*/, const char* /*module*/, const char* function, char* msg, void* /*data*/) {
+  last_ida_message = std::string(function) + ": " + msg;
+}
+
 void check(int flag, const char* what) {
-  if (flag < 0) throw RuntimeFailure(std::string("IDA: ") + what + " failed (flag " + std::to_string(flag) + ")");
+  if (flag < 0) {
+    std::string text = std::string("IDA: ") + what + " failed (flag " + std::to_string(flag) + ")";
+    if (!last_ida_message.empty()) text += ": " + last_ida_message;
+    last_ida_message.clear();
+    throw RuntimeFailure(text);
+  }
 }
 
 }  // namespace
@@ -156,6 +170,11 @@ std::vector<std::vector<int>> detect_pattern_uncached(DfnModel& m, const std::ve
     std::vector<double> y = y0;
     // Small currents keep the trial state physical (a steep OCP can overflow otherwise).
     for (int e = 0; e < m.n_electrode_nodes(); ++e) y[m.idx_j(e)] = 1e-3 * (1.0 + 0.1 * u(rng));
+    // Further particle populations (particle-size effect): a zero j would hide the film drop
+    // j R_film from the pattern. Fixed values keep the generator's sequence, and so the plain
+    // model's pattern, unchanged.
+    for (int e = 0; e < m.n_electrode_nodes(); ++e)
+      for (int p = 1; p < m.n_populations(e); ++p) y[m.idx_j_pop(e, p)] = 1e-3 * (1.0 + 0.01 * p);
     y[m.idx_current()] = 1e-2 * (1.0 + 0.1 * u(rng));
     for (int i = 0; i < n; ++i) y[i] *= 1.0 + 1e-3 * u(rng);
     // The heat rows multiply potential differences (i_s x grad phi_s), which vanish in a
@@ -191,11 +210,11 @@ std::vector<std::vector<int>> detect_pattern_uncached(DfnModel& m, const std::ve
 // in studies and benchmarks, pays for it once).
 std::vector<std::vector<int>> detect_pattern(DfnModel& m, const std::vector<double>& y0) {
   static std::mutex mutex;
-  static std::map<std::tuple<int, int, int, int, bool, bool, bool, bool, int>, std::vector<std::vector<int>>> cache;
+  static std::map<std::tuple<int, int, int, int, bool, bool, bool, bool, int, int>, std::vector<std::vector<int>>> cache;
   const auto& mesh = m.mesh();
   const auto key = std::make_tuple(mesh.n_neg, mesh.n_sep, mesh.n_pos, mesh.n_r, m.side_reaction_enabled(),
                                    m.idx_hysteresis() >= 0, m.idx_temperature() >= 0, m.temperature_dependent(),
-                                   m.size());  // the size tells the particle-size effect's populations apart
+                                   m.size(), m.n_populations(0));  // tells the particle populations apart
   {
     std::lock_guard<std::mutex> lock(mutex);
     if (auto it = cache.find(key); it != cache.end()) return it->second;
@@ -268,6 +287,7 @@ void DfnSolver::start(double t0, const std::vector<double>& y0) {
   }
   im.ida = IDACreate(im.ctx);
   if (!im.ida) throw RuntimeFailure("IDACreate failed");
+  check(IDASetErrHandlerFn(im.ida, keep_ida_message, nullptr), "IDASetErrHandlerFn");
   check(IDAInit(im.ida, residual_fn, t0, im.y, im.yp), "IDAInit");
   check(IDASetUserData(im.ida, impl_.get()), "IDASetUserData");
   check(IDASVtolerances(im.ida, settings_.rtol, im.atol), "IDASVtolerances");

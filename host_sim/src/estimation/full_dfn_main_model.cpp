@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "io/input_error.hpp"
+
 namespace bms {
 
 FullDfnMainModel::FullDfnMainModel(const CellParameters& cell, const DfnMesh& mesh, const SolverSettings& solver,
@@ -25,18 +27,37 @@ fw::ModelTickResult<double> FullDfnMainModel::step_voltage(double voltage_v, dou
 }
 
 fw::ModelTickResult<double> FullDfnMainModel::step(ControlKind kind, double value, double r_film, double dt_s) {
-  const Control& now = model_.control();
-  const bool control_changed = !have_control_ || now.kind != kind || now.value != value;
+  const Control before = model_.control();
+  const bool had_control = have_control_;
+  const double t0 = solver_->t();
   std::vector<double> y = solver_->y();
-  const bool film_changed = y[model_.idx_film()] != r_film;
-  if (control_changed || film_changed) {
-    // One consistent re-initialisation for both changes.
-    model_.set_control({kind, value});
-    y[model_.idx_film()] = r_film;
-    solver_->set_state(y);
-    have_control_ = true;
+  const std::vector<double> y0 = y;
+  try {
+    const bool control_changed = !have_control_ || before.kind != kind || before.value != value;
+    const bool film_changed = y[model_.idx_film()] != r_film;
+    if (control_changed || film_changed) {
+      // One consistent re-initialisation for both changes.
+      model_.set_control({kind, value});
+      y[model_.idx_film()] = r_film;
+      solver_->set_state(y);
+      have_control_ = true;
+    }
+    solver_->advance_to(t0 + dt_s);
+  } catch (const RuntimeFailure&) {
+    // A state the DAE cannot continue from with this input (e.g. a model started 1 % off that
+    // cannot deliver the measured current at the end of a discharge): like the reduced model's
+    // failed Newton step, the tick is invalid and the state stays where it was, so the core
+    // holds its estimate and flags kModelInvalid instead of the whole run aborting.
+    model_.set_control(before);
+    solver_->start(t0, y0);
+    have_control_ = had_control;
+    fw::ModelTickResult<double> bad{};
+    bad.voltage_v = bad.current_a = bad.j_side_a_m3 = bad.markov_v_per_ohm_m2 = std::nan("");
+    bad.valid = false;
+    bad.converged = false;
+    ++failed_steps_;
+    return bad;
   }
-  solver_->advance_to(solver_->t() + dt_s);
   const double* ys = solver_->y().data();
   fw::ModelTickResult<double> r{};
   r.voltage_v = model_.terminal_voltage_v(ys);

@@ -3,6 +3,7 @@
 // (identical truth and main model). Same interface as the firmware's ReducedCell, so the
 // firmware's BmsCore runs unchanged on top of it. Every tick in which the input or the film
 // resistance changes restarts IDA from a consistent state (the film drop is algebraic).
+#include <cstddef>
 #include <memory>
 #include <vector>
 
@@ -34,6 +35,8 @@ class FullDfnMainModel {
   State state() const;
   bool restore(const State& s);
   const SolverStats& stats() const { return solver_->stats(); }
+  // Ticks whose step the DAE solver could not take (state kept, tick invalid).
+  std::size_t failed_steps() const { return failed_steps_; }
 
  private:
   fw::ModelTickResult<double> step(ControlKind kind, double value, double r_film_ohm_m2, double dt_s);
@@ -42,6 +45,7 @@ class FullDfnMainModel {
   std::unique_ptr<DfnSolver> solver_;
   double inventory0_mol_ = 0.0;
   bool have_control_ = false;
+  std::size_t failed_steps_ = 0;
 };
 
 }  // namespace bms
