@@ -7,7 +7,8 @@
 # Usage: scripts/diagnose-aboutenergy.sh [OUT_DIR]     (default out/diagnose-aboutenergy)
 # Environment: BMSSIM=path to use a given binary instead of `./bms sim`;
 #              SHARED=path of ../shared (default: beside the repository);
-#              CANDIDATES=list for --candidates (default all).
+#              CANDIDATES=list for --candidates (default: all five effects and particle_size,
+#              the cathode particle-size spread, which `all` leaves out).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 out=${1:-$root/out/diagnose-aboutenergy}
@@ -15,13 +16,14 @@ shared=$(cd "${SHARED:-$root/../shared}" && pwd)
 data=$shared/data/aboutenergy-lfp18650
 bpx=$data/lfp_18650_cell_BPX.json
 if [ -n "${BMSSIM:-}" ]; then sim=("$BMSSIM"); else sim=("$root/bms" sim); fi
+default_candidates=contact_resistance,hysteresis,current_offset,current_gain,thermal,particle_size
 mkdir -p "$out"
 run() { # NAME DATA_FILES...
   local name=$1; shift
   local args=()
   for f in "$@"; do args+=(--data "$data/$f"); done
   echo "== $name" >&2
-  nice -n 10 "${sim[@]}" diagnose "${args[@]}" --cell "$bpx" --candidates "${CANDIDATES:-all}" --out "$out/$name" 2> "$out/$name.log" ||
+  nice -n 10 "${sim[@]}" diagnose "${args[@]}" --cell "$bpx" --candidates "${CANDIDATES:-$default_candidates}" --out "$out/$name" 2> "$out/$name.log" ||
     echo "diagnose failed for $name: $(tail -n 1 "$out/$name.log")" >&2
 }
 run c20 LFP_25degC_Co20.csv

@@ -76,8 +76,9 @@ Runner add_diagnose(CLI::App& app) {
       ->required();
   sub->add_option("--cell", o->cell, "paper | aboutenergy | FILE.bpx.json")->required();
   sub->add_option("--out", o->out, "Output folder (summary.json, report.md, residual.csv, PNG plots)")->required();
-  sub->add_option("--candidates", o->candidates, "all (contact_resistance, hysteresis, current_offset, current_gain, thermal), or a comma-separated "
-                  "list of those and particle_size (cathode particle-size spread, only when listed)")
+  sub->add_option("--candidates", o->candidates,
+                  "all (contact_resistance, hysteresis, current_offset, current_gain, thermal), or a "
+                  "comma-separated list of those and particle_size (cathode particle-size spread, only when listed)")
       ->capture_default_str();
   sub->add_option("--points", o->points, "Final mesh: finite volumes per region")->capture_default_str()->check(CLI::Range(2, 400));
   sub->add_option("--radial", o->radial, "Final mesh: finite volumes per particle")->capture_default_str()->check(CLI::Range(3, 400));

@@ -3,6 +3,7 @@
 // cell's, and small particles fill before large ones on discharge.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -48,6 +49,46 @@ TEST(ParticleSize, OffAddsNoStateAndLeavesTheResidualUnchanged) {
   plain.eval_g(0.0, y.data(), g1.data());
   same.eval_g(0.0, y.data(), g2.data());
   for (size_t i = 0; i < y.size(); ++i) ASSERT_EQ(g1[i], g2[i]) << "row " << i;
+}
+
+// With a vanishing spread and every population in population 0's state, the shared rows
+// (electrolyte, potentials, particles of population 0) are the plain model's.
+TEST(ParticleSize, VanishingSpreadIsThePlainModel) {
+  const CellParameters cell = load_cell("aboutenergy");
+  DfnModel plain(cell, kCoarse, 298.15);
+  for (int variant = 0; variant < 2; ++variant) {
+    ModelEffects eff;
+    (variant == 0 ? eff.particle_size_sigma : eff.particle_size_negative_sigma) = 1e-9;
+    DfnModel m(cell, kCoarse, 298.15, eff);
+    ASSERT_GT(m.size(), plain.size());
+    const auto ic = default_initial_conditions(cell);
+    auto y = plain.initial_state(ic.stoich_neg, ic.stoich_pos, ic.electrolyte_mol_m3, 0.0);
+    for (size_t i = 0; i < y.size(); ++i) y[i] *= 1.0 + 1e-3 * std::sin(static_cast<double>(i));
+    for (int e = 0; e < plain.n_electrode_nodes(); ++e) y[plain.idx_j(e)] = 0.5 * std::cos(e);
+    std::vector<double> ym(m.size(), 0.0);
+    std::copy(y.begin(), y.end(), ym.begin());
+    for (int e = 0; e < m.n_electrode_nodes(); ++e)
+      for (int p = 1; p < m.n_populations(e); ++p) {
+        ym[m.idx_j_pop(e, p)] = y[plain.idx_j(e)];
+        for (int r = 0; r < kCoarse.n_r; ++r) ym[m.idx_cs_pop(e, p, r)] = y[plain.idx_cs(e, r)];
+      }
+    std::vector<double> g1(plain.size()), g2(m.size());
+    plain.set_control({ControlKind::current, 2.0});
+    m.set_control({ControlKind::current, 2.0});
+    plain.eval_g(0.0, y.data(), g1.data());
+    m.eval_g(0.0, ym.data(), g2.data());
+    for (int i = 0; i < plain.size(); ++i)
+      ASSERT_NEAR(g1[i], g2[i], 1e-6 * (1.0 + std::abs(g1[i]))) << "variant " << variant << " row " << i;
+    // ... and every other population's rows repeat population 0's.
+    for (int e = 0; e < m.n_electrode_nodes(); ++e)
+      for (int p = 1; p < m.n_populations(e); ++p) {
+        ASSERT_NEAR(g2[m.idx_j_pop(e, p)], g1[plain.idx_j(e)], 1e-6 * (1.0 + std::abs(g1[plain.idx_j(e)])))
+            << "variant " << variant << " node " << e;
+        for (int r = 0; r < kCoarse.n_r; ++r)
+          ASSERT_NEAR(g2[m.idx_cs_pop(e, p, r)], g1[plain.idx_cs(e, r)], 1e-6 * (1e-20 + std::abs(g1[plain.idx_cs(e, r)])))
+              << "variant " << variant << " node " << e << " shell " << r;
+      }
+  }
 }
 
 TEST(ParticleSize, PopulationsKeepTheSurfaceAreaAndSpreadTheRadius) {
