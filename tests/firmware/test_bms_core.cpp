@@ -120,6 +120,22 @@ TEST(BmsCore, CatchUpKeepsTheModelWithTheCellAcrossLostSamples) {
   EXPECT_GT(frozen.lag(), 1e-5);  // 10 ticks of 2.5 A behind
 }
 
+// The application reports ticks that never reached tick() (bus down, a restart): the same
+// staleness and the same catch-up as ticks without a sample.
+TEST(BmsCore, TicksMissedCountLikeTicksWithoutASample) {
+  Core::Config one_step_per_tick;
+  one_step_per_tick.catch_up_max_steps = 10u;
+  GapRig via_tick(one_step_per_tick), via_app(one_step_per_tick);
+  via_tick.gap(10);
+  for (int i = 0; i < 20; ++i) via_app.sample(true);
+  for (int i = 0; i < 10; ++i) via_app.truth.step_current(2.5, via_app.film, 0.2);
+  via_app.core.ticks_missed(10);
+  EXPECT_TRUE(bms::fw::has_status(via_app.core.status(), FwStatus::kMeasurementStale));
+  via_app.sample(true);
+  EXPECT_EQ(via_app.core.catch_up_ticks(), 10u);
+  EXPECT_EQ(std::memcmp(&via_app.model.state(), &via_tick.model.state(), sizeof(via_tick.model.state())), 0);
+}
+
 // A 2-minute gap (the firmware restarted from a state committed a minute earlier, or the bus
 // down) in 8 long implicit steps: charge exact, voltage close.
 TEST(BmsCore, CatchUpOverALongGapInBoundedSteps) {

@@ -30,14 +30,14 @@ fw::ModelTickResult<double> FullDfnMainModel::step(ControlKind kind, double valu
   const Control before = model_.control();
   const bool had_control = have_control_;
   const double t0 = solver_->t();
-  std::vector<double> y = solver_->y();
-  const std::vector<double> y0 = y;
+  const std::vector<double> y0 = solver_->y();  // kept to return to if the step fails
   try {
     const bool control_changed = !have_control_ || before.kind != kind || before.value != value;
-    const bool film_changed = y[model_.idx_film()] != r_film;
+    const bool film_changed = y0[model_.idx_film()] != r_film;
     if (control_changed || film_changed) {
       // One consistent re-initialisation for both changes.
       model_.set_control({kind, value});
+      std::vector<double> y = y0;
       y[model_.idx_film()] = r_film;
       solver_->set_state(y);
       have_control_ = true;

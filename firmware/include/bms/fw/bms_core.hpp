@@ -82,7 +82,7 @@ class BmsCore {
     // Ticks without an accepted sample leave the model where it was (the rejected sample
     // must not touch the state), but the cell went on: at the next accepted sample the model
     // first steps over the missed ticks, current-driven on the current interpolated between
-    // the last accepted sample and the new one, film held, no learning. Without it, each lost
+    // the last accepted sample and the returning one, film held, no learning. Without it, each lost
     // frame in CC puts the model 0.2 s of charge behind the cell for the rest of the phase,
     // which RCSI reads as film resistance (measured in the host-in-the-loop: 1 % lost frames
     // took the error from 12 % to 45 %). A gap of up to catch_up_max_ticks is covered (longer:
@@ -364,6 +364,12 @@ class BmsCore {
   StatusWord status() const { return status_ | estimator_.status(); }
   Scalar r_film_ohm_m2() const { return r_held_; }
   std::uint32_t resync_count() const { return resync_count_; }
+  // Ticks that passed without reaching tick() at all (the application's clock or the bus's
+  // sequence numbers say how many): counted as ticks without a sample, as `tick` would, without
+  // building an output for each.
+  void ticks_missed(std::uint32_t ticks) {
+    if (ticks != 0u) raise_stale(0u, ticks);
+  }
   // Ticks without an accepted sample the model was stepped over since construction (not persisted).
   std::uint32_t catch_up_ticks() const { return catch_up_ticks_; }
   bool bias_calibrated() const { return bias_calibrated_; }
@@ -414,8 +420,8 @@ class BmsCore {
     catch_up_ticks_ = catch_up_ticks_ + gap < catch_up_ticks_ ? 0xFFFFFFFFu : catch_up_ticks_ + gap;
   }
 
-  StatusWord raise_stale(StatusWord st) {
-    if (stale_ticks_ < 0xFFFFFFFFu) ++stale_ticks_;
+  StatusWord raise_stale(StatusWord st, std::uint32_t ticks = 1u) {
+    stale_ticks_ = stale_ticks_ + ticks < stale_ticks_ ? 0xFFFFFFFFu : stale_ticks_ + ticks;
     if (stale_ticks_ > config_.stale_limit_ticks) st |= bit(FwStatus::kMeasurementStale);
     status_ |= st;
     return st;

@@ -741,7 +741,7 @@ class Receiver {
 ///   still triggers (tick = previous + 1): the host did send the tick, and the Receiver
 ///   then drops and counts the frame, so the tick runs with the measurement missing.
 ///   A good frame whose Seq repeats the previous tick's, or lies behind it (a duplicated or
-///   reordered frame), triggers nothing: the host sent no new tick, and running one would
+///   reordered frame), triggers nothing: the host sent no further tick, and running one would
 ///   step the model twice for one 0.2 s of cell time.
 /// - HOST_Control with a good CRC and TickTrigger = 1: tick = its 32-bit Tick.
 /// Use with LockstepBus through a captureless lambda:

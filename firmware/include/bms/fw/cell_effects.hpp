@@ -109,7 +109,7 @@ class EffectsModel {
   }
   const Parameters& parameters() const { return p_; }
 
-  // The hysteresis state at its initial branch (a new cell or an unknown history).
+  // The hysteresis state at its initial branch (a fresh cell or an unknown history).
   void reset_hysteresis() { h_v_ = kHysteresis ? p_.hysteresis_initial_branch * p_.hysteresis_v : Scalar(0); }
 
   ModelTickResult<Scalar> step_current(Scalar current_meas_a, Scalar r_film_ohm_m2, Scalar dt_s) {

@@ -85,7 +85,7 @@ class BmsApplication {
     // Ticks that came and went without reaching this loop (lock-step: frames lost on the bus,
     // the bus down, the process dead; real time: a late process) are ticks without a sample.
     const std::uint32_t missed = missed_ticks(tick);
-    for (std::uint32_t k = 0; k < missed; ++k) core_.tick(fw::TickInput<double>{0.0, 0.0, false});
+    core_.ticks_missed(missed);
     missed_total_ += missed;
     last_tick_ = tick;
     have_tick_ = true;
