@@ -78,9 +78,16 @@ Runner add_estimate(CLI::App& app) {
       ->capture_default_str();
   sub->add_flag("--average", c->o.average_estimate,
                 "Beyond the paper: report and hold the mean of RCSI's u_hat over each charge's learning window");
+  sub->add_flag("--propagate-growth", c->o.propagate_growth,
+                "Beyond the paper: the reported film resistance follows the growth the model's side current "
+                "predicts (Ramadass law, the cell's constants) between and within RCSI's updates; RCSI sets the level");
+  sub->add_option("--growth-scale", c->o.growth_scale,
+                  "With --propagate-growth: factor on the growth law, to test a cell whose film constants differ "
+                  "from the model's (1 = the model's own)")
+      ->capture_default_str();
   sub->add_flag("--beyond-paper", c->beyond,
                 "Shorthand for the firmware's best settings (docs/results/firmware-model.md): --h-from-model "
-                "--p0 5e-7 --resync --resync-window 50 --warmup 600 --calibrate-bias --average");
+                "--p0 5e-7 --resync --resync-window 50 --warmup 600 --calibrate-bias --average --propagate-growth");
   sub->add_option("--model-effect", c->model_effects,
                   "Add an effect to the main model NAME=VALUE (repeatable; e.g. the one 'bmssim diagnose' found): "
                   "contact_resistance (ohm), hysteresis (V, half the gap between the OCV branches; starts on the "
@@ -102,6 +109,7 @@ Runner add_estimate(CLI::App& app) {
       c->o.warmup_s = 600.0;
       c->o.calibrate_bias = true;
       c->o.average_estimate = true;
+      c->o.propagate_growth = true;
     }
     for (const auto& e : c->model_effects) add_model_effect(c->o, e);
     const CellParameters cell = load_cell(c->cell);

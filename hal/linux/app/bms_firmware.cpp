@@ -76,7 +76,8 @@ void usage(FILE* to) {
                "  --h-from-model       H from the model at each charge start\n"
                "  --beyond-paper       the firmware's best settings (as bmssim estimate --beyond-paper): H from\n"
                "                       the model, state re-synchronisation, 600 s warm-up, bias calibration,\n"
-               "                       charge-averaged estimate (--h is then not used)\n"
+               "                       charge-averaged estimate propagated by the model's predicted film\n"
+               "                       growth (--h is then not used)\n"
                "  --persist-every-s S  commit the state every S s of ticks (default 60; 0: only at the end\n"
                "                       of each CC charge and at exit)\n"
                "  --rcvbuf-bytes N     socket receive buffer (default 8388608: a replay sent faster than\n"
@@ -178,8 +179,8 @@ int main(int argc, char** argv) {
   static Model model;  // static storage: the firmware's objects are not on the stack
   model.init_default();
   using Cell = bms::fw::PaperCellTraits;
-  Core::Config cfg = beyond_paper ? Core::beyond_paper_config(Model::inventory_of(Cell::kNeg.stoich_init,
-                                                                                   Cell::kPos.stoich_init))
+  Core::Config cfg = beyond_paper ? Core::beyond_paper_config(Model::inventory_of(Cell::kNeg.stoich_init, Cell::kPos.stoich_init),
+                                                               Model::film_growth_ohm_m2_per_a_m3_s())
                                   : Core::Config{};
   if (!beyond_paper) {
     cfg.estimator.markov_v_per_ohm_m2 = h;

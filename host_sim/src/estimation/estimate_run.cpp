@@ -66,6 +66,14 @@ double fixed_tick_s(const EstimateData& d) {
 
 namespace {
 
+// The truth's Ramadass law in the firmware's terms (ReducedCell::film_growth_ohm_m2_per_a_m3_s
+// for the paper cell), from the cell's own parameters so that the full model uses its own.
+double film_growth_ohm_m2_per_a_m3_s(const CellParameters& cell) {
+  const auto& s = cell.side;
+  return s.molar_mass_kg_mol / (s.density_kg_m3 * fw::kFaradayC_mol * s.film_conductivity_s_m *
+                                cell.negative.surface_area_per_volume_m());
+}
+
 template <int Nc, class Model>
 void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, const CellParameters& cell,
               double dt_s, EstimateResult& res, const EstimateProgress& progress) {
@@ -89,6 +97,7 @@ void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, con
   cfg.calibrate_bias = o.calibrate_bias;
   cfg.reference_after_resyncs = o.resync ? o.reference_after_resyncs : 0u;
   cfg.average_estimate = o.average_estimate;
+  cfg.film_growth_ohm_m2_per_a_m3_s = o.propagate_growth ? o.growth_scale * film_growth_ohm_m2_per_a_m3_s(cell) : 0.0;
   cfg.detector.v_max = cell.upper_voltage_v;
   cfg.detector.v_min = cell.lower_voltage_v;
   Core core(cfg, model);
@@ -190,6 +199,7 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
   if (!(o.eta >= 0.0) || !std::isfinite(o.eta)) throw InputError("--eta must be >= 0");
   if (!(o.h_v_per_ohm_m2 != 0.0) || !std::isfinite(o.h_v_per_ohm_m2)) throw InputError("--h must be nonzero");
   if (!(o.warmup_s >= 0.0) || !std::isfinite(o.warmup_s)) throw InputError("--warmup must be >= 0 s");
+  if (!(o.growth_scale >= 0.0) || !std::isfinite(o.growth_scale)) throw InputError("--growth-scale must be >= 0");
   if (!(o.resync_current_a > 0.0) || !std::isfinite(o.resync_current_a))
     throw InputError("--resync-current must be a positive current in A");
   const double dt_s = fixed_tick_s(d);

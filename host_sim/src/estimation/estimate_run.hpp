@@ -49,6 +49,8 @@ struct EstimateOptions {
   bool calibrate_bias = false;       // first CC charge = reference charge at the initial film resistance
   unsigned reference_after_resyncs = 1;  // with --resync: resyncs before the reference charge
   bool average_estimate = false;     // report the mean of u_hat over each charge's learning window
+  bool propagate_growth = false;     // the reported estimate follows the model's predicted film growth
+  double growth_scale = 1.0;         // with propagate_growth: factor on the growth law (robustness studies)
   // Effects added to the main model (bms/fw/cell_effects.hpp), e.g. the one `bmssim diagnose`
   // found; none by default. nominal_capacity_ah is taken from the cell.
   fw::EffectParameters<double> model_effects;

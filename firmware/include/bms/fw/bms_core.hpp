@@ -124,14 +124,20 @@ class BmsCore {
     // charge's learning window instead of its last value. The film changes by about 1 % per
     // charge while the RCSI loop (M1 ~ 1: two integrators) oscillates by a few %.
     bool average_estimate = false;
+    // Beyond the paper: between and within RCSI's updates the reported film resistance follows
+    // the growth the model's own side current predicts, dR_film = -k j_side dt with k this
+    // factor (the Ramadass law, ReducedCell::film_growth_ohm_m2_per_a_m3_s()); RCSI's data
+    // then set the level only. The film grows about 0.9 % during each CC charge, and a held or
+    // charge-averaged estimate lags it by about half of that. 0: held (the paper).
+    Scalar film_growth_ohm_m2_per_a_m3_s = Scalar(0);
   };
 
   // The firmware's settings beyond the paper (docs/results/firmware-model.md): H from the
   // model, state re-synchronisation at power-up and at each CV end over a 50-tick window,
   // 600 s warm-up, bias calibrated on the first charge after a re-synchronisation, charge-
-  // averaged estimate. `bmssim estimate --beyond-paper` sets the same (the host-in-the-loop
-  // comparison checks that they agree).
-  static Config beyond_paper_config(Scalar nominal_inventory_mol) {
+  // averaged estimate, propagated by the model's predicted film growth. `bmssim estimate
+  // --beyond-paper` sets the same (the host-in-the-loop comparison checks that they agree).
+  static Config beyond_paper_config(Scalar nominal_inventory_mol, Scalar film_growth_ohm_m2_per_a_m3_s) {
     Config c;
     c.markov_from_model = true;
     c.resync_at_cv_end = true;
@@ -142,6 +148,7 @@ class BmsCore {
     c.calibrate_bias = true;
     c.reference_after_resyncs = 1u;
     c.average_estimate = true;
+    c.film_growth_ohm_m2_per_a_m3_s = film_growth_ohm_m2_per_a_m3_s;
     return c;
   }
 
@@ -174,6 +181,7 @@ class BmsCore {
     std::uint32_t avg_samples;
     Scalar avg_sum_ohm_m2;
     Scalar r_held_ohm_m2;
+    Scalar growth_ohm_m2;
     Scalar last_current_a;
     Scalar last_j_side_a_m3;
     typename Detector::State detector;
@@ -213,12 +221,16 @@ class BmsCore {
     // its initial value until then).
     const bool cc_charge = in_cc_charge && warm && !(config_.calibrate_bias && !bias_calibrated_);
     if (cc_charge && !prev_cc_charge_) {
+      // The predicted growth is folded into the held value here, so its sum stays a small
+      // number (float keeps the per-tick increments, about 1e-8 of R_film).
+      r_held_ += growth_;
+      growth_ = Scalar(0);
       estimator_.reset_history(r_held_, last_j_side_);
       estimator_.reset();
       avg_sum_ = Scalar(0);
       avg_samples_ = 0u;
     }
-    const Scalar u = cc_charge ? estimator_.predict() : r_held_;
+    const Scalar u = cc_charge ? estimator_.predict() : r_held_ + growth_;
     if (first_sample && config_.resync_at_start) {
       window_.open(config_.resync_window_ticks);
       start_window_ = true;
@@ -271,19 +283,20 @@ class BmsCore {
       }
       st |= estimator_.update(bias_calibrated_ ? z - bias_v_ : z, r.j_side_a_m3);
       active = estimator_.theta_updated();
-      r_held_ = u;
+      r_held_ = u - growth_;
       if (config_.average_estimate) {
-        avg_sum_ += u;
+        avg_sum_ += u - growth_;
         ++avg_samples_;
         r_held_ = avg_sum_ / static_cast<Scalar>(avg_samples_);
       }
     }
+    growth_ -= config_.film_growth_ohm_m2_per_a_m3_s * r.j_side_a_m3 * config_.dt_s;
     prev_cc_charge_ = cc_charge;
     last_j_side_ = r.j_side_a_m3;
     ++ticks_;
     Output out = base_output(mode);
     out.rcsi_active = active;
-    out.r_film_est_ohm_m2 = r_held_;  // u itself, or its charge average
+    out.r_film_est_ohm_m2 = r_held_ + growth_;  // u itself, or its charge average, plus predicted growth
     out.z_v = z;
     out.model_voltage_v = r.voltage_v;
     out.model_current_a = r.current_a;
@@ -309,6 +322,7 @@ class BmsCore {
     s.avg_samples = avg_samples_;
     s.avg_sum_ohm_m2 = avg_sum_;
     s.r_held_ohm_m2 = r_held_;
+    s.growth_ohm_m2 = growth_;
     s.last_current_a = last_current_;
     s.last_j_side_a_m3 = last_j_side_;
     s.detector = detector_.state();
@@ -322,7 +336,8 @@ class BmsCore {
   bool restore(const State& s) {
     const bool header_ok = s.layout_tag == kLayoutTag && (s.flags & ~31u) == 0u && std::isfinite(s.bias_sum_v) &&
                            std::isfinite(s.bias_v) && std::isfinite(s.avg_sum_ohm_m2) &&
-                           std::isfinite(s.r_held_ohm_m2) && std::isfinite(s.last_current_a) &&
+                           std::isfinite(s.r_held_ohm_m2) && std::isfinite(s.growth_ohm_m2) &&
+                           std::isfinite(s.last_current_a) &&
                            std::isfinite(s.last_j_side_a_m3);
     Detector d = detector_;
     Estimator e = estimator_;
@@ -353,6 +368,7 @@ class BmsCore {
     avg_samples_ = s.avg_samples;
     avg_sum_ = s.avg_sum_ohm_m2;
     r_held_ = s.r_held_ohm_m2;
+    growth_ = s.growth_ohm_m2;
     last_current_ = s.last_current_a;
     last_j_side_ = s.last_j_side_a_m3;
     return true;
@@ -362,7 +378,7 @@ class BmsCore {
   const Detector& detector() const { return detector_; }
   const MainModel& model() const { return model_; }
   StatusWord status() const { return status_ | estimator_.status(); }
-  Scalar r_film_ohm_m2() const { return r_held_; }
+  Scalar r_film_ohm_m2() const { return r_held_ + growth_; }
   std::uint32_t resync_count() const { return resync_count_; }
   // Ticks that passed without reaching tick() at all (the application's clock or the bus's
   // sequence numbers say how many): counted as ticks without a sample, as `tick` would, without
@@ -414,7 +430,7 @@ class BmsCore {
       // Backward Euler: the input at the end of each step's interval.
       const Scalar w = static_cast<Scalar>(k) * ticks_per_step / span;
       const ModelTickResult<Scalar> r = model_.step_current(last_current_ + w * (in.current_a - last_current_),
-                                                            r_held_, ticks_per_step * config_.dt_s);
+                                                            r_held_ + growth_, ticks_per_step * config_.dt_s);
       if (!r.valid) return;
     }
     catch_up_ticks_ = catch_up_ticks_ + gap < catch_up_ticks_ ? 0xFFFFFFFFu : catch_up_ticks_ + gap;
@@ -431,7 +447,7 @@ class BmsCore {
     Output o{};
     o.mode = mode;
     o.rcsi_active = false;
-    o.r_film_est_ohm_m2 = r_held_;
+    o.r_film_est_ohm_m2 = r_held_ + growth_;
     o.z_v = Scalar(0);
     o.model_voltage_v = Scalar(0);
     o.model_current_a = last_current_;
@@ -455,6 +471,7 @@ class BmsCore {
   Detector detector_;
   Estimator estimator_;
   Scalar r_held_ = Scalar(0);
+  Scalar growth_ = Scalar(0);  // predicted film growth since the last charge start (see Config)
   Scalar last_current_ = Scalar(0);
   Scalar last_j_side_ = Scalar(0);
   std::uint32_t ticks_ = 0u;

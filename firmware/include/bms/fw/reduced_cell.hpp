@@ -57,6 +57,9 @@ struct PaperCellTraits {
   static constexpr double kSideExchangeAM2 = paper::kSideExchange_a_m2;
   static constexpr double kSideAlpha = paper::kSideAlpha;
   static constexpr double kInitialFilmOhmM2 = paper::kInitialFilm_ohm_m2;
+  static constexpr double kFilmMolarMassKgMol = paper::kFilmMolarMass_kg_mol;
+  static constexpr double kFilmDensityKgM3 = paper::kFilmDensity_kg_m3;
+  static constexpr double kFilmConductivitySM = paper::kFilmConductivity_s_m;
   static constexpr double kUpperVoltageV = paper::kUpperVoltage_v;
   static constexpr double kLowerVoltageV = paper::kLowerVoltage_v;
   template <typename T> static T ocp_neg_v(T x) { return paper::ocp_negative_v(x); }
@@ -182,6 +185,12 @@ class ReducedCell {
     return t.voltage_v;
   }
 
+  // Ramadass film growth per unit of the model's volumetric side current:
+  // dR_film/dt = -film_growth_ohm_m2_per_a_m3_s() * j_side_a_m3 (the truth's law, its constants).
+  static constexpr double film_growth_ohm_m2_per_a_m3_s() {
+    return Cell::kFilmMolarMassKgMol /
+           (Cell::kFilmDensityKgM3 * kFaradayC_mol * Cell::kFilmConductivitySM * a_neg());
+  }
   Scalar li_loss_ah() const { return s_.li_loss_mol * Scalar(kFaradayC_mol / 3600.0); }
   Scalar li_loss_mol() const { return s_.li_loss_mol; }
   Scalar mean_stoich_neg() const { return mean_shell(s_.cs_neg_mol_m3, vol_n_, kNrN) / Scalar(Cell::kNeg.max_concentration_mol_m3); }
