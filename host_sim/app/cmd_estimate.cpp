@@ -86,8 +86,10 @@ Runner add_estimate(CLI::App& app) {
                   "from the model's (1 = the model's own)")
       ->capture_default_str();
   sub->add_flag("--beyond-paper", c->beyond,
-                "Shorthand for the firmware's best settings (docs/results/firmware-model.md): --h-from-model "
-                "--p0 5e-7 --resync --resync-window 50 --warmup 600 --calibrate-bias --average --propagate-growth");
+                "Shorthand for the firmware's best settings, BmsCore::beyond_paper_config (docs/results/firmware-model.md): "
+                "--h-from-model --p0 5e-7 --resync --resync-window 50 --warmup 600 --calibrate-bias --average "
+                "--propagate-growth; an option given explicitly beside it wins (e.g. --resync-window 1, "
+                "--growth-scale 0 for an ablation)");
   sub->add_option("--model-effect", c->model_effects,
                   "Add an effect to the main model NAME=VALUE (repeatable; e.g. the one 'bmssim diagnose' found): "
                   "contact_resistance (ohm), hysteresis (V, half the gap between the OCV branches; starts on the "
@@ -98,19 +100,9 @@ Runner add_estimate(CLI::App& app) {
   sub->add_flag("--quiet", c->quiet, "No progress lines");
   sub->footer("Example: bmssim simulate --cycles 5 --out out/sim && bmssim estimate --data out/sim/truth.csv "
               "--model reduced --out out/est");
-  return [c]() {
+  return [c, sub]() {
     c->o.mesh.n_sep = c->o.mesh.n_pos = c->o.mesh.n_neg;
-    if (c->beyond) {
-      c->o.markov_from_model = true;
-      c->o.p0 = 5e-7;
-      c->o.p0_y0 = 5e-7;
-      c->o.resync = true;
-      c->o.resync_window_ticks = 50;
-      c->o.warmup_s = 600.0;
-      c->o.calibrate_bias = true;
-      c->o.average_estimate = true;
-      c->o.propagate_growth = true;
-    }
+    if (c->beyond) apply_beyond_paper(c->o, [sub](const char* flag) { return sub->count(flag) > 0; });
     for (const auto& e : c->model_effects) add_model_effect(c->o, e);
     const CellParameters cell = load_cell(c->cell);
     c->o.ic = perturbed_initial_conditions(cell, c->ic_error_pct);

@@ -190,6 +190,23 @@ void add_model_effect(EstimateOptions& o, const std::string& spec) {
   o.model_effects_on = true;
 }
 
+void apply_beyond_paper(EstimateOptions& o, const std::function<bool(const char* flag)>& given) {
+  // The inventory is set per cell in run_estimate; a nonzero growth factor marks the switch.
+  const auto cfg = fw::BmsCore<double>::beyond_paper_config(0.0, 1.0);
+  o.markov_from_model = o.markov_from_model || cfg.markov_from_model;
+  if (!given("--p0")) o.p0 = cfg.estimator.p0_u;
+  if (!given("--p0-y0")) o.p0_y0 = cfg.estimator.p0_y0;
+  o.resync = o.resync || cfg.resync_at_cv_end;
+  if (!given("--no-start-resync")) o.resync_at_start = cfg.resync_at_start;
+  if (!given("--resync-window")) o.resync_window_ticks = cfg.resync_window_ticks;
+  if (!given("--resync-current")) o.resync_current_a = cfg.resync_current_a;
+  if (!given("--warmup")) o.warmup_s = cfg.rcsi_warmup_s;
+  o.calibrate_bias = o.calibrate_bias || cfg.calibrate_bias;
+  if (!given("--reference-after-resyncs")) o.reference_after_resyncs = cfg.reference_after_resyncs;
+  o.average_estimate = o.average_estimate || cfg.average_estimate;
+  o.propagate_growth = o.propagate_growth || cfg.film_growth_ohm_m2_per_a_m3_s != 0.0;
+}
+
 EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, const EstimateOptions& options,
                             const EstimateProgress& progress) {
   EstimateOptions o = options;

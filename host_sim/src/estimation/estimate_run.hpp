@@ -90,6 +90,11 @@ struct EstimateResult {
 // Throws InputError naming the option and the field for anything else.
 void add_model_effect(EstimateOptions& o, const std::string& spec);
 
+// `--beyond-paper`: the firmware's best settings, read from BmsCore::beyond_paper_config (one
+// source for the firmware and this tool). `given(flag)` says whether the user set that flag
+// explicitly; such a value is kept, so `--beyond-paper --resync-window 1` is an ablation.
+void apply_beyond_paper(EstimateOptions& o, const std::function<bool(const char* flag)>& given);
+
 using EstimateProgress = std::function<void(std::size_t row, std::size_t rows)>;
 
 EstimateResult run_estimate(const EstimateData& data, const CellParameters& cell, const EstimateOptions& o,
