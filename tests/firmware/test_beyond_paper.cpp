@@ -285,6 +285,24 @@ TEST(BmsCoreGrowthPropagation, SaveRestoreCarriesThePendingGrowth) {
   EXPECT_FALSE(b.core.restore(bad));
 }
 
+TEST(BmsCoreGrowthPropagation, LostSamplesStillCountTheirGrowth) {
+  GrowingRig full(growth_config()), gappy(growth_config());
+  full.run(2.5, 10000);
+  gappy.run(2.5, 10000);
+  full.run(-2.5, 1000);
+  gappy.run(-2.5, 1000);
+  for (int k = 0; k < 500; ++k) {  // 100 s of lost samples in the reference charge; the cell goes on
+    full.tick(-2.5);
+    const auto r = gappy.plant.step_current(-2.5, gappy.r_true, 0.2);
+    gappy.r_true -= Model::film_growth_ohm_m2_per_a_m3_s() * r.j_side_a_m3 * 0.2;
+    gappy.core.tick({0.0, 0.0, false});
+  }
+  const auto a = full.run(-2.5, 500);
+  const auto b = gappy.run(-2.5, 500);
+  const double grown = full.r_true - kFilm;
+  EXPECT_LT(std::abs(b.r_film_est_ohm_m2 - a.r_film_est_ohm_m2), 0.02 * grown);
+}
+
 TEST(BmsCoreGrowthPropagation, FloatKeepsThePerTickIncrements) {
   // One tick's growth is about 1e-8 of R_film, below float's resolution of R_film itself: the
   // increments are summed separately and folded in at each charge start.

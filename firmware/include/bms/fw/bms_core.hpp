@@ -82,8 +82,9 @@ class BmsCore {
     // Ticks without an accepted sample leave the model where it was (the rejected sample
     // must not touch the state), but the cell went on: at the next accepted sample the model
     // first steps over the missed ticks, current-driven on the current interpolated between
-    // the last accepted sample and the returning one, film held, no learning. Without it, each lost
-    // frame in CC puts the model 0.2 s of charge behind the cell for the rest of the phase,
+    // the last accepted sample and the returning one, film held (plus the predicted growth when
+    // that is on), no learning. Without it, each lost frame in CC puts the model 0.2 s of charge
+    // behind the cell for the rest of the phase,
     // which RCSI reads as film resistance (measured in the host-in-the-loop: 1 % lost frames
     // took the error from 12 % to 45 %). A gap of up to catch_up_max_ticks is covered (longer:
     // its first catch_up_max_ticks; 0 disables it), in at most catch_up_max_steps backward-
@@ -432,6 +433,8 @@ class BmsCore {
       const ModelTickResult<Scalar> r = model_.step_current(last_current_ + w * (in.current_a - last_current_),
                                                             r_held_ + growth_, ticks_per_step * config_.dt_s);
       if (!r.valid) return;
+      // The film grew over the gap too: without this, each lost frame drops a tick of growth.
+      growth_ -= config_.film_growth_ohm_m2_per_a_m3_s * r.j_side_a_m3 * ticks_per_step * config_.dt_s;
     }
     catch_up_ticks_ = catch_up_ticks_ + gap < catch_up_ticks_ ? 0xFFFFFFFFu : catch_up_ticks_ + gap;
   }
