@@ -81,6 +81,10 @@ Runner add_estimate(CLI::App& app) {
   sub->add_flag("--propagate-growth", c->o.propagate_growth,
                 "Beyond the paper: the reported film resistance follows the growth the model's side current "
                 "predicts (Ramadass law, the cell's constants) between and within RCSI's updates; RCSI sets the level");
+  sub->add_option("--inventory-error-pct", c->o.inventory_error_pct,
+                  "With --resync: the lithium inventory the re-synchronisation assumes is off the cell's nominal one "
+                  "by this percent (how well a BMS must know its cell's inventory)")
+      ->capture_default_str();
   sub->add_option("--growth-scale", c->o.growth_scale,
                   "With --propagate-growth: factor on the growth law, to test a cell whose film constants differ "
                   "from the model's (1 = the model's own)")

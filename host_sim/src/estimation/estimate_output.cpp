@@ -46,7 +46,7 @@ nlohmann::json estimate_summary_json(const EstimateResult& r, const EstimateOpti
   j["wall_s"] = r.wall_s;
   j["ticks"] = r.rows.size();
   j["options"] = {{"model", o.model}, {"nc", o.nc}, {"p0", o.p0}, {"p0_y0", o.p0_y0 > 0.0 ? o.p0_y0 : o.p0}, {"lambda", o.lambda}, {"eta", o.eta}, {"h", o.h_v_per_ohm_m2},
-                  {"h_from_model", o.markov_from_model}, {"delay", 0}, {"resync", o.resync}, {"resync_at_start", o.resync && o.resync_at_start}, {"resync_window_ticks", o.resync_window_ticks}, {"reference_after_resyncs", o.reference_after_resyncs}, {"warmup_s", o.warmup_s}, {"calibrate_bias", o.calibrate_bias}, {"average_estimate", o.average_estimate}, {"propagate_growth", o.propagate_growth}, {"growth_scale", o.growth_scale},
+                  {"h_from_model", o.markov_from_model}, {"delay", 0}, {"resync", o.resync}, {"resync_at_start", o.resync && o.resync_at_start}, {"resync_window_ticks", o.resync_window_ticks}, {"inventory_error_pct", o.inventory_error_pct}, {"reference_after_resyncs", o.reference_after_resyncs}, {"warmup_s", o.warmup_s}, {"calibrate_bias", o.calibrate_bias}, {"average_estimate", o.average_estimate}, {"propagate_growth", o.propagate_growth}, {"growth_scale", o.growth_scale},
                   {"resync_current_a", o.resync_current_a},
                   {"model_ic", {{"stoich_neg", o.ic.stoich_neg}, {"stoich_pos", o.ic.stoich_pos},
                                 {"electrolyte_mol_m3", o.ic.electrolyte_mol_m3}}}};

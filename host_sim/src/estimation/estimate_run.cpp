@@ -217,6 +217,7 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
   if (!(o.h_v_per_ohm_m2 != 0.0) || !std::isfinite(o.h_v_per_ohm_m2)) throw InputError("--h must be nonzero");
   if (!(o.warmup_s >= 0.0) || !std::isfinite(o.warmup_s)) throw InputError("--warmup must be >= 0 s");
   if (!(o.growth_scale >= 0.0) || !std::isfinite(o.growth_scale)) throw InputError("--growth-scale must be >= 0");
+  if (!(std::abs(o.inventory_error_pct) < 50.0)) throw InputError("--inventory-error-pct must be within +-50");
   if (!(o.resync_current_a > 0.0) || !std::isfinite(o.resync_current_a))
     throw InputError("--resync-current must be a positive current in A");
   const double dt_s = fixed_tick_s(d);
@@ -229,7 +230,8 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
     model.init(o.ic.stoich_neg, o.ic.stoich_pos, o.ic.electrolyte_mol_m3);
     // The nominal inventory is the cell's design state, not the (possibly wrong) model start.
     const InitialConditions nominal = default_initial_conditions(cell);
-    o.nominal_inventory_mol = fw::ReducedCell<double>::inventory_of(nominal.stoich_neg, nominal.stoich_pos);
+    o.nominal_inventory_mol = fw::ReducedCell<double>::inventory_of(nominal.stoich_neg, nominal.stoich_pos) *
+                              (1.0 + 0.01 * o.inventory_error_pct);
     if (o.model_effects_on) {
       fw::EffectsModel<fw::ReducedCell<double>, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
       dispatch_nc(augmented, d, o, cell, dt_s, res, progress);

@@ -45,6 +45,7 @@ struct EstimateOptions {
   double resync_current_a = 0.25;
   unsigned resync_window_ticks = 1;  // ticks of measurement each resync fits a line to
   double nominal_inventory_mol = 0.0;  // set by run_estimate from the cell's nominal state
+  double inventory_error_pct = 0.0;    // with resync: the inventory it assumes is off nominal by this
   double warmup_s = 0.0;             // RCSI learns only after this long in each CC charge
   bool calibrate_bias = false;       // first CC charge = reference charge at the initial film resistance
   unsigned reference_after_resyncs = 1;  // with --resync: resyncs before the reference charge
