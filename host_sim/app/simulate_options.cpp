@@ -103,14 +103,12 @@ SimulateRun run_simulation(const SimulateOptions& o, const ProgressFn& progress)
     } else if (name == "thermal") {
       if (!(value > 0.0)) throw InputError("--effect thermal: heat-transfer coefficient must be > 0 W/K");
       cfg.effects.thermal_h_w_per_k = value;
-    } else if (name == "particle_size") {
+    } else if (name == "particle_size" || name == "particle_size_negative") {
+      const bool anode = name == "particle_size_negative";
       if (!(value >= 0.0 && value <= 1.5))
-        throw InputError("--effect particle_size: log-space standard deviation of the cathode radius must be in [0, 1.5]");
-      cfg.effects.particle_size_sigma = value;
-    } else if (name == "particle_size_negative") {
-      if (!(value >= 0.0 && value <= 1.5))
-        throw InputError("--effect particle_size_negative: log-space standard deviation of the anode radius must be in [0, 1.5]");
-      cfg.effects.particle_size_negative_sigma = value;
+        throw InputError("--effect " + name + ": log-space standard deviation of the " +
+                         (anode ? "anode" : "cathode") + " radius must be in [0, 1.5]");
+      (anode ? cfg.effects.particle_size_negative_sigma : cfg.effects.particle_size_sigma) = value;
     } else if (name != "none") {
       throw InputError("--effect '" + name +
                        "': unknown; use contact_resistance, hysteresis, current_offset, current_gain, thermal, "

@@ -277,8 +277,7 @@ void DfnModel::set_side_reaction_enabled(bool on) {
   cell_.side.enabled = on;
 }
 
-double DfnModel::film_growth_factor() const {
-  const auto& s = cell_.side;
+double DfnModel::film_growth_factor(const SideReactionParameters& s) {
   return s.molar_mass_kg_mol / (s.density_kg_m3 * kFaraday_c_mol * s.film_conductivity_s_m);
 }
 

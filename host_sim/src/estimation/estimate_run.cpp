@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "bms/fw/bms_core.hpp"
+#include "dfn/dfn_model.hpp"
 #include "estimation/full_dfn_main_model.hpp"
 #include "io/csv_table.hpp"
 #include "io/input_error.hpp"
@@ -66,14 +67,6 @@ double fixed_tick_s(const EstimateData& d) {
 
 namespace {
 
-// The truth's Ramadass law in the firmware's terms (ReducedCell::film_growth_ohm_m2_per_a_m3_s
-// for the paper cell), from the cell's own parameters so that the full model uses its own.
-double film_growth_ohm_m2_per_a_m3_s(const CellParameters& cell) {
-  const auto& s = cell.side;
-  return s.molar_mass_kg_mol / (s.density_kg_m3 * fw::kFaradayC_mol * s.film_conductivity_s_m *
-                                cell.negative.surface_area_per_volume_m());
-}
-
 template <int Nc, class Model>
 void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, const CellParameters& cell,
               double dt_s, EstimateResult& res, const EstimateProgress& progress) {
@@ -97,7 +90,12 @@ void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, con
   cfg.calibrate_bias = o.calibrate_bias;
   cfg.reference_after_resyncs = o.resync ? o.reference_after_resyncs : 0u;
   cfg.average_estimate = o.average_estimate;
-  cfg.film_growth_ohm_m2_per_a_m3_s = o.propagate_growth ? o.growth_scale * film_growth_ohm_m2_per_a_m3_s(cell) : 0.0;
+  // The truth's Ramadass law per volumetric side current, from the cell's own parameters (for the
+  // paper cell ReducedCell::film_growth_ohm_m2_per_a_m3_s()).
+  cfg.film_growth_ohm_m2_per_a_m3_s =
+      o.propagate_growth
+          ? o.growth_scale * DfnModel::film_growth_factor(cell.side) / cell.negative.surface_area_per_volume_m()
+          : 0.0;
   cfg.detector.v_max = cell.upper_voltage_v;
   cfg.detector.v_min = cell.lower_voltage_v;
   Core core(cfg, model);

@@ -84,13 +84,13 @@ class BmsCore {
     // first steps over the missed ticks, current-driven on the current interpolated between
     // the last accepted sample and the returning one, film held (plus the predicted growth when
     // that is on), no learning. Without it, each lost frame in CC puts the model 0.2 s of charge
-    // behind the cell for the rest of the phase,
-    // which RCSI reads as film resistance (measured in the host-in-the-loop: 1 % lost frames
-    // took the error from 12 % to 45 %). A gap of up to catch_up_max_ticks is covered (longer:
-    // its first catch_up_max_ticks; 0 disables it), in at most catch_up_max_steps backward-
-    // Euler steps (a gap of n ticks as n steps when n is small, else as longer steps, which the
-    // implicit step takes; the charge moved is exact either way), so the tick's cost is bounded:
-    // 8 current-driven steps, about 60 000 instructions on the Cortex-M7.
+    // behind the cell for the rest of the phase, which RCSI reads as film resistance (measured
+    // in the host-in-the-loop: 1 % lost frames took the error from 12 % to 45 %). A gap of up
+    // to catch_up_max_ticks is covered (longer: its first catch_up_max_ticks; 0 disables it), in
+    // at most catch_up_max_steps backward-Euler steps (a gap of n ticks as n steps when n is
+    // small, else as longer steps, which the implicit step takes; the charge moved is exact
+    // either way), so the tick's cost is bounded: 8 current-driven steps, about 60 000
+    // instructions on the Cortex-M7.
     std::uint32_t catch_up_max_ticks = 3000u;
     std::uint32_t catch_up_max_steps = 8u;
     // Beyond the paper: once per CV phase, when |I| has fallen to resync_current_a, move the
@@ -137,7 +137,7 @@ class BmsCore {
   // model, state re-synchronisation at power-up and at each CV end over a 50-tick window,
   // 600 s warm-up, bias calibrated on the first charge after a re-synchronisation, charge-
   // averaged estimate, propagated by the model's predicted film growth. `bmssim estimate
-  // --beyond-paper` sets the same (the host-in-the-loop comparison checks that they agree).
+  // --beyond-paper` reads its settings from here (host_sim apply_beyond_paper).
   static Config beyond_paper_config(Scalar nominal_inventory_mol, Scalar film_growth_ohm_m2_per_a_m3_s) {
     Config c;
     c.markov_from_model = true;
@@ -231,7 +231,7 @@ class BmsCore {
       avg_sum_ = Scalar(0);
       avg_samples_ = 0u;
     }
-    const Scalar u = cc_charge ? estimator_.predict() : r_held_ + growth_;
+    const Scalar u = cc_charge ? estimator_.predict() : r_film_ohm_m2();
     if (first_sample && config_.resync_at_start) {
       window_.open(config_.resync_window_ticks);
       start_window_ = true;
@@ -284,20 +284,21 @@ class BmsCore {
       }
       st |= estimator_.update(bias_calibrated_ ? z - bias_v_ : z, r.j_side_a_m3);
       active = estimator_.theta_updated();
-      r_held_ = u - growth_;
+      const Scalar level = u - growth_;  // what RCSI's data say, less the predicted growth
+      r_held_ = level;
       if (config_.average_estimate) {
-        avg_sum_ += u - growth_;
+        avg_sum_ += level;
         ++avg_samples_;
         r_held_ = avg_sum_ / static_cast<Scalar>(avg_samples_);
       }
     }
-    growth_ -= config_.film_growth_ohm_m2_per_a_m3_s * r.j_side_a_m3 * config_.dt_s;
+    add_growth(r.j_side_a_m3, config_.dt_s);
     prev_cc_charge_ = cc_charge;
     last_j_side_ = r.j_side_a_m3;
     ++ticks_;
     Output out = base_output(mode);
     out.rcsi_active = active;
-    out.r_film_est_ohm_m2 = r_held_ + growth_;  // u itself, or its charge average, plus predicted growth
+    out.r_film_est_ohm_m2 = r_film_ohm_m2();  // u itself, or its charge average, plus predicted growth
     out.z_v = z;
     out.model_voltage_v = r.voltage_v;
     out.model_current_a = r.current_a;
@@ -379,6 +380,7 @@ class BmsCore {
   const Detector& detector() const { return detector_; }
   const MainModel& model() const { return model_; }
   StatusWord status() const { return status_ | estimator_.status(); }
+  // The film resistance in use: the held level plus the growth predicted since it was set.
   Scalar r_film_ohm_m2() const { return r_held_ + growth_; }
   std::uint32_t resync_count() const { return resync_count_; }
   // Ticks that passed without reaching tick() at all (the application's clock or the bus's
@@ -431,12 +433,16 @@ class BmsCore {
       // Backward Euler: the input at the end of each step's interval.
       const Scalar w = static_cast<Scalar>(k) * ticks_per_step / span;
       const ModelTickResult<Scalar> r = model_.step_current(last_current_ + w * (in.current_a - last_current_),
-                                                            r_held_ + growth_, ticks_per_step * config_.dt_s);
+                                                            r_film_ohm_m2(), ticks_per_step * config_.dt_s);
       if (!r.valid) return;
       // The film grew over the gap too: without this, each lost frame drops a tick of growth.
-      growth_ -= config_.film_growth_ohm_m2_per_a_m3_s * r.j_side_a_m3 * ticks_per_step * config_.dt_s;
+      add_growth(r.j_side_a_m3, ticks_per_step * config_.dt_s);
     }
     catch_up_ticks_ = catch_up_ticks_ + gap < catch_up_ticks_ ? 0xFFFFFFFFu : catch_up_ticks_ + gap;
+  }
+
+  void add_growth(Scalar j_side_a_m3, Scalar dt_s) {
+    growth_ -= config_.film_growth_ohm_m2_per_a_m3_s * j_side_a_m3 * dt_s;
   }
 
   StatusWord raise_stale(StatusWord st, std::uint32_t ticks = 1u) {
@@ -450,7 +456,7 @@ class BmsCore {
     Output o{};
     o.mode = mode;
     o.rcsi_active = false;
-    o.r_film_est_ohm_m2 = r_held_ + growth_;
+    o.r_film_est_ohm_m2 = r_film_ohm_m2();
     o.z_v = Scalar(0);
     o.model_voltage_v = Scalar(0);
     o.model_current_a = last_current_;
