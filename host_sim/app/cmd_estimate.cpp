@@ -37,6 +37,19 @@ Runner add_estimate(CLI::App& app) {
                   "Main-system model: 'reduced' (the firmware's reduced-order DFN) or 'full' (the truth DFN without "
                   "film growth: the paper's setting)")
       ->capture_default_str();
+  sub->add_option("--settings", c->o.settings,
+                  "Estimator profile: 'best' (the project's best, from the nominal cell only: the film, its growth "
+                  "gain and the lithium inventory identified together; BmsCore::best_config) or 'paper' (the paper's "
+                  "RCSI: n_c = 1, eta = 0, P(0) = 5e-7 I, H = 0.01). Options given explicitly beside it win")
+      ->capture_default_str();
+  sub->add_flag("!--no-learning", c->o.learning,
+                "Control run: the same settings with every RCSI / RLS update switched off (what the nominal cell "
+                "alone predicts)");
+  sub->add_flag("!--no-inventory", c->o.learn_inventory,
+                "With --settings best: keep the nominal lithium inventory instead of identifying it (ablation)");
+  sub->add_option("--model-bias-ohm", c->o.model_bias_ohm,
+                  "With --settings best: the main model's voltage bias in CC charge per ampere [ohm] (default: the "
+                  "reduced model's design-time calibration, 0 for the full model; 0 = ablation)");
   sub->add_option("--cell", c->cell, "Cell of the main model: paper | aboutenergy | FILE.bpx.json")->capture_default_str();
   sub->add_option("--nc", c->o.nc, "Order n_c of the ARX subsystem model (1..8)")->capture_default_str();
   sub->add_option("--p0", c->o.p0, "RLS initial covariance P(0) = p0 I (paper: 5e-7)")->capture_default_str();
@@ -106,7 +119,14 @@ Runner add_estimate(CLI::App& app) {
               "--model reduced --out out/est");
   return [c, sub]() {
     c->o.mesh.n_sep = c->o.mesh.n_pos = c->o.mesh.n_neg;
-    if (c->beyond) apply_beyond_paper(c->o, [sub](const char* flag) { return sub->count(flag) > 0; });
+    const auto given = [sub](const char* flag) { return sub->count(flag) > 0; };
+    if (c->beyond) {
+      if (given("--settings")) throw InputError("--beyond-paper is the session-5 profile; give it or --settings, not both");
+      c->o.settings = "beyond-paper";
+      apply_beyond_paper(c->o, given);
+    } else {
+      apply_settings(c->o, given);
+    }
     for (const auto& e : c->model_effects) add_model_effect(c->o, e);
     const CellParameters cell = load_cell(c->cell);
     c->o.ic = perturbed_initial_conditions(cell, c->ic_error_pct);
@@ -130,8 +150,11 @@ Runner add_estimate(CLI::App& app) {
     write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
     if (!quiet) {
       for (const auto& cs : r.cycles)
-        std::fprintf(stderr, "estimate: cycle %d: film-resistance error in CC charge: median %.3f %%, end %.3f %%\n",
-                     cs.cycle, cs.r_film_err_median_pct, cs.r_film_err_end_pct);
+        std::fprintf(stderr,
+                     "estimate: cycle %d: film-resistance error in CC charge: median %.3f %%, end %.3f %%; "
+                     "inventory error at its end %.4f %%\n",
+                     cs.cycle, cs.r_film_err_median_pct, cs.r_film_err_end_pct, cs.inventory_err_end_pct);
+      if (std::isfinite(r.growth_err_pct)) std::fprintf(stderr, "estimate: growth_err_pct %.2f %%\n", r.growth_err_pct);
       std::fprintf(stderr, "estimate: %zu ticks in %.2f s wall -> %s\n", r.rows.size(), r.wall_s,
                    (dir / "estimates.csv").c_str());
     }

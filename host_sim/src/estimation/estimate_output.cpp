@@ -8,9 +8,15 @@
 
 namespace bms {
 
+namespace {
+nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+}  // namespace
+
 void write_estimates_csv(const std::filesystem::path& file, const EstimateResult& r) {
   std::vector<std::string> cols = {"t_s", "cycle", "mode", "rcsi_active", "r_film_est_ohm_m2", "r_film_true_ohm_m2",
-                                   "z_v", "model_voltage_v", "model_current_a", "j_side_a_m3", "li_loss_ah", "status"};
+                                   "z_v", "model_voltage_v", "model_current_a", "j_side_a_m3", "li_loss_ah", "status",
+                                   "film_initial_est_ohm_m2", "growth_gain_est", "inventory_deviation_est",
+                                   "inventory_err_pct"};
   const std::size_t n_theta = r.theta.size();
   for (std::size_t i = 0; i < n_theta / 2; ++i) cols.push_back("theta_m" + std::to_string(i + 1));
   for (std::size_t i = 0; i < n_theta / 2; ++i) cols.push_back("theta_n" + std::to_string(i + 1));
@@ -22,7 +28,9 @@ void write_estimates_csv(const std::filesystem::path& file, const EstimateResult
     if (std::isfinite(row.r_film_true_ohm_m2)) w.cell(row.r_film_true_ohm_m2);
     else w.cell("");
     w.cell(row.z_v).cell(row.model_voltage_v).cell(row.model_current_a).cell(row.j_side_a_m3).cell(row.li_loss_ah);
-    w.cell(row.status);
+    w.cell(row.status).cell(row.film_initial_ohm_m2).cell(row.growth_gain).cell(row.inventory_deviation);
+    if (std::isfinite(row.inventory_err_pct)) w.cell(row.inventory_err_pct);
+    else w.cell("");
     for (double th : r.theta_rows[i]) w.cell(th);
     w.end_row();
   }
@@ -38,14 +46,24 @@ nlohmann::json estimate_summary_json(const EstimateResult& r, const EstimateOpti
                            {"r_film_err_end_pct", c.r_film_err_end_pct},
                            {"r_film_true_end_ohm_m2", c.r_film_true_end_ohm_m2},
                            {"r_film_est_end_ohm_m2", c.r_film_est_end_ohm_m2},
-                           {"cc_charge_ticks", c.cc_charge_ticks}});
+                           {"cc_charge_ticks", c.cc_charge_ticks},
+                           {"inventory_err_end_pct", finite_or_null(c.inventory_err_end_pct)}});
   }
   j["theta"] = r.theta;
+  j["growth_err_pct"] = finite_or_null(r.growth_err_pct);
+  if (o.identify_growth && !r.rows.empty()) {
+    const auto& last = r.rows.back();
+    j["identified"] = {{"film_initial_ohm_m2", last.film_initial_ohm_m2},
+                       {"growth_gain", last.growth_gain},
+                       {"inventory_deviation", last.inventory_deviation}};
+  }
   j["status_bits_seen"] = r.status;
   j["newton_cap_hits"] = r.newton_cap_hits;
   j["wall_s"] = r.wall_s;
   j["ticks"] = r.rows.size();
-  j["options"] = {{"model", o.model}, {"nc", o.nc}, {"p0", o.p0}, {"p0_y0", o.p0_y0 > 0.0 ? o.p0_y0 : o.p0}, {"lambda", o.lambda}, {"eta", o.eta}, {"h", o.h_v_per_ohm_m2},
+  j["options"] = {{"model", o.model}, {"settings", o.settings}, {"learning", o.learning},
+                  {"identify_growth", o.identify_growth}, {"learn_inventory", o.learn_inventory},
+                  {"model_bias_ohm", o.model_bias_ohm}, {"nc", o.nc}, {"p0", o.p0}, {"p0_y0", o.p0_y0 > 0.0 ? o.p0_y0 : o.p0}, {"lambda", o.lambda}, {"eta", o.eta}, {"h", o.h_v_per_ohm_m2},
                   {"h_from_model", o.markov_from_model}, {"delay", 0}, {"resync", o.resync}, {"resync_at_start", o.resync && o.resync_at_start}, {"resync_window_ticks", o.resync_window_ticks}, {"inventory_error_pct", o.inventory_error_pct}, {"reference_after_resyncs", o.reference_after_resyncs}, {"warmup_s", o.warmup_s}, {"calibrate_bias", o.calibrate_bias}, {"average_estimate", o.average_estimate}, {"propagate_growth", o.propagate_growth}, {"growth_scale", o.growth_scale},
                   {"resync_current_a", o.resync_current_a},
                   {"model_ic", {{"stoich_neg", o.ic.stoich_neg}, {"stoich_pos", o.ic.stoich_pos},

@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "bms/fw/bms_core.hpp"
+#include "bms/fw/reduced_model_bias.hpp"
 #include "dfn/dfn_model.hpp"
 #include "estimation/full_dfn_main_model.hpp"
 #include "io/csv_table.hpp"
@@ -35,6 +36,10 @@ EstimateData read_estimate_data(const std::string& file) {
     for (std::size_t i = 0; i < c.size(); ++i) d.cycle[i] = static_cast<int>(c[i]);
   }
   if (t.has("r_film_ohm_m2")) d.r_film_true_ohm_m2 = t.numbers("r_film_ohm_m2");
+  if (t.has("stoich_neg") && t.has("stoich_pos")) {
+    d.stoich_neg_true = t.numbers("stoich_neg");
+    d.stoich_pos_true = t.numbers("stoich_pos");
+  }
   if (t.has("mode")) {
     for (std::size_t i = 0; i < t.rows(); ++i) {
       Mode m{};
@@ -67,6 +72,8 @@ double fixed_tick_s(const EstimateData& d) {
 
 namespace {
 
+double nominal_growth_ohm_m2_per_a_m3_s(const CellParameters& cell);
+
 template <int Nc, class Model>
 void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, const CellParameters& cell,
               double dt_s, EstimateResult& res, const EstimateProgress& progress) {
@@ -90,12 +97,19 @@ void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, con
   cfg.calibrate_bias = o.calibrate_bias;
   cfg.reference_after_resyncs = o.resync ? o.reference_after_resyncs : 0u;
   cfg.average_estimate = o.average_estimate;
-  // The truth's Ramadass law per volumetric side current, from the cell's own parameters (for the
-  // paper cell ReducedCell::film_growth_ohm_m2_per_a_m3_s()).
-  cfg.film_growth_ohm_m2_per_a_m3_s =
-      o.propagate_growth
-          ? o.growth_scale * DfnModel::film_growth_factor(cell.side) / cell.negative.surface_area_per_volume_m()
-          : 0.0;
+  // The nominal cell's Ramadass law per volumetric side current (the cell in use may differ).
+  cfg.film_growth_ohm_m2_per_a_m3_s = o.propagate_growth ? o.growth_scale * nominal_growth_ohm_m2_per_a_m3_s(cell) : 0.0;
+  cfg.learning = o.learning;
+  cfg.identify_growth = o.identify_growth;
+  if (o.identify_growth) {
+    // Everything here is the nominal cell's: its initial film, its Ramadass constant, its
+    // inventory (set by run_estimate), the model's design-time bias.
+    const auto best = Core::best_config(o.nominal_inventory_mol, cell.side.initial_film_resistance_ohm_m2,
+                                        nominal_growth_ohm_m2_per_a_m3_s(cell), o.model_bias_ohm);
+    cfg.identifier = best.identifier;
+    cfg.identifier.learn_inventory = o.learn_inventory;
+    cfg.model_bias_ohm = o.model_bias_ohm;
+  }
   cfg.detector.v_max = cell.upper_voltage_v;
   cfg.detector.v_min = cell.lower_voltage_v;
   Core core(cfg, model);
@@ -116,6 +130,17 @@ void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, con
     r.model_current_a = out.model_current_a;
     r.j_side_a_m3 = out.j_side_a_m3;
     r.li_loss_ah = out.li_loss_ah;
+    r.film_initial_ohm_m2 = out.film_initial_ohm_m2;
+    r.growth_gain = out.growth_gain;
+    r.inventory_deviation = out.inventory_deviation;
+    r.inventory_err_pct = std::nan("");
+    if (!d.stoich_neg_true.empty() && o.nominal_inventory_mol > 0.0) {
+      // Scoring only: the truth's solid lithium against the estimate (nominal x (1 + nu) less the model's loss).
+      const double truth_mol = fw::ReducedCell<double>::inventory_of(d.stoich_neg_true[i], d.stoich_pos_true[i]);
+      const double est_mol = o.nominal_inventory_mol * (1.0 + out.inventory_deviation) -
+                             out.li_loss_ah * 3600.0 / fw::kFaradayC_mol;
+      r.inventory_err_pct = (est_mol - truth_mol) / truth_mol * 100.0;
+    }
     r.status = out.status;
     res.status |= out.status;
     if (fw::has_status(out.status, fw::FwStatus::kModelNotConverged)) ++res.newton_cap_hits;
@@ -124,6 +149,10 @@ void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, con
     if (progress && (i % 20000 == 0 || i + 1 == n)) progress(i + 1, n);
   }
   res.theta = res.theta_rows.back();
+}
+
+double nominal_growth_ohm_m2_per_a_m3_s(const CellParameters& cell) {
+  return DfnModel::film_growth_factor(cell.side) / cell.negative.surface_area_per_volume_m();
 }
 
 fw::EffectParameters<double> effect_parameters(const EstimateOptions& o, const CellParameters& cell) {
@@ -205,6 +234,23 @@ void apply_beyond_paper(EstimateOptions& o, const std::function<bool(const char*
   o.propagate_growth = o.propagate_growth || cfg.film_growth_ohm_m2_per_a_m3_s != 0.0;
 }
 
+void apply_settings(EstimateOptions& o, const std::function<bool(const char* flag)>& given) {
+  if (o.settings == "paper") {
+    // The paper's RCSI: n_c = 1, eta = 0, P(0) = 5e-7 I, H = 0.01 (the option defaults).
+    o.identify_growth = false;
+    return;
+  }
+  if (o.settings != "best") throw InputError("--settings must be 'best' or 'paper' (got '" + o.settings + "')");
+  const auto cfg = fw::BmsCore<double>::best_config(0.0, 0.0, 0.0, 0.0);
+  o.markov_from_model = true;
+  o.identify_growth = true;
+  o.resync = o.model == "reduced" && cfg.resync_at_cv_end;  // the full model has no observer
+  if (!given("--no-start-resync")) o.resync_at_start = cfg.resync_at_start;
+  if (!given("--resync-window")) o.resync_window_ticks = cfg.resync_window_ticks;
+  if (!given("--resync-current")) o.resync_current_a = cfg.resync_current_a;
+  if (!given("--warmup")) o.warmup_s = cfg.rcsi_warmup_s;
+}
+
 EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, const EstimateOptions& options,
                             const EstimateProgress& progress) {
   EstimateOptions o = options;
@@ -230,6 +276,7 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
     const InitialConditions nominal = default_initial_conditions(cell);
     o.nominal_inventory_mol = fw::ReducedCell<double>::inventory_of(nominal.stoich_neg, nominal.stoich_pos) *
                               (1.0 + 0.01 * o.inventory_error_pct);
+    if (o.model_bias_ohm < 0.0) o.model_bias_ohm = fw::kPaperReducedModelBiasOhm;
     if (o.model_effects_on) {
       fw::EffectsModel<fw::ReducedCell<double>, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
       dispatch_nc(augmented, d, o, cell, dt_s, res, progress);
@@ -242,6 +289,10 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
     s.rtol = o.rtol;
     InitialConditions ic = o.ic;
     ic.r_film_ohm_m2 = o.r_film_init_ohm_m2 >= 0.0 ? o.r_film_init_ohm_m2 : cell.side.initial_film_resistance_ohm_m2;
+    // The full model is the DFN itself: no design-time bias to remove; its inventory is the nominal one.
+    if (o.model_bias_ohm < 0.0) o.model_bias_ohm = 0.0;
+    const InitialConditions nominal = default_initial_conditions(cell);
+    o.nominal_inventory_mol = fw::ReducedCell<double>::inventory_of(nominal.stoich_neg, nominal.stoich_pos);
     FullDfnMainModel model(cell, o.mesh, s, ic, cell.thermal.initial_temperature_k);
     if (o.model_effects_on) {
       fw::EffectsModel<FullDfnMainModel, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
@@ -254,6 +305,7 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
   }
   res.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   res.cycles = score_cycles(res.rows, !d.true_mode.empty(), d.true_mode);
+  res.growth_err_pct = growth_error_pct(res.rows);
   return res;
 }
 
@@ -281,9 +333,36 @@ std::vector<CycleScore> score_cycles(const std::vector<EstimateRow>& rows, bool 
     s.r_film_err_end_pct = end_err;
     s.r_film_true_end_ohm_m2 = rows[last[cycle]].r_film_true_ohm_m2;
     s.r_film_est_end_ohm_m2 = rows[last[cycle]].r_film_est_ohm_m2;
+    s.inventory_err_end_pct = rows[last[cycle]].inventory_err_pct;
     out.push_back(s);
   }
   return out;
+}
+
+double growth_error_pct(const std::vector<EstimateRow>& rows) {
+  // End of each CC charge: its last cc_charge row before another mode.
+  std::vector<std::size_t> ends;
+  std::size_t first_learning_end = rows.size();
+  bool learned_in_phase = false;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (rows[i].mode != fw::Mode::cc_charge) continue;
+    learned_in_phase = learned_in_phase || rows[i].rcsi_active;
+    const bool end = i + 1 == rows.size() || rows[i + 1].mode != fw::Mode::cc_charge;
+    if (!end) continue;
+    if (std::isfinite(rows[i].r_film_true_ohm_m2)) ends.push_back(i);
+    if (learned_in_phase && first_learning_end == rows.size() && std::isfinite(rows[i].r_film_true_ohm_m2))
+      first_learning_end = i;
+    learned_in_phase = false;
+  }
+  // The control run (no learning) is referenced to its first CC charge.
+  if (first_learning_end == rows.size() && !ends.empty()) first_learning_end = ends.front();
+  if (ends.empty() || ends.back() == first_learning_end) return std::nan("");
+  const auto& ref = rows[first_learning_end];
+  const auto& last = rows[ends.back()];
+  const double true_growth = last.r_film_true_ohm_m2 - ref.r_film_true_ohm_m2;
+  if (true_growth == 0.0) return std::nan("");
+  const double est_growth = last.r_film_est_ohm_m2 - ref.r_film_est_ohm_m2;
+  return std::abs(est_growth - true_growth) / std::abs(true_growth) * 100.0;
 }
 
 }  // namespace bms

@@ -2,6 +2,7 @@
 // Runs the firmware's tick (bms::fw::BmsCore, the same code as on target) offline over a data
 // file, with either the firmware's reduced model or the full truth DFN as the main model,
 // and scores the film-resistance estimate against the truth when the file carries it.
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -19,6 +20,8 @@ struct EstimateData {
   std::vector<int> cycle;                         // from the file, or 1
   std::vector<double> r_film_true_ohm_m2;         // empty when the file has no truth
   std::vector<fw::Mode> true_mode;                // empty when the file has no mode column
+  // Truth mean stoichiometries (scoring the inventory estimate only); empty when absent.
+  std::vector<double> stoich_neg_true, stoich_pos_true;
   std::string source;
 };
 
@@ -31,6 +34,11 @@ double fixed_tick_s(const EstimateData& d);
 
 struct EstimateOptions {
   std::string model = "reduced";  // reduced | full
+  std::string settings = "best";  // best | paper (apply_settings) | custom (the flags as given)
+  bool learning = true;           // false: the control run, every RCSI / RLS update off
+  bool identify_growth = false;   // the best profile's FilmGrowthIdentifier instead of ARX RCSI
+  bool learn_inventory = true;    // with identify_growth: the inventory is the third parameter
+  double model_bias_ohm = -1.0;   // with identify_growth: < 0 = the main model's calibrated bias
   int nc = 1;                     // subsystem order, 1..8
   double p0 = 5e-7;
   double p0_y0 = -1.0;  // < 0: same as p0 (the paper's P(0) = p0 I)
@@ -67,6 +75,8 @@ struct EstimateRow {
   bool rcsi_active;
   double r_film_est_ohm_m2, r_film_true_ohm_m2, z_v, model_voltage_v, model_current_a, j_side_a_m3,
       li_loss_ah;
+  double film_initial_ohm_m2, growth_gain, inventory_deviation;  // identified (best profile)
+  double inventory_err_pct;  // estimated vs true cyclable lithium, NaN without truth stoichiometries
   std::uint32_t status;
 };
 
@@ -74,6 +84,7 @@ struct CycleScore {
   int cycle;
   std::size_t cc_charge_ticks;
   double r_film_err_median_pct, r_film_err_end_pct, r_film_true_end_ohm_m2, r_film_est_end_ohm_m2;
+  double inventory_err_end_pct;  // at the cycle's last CC-charge tick; NaN without truth
 };
 
 struct EstimateResult {
@@ -81,6 +92,7 @@ struct EstimateResult {
   std::vector<std::vector<double>> theta_rows;  // per row, 2 nc values
   std::vector<CycleScore> cycles;
   std::vector<double> theta;  // final
+  double growth_err_pct = std::nan("");  // contract: growth tracked from the first learning charge's end
   double wall_s = 0.0;
   std::uint32_t status = 0;   // OR of all tick status words
   std::size_t newton_cap_hits = 0;
@@ -95,6 +107,14 @@ void add_model_effect(EstimateOptions& o, const std::string& spec);
 // source for the firmware and this tool). `given(flag)` says whether the user set that flag
 // explicitly; such a value is kept, so `--beyond-paper --resync-window 1` is an ablation.
 void apply_beyond_paper(EstimateOptions& o, const std::function<bool(const char* flag)>& given);
+
+// `--settings best|paper`: the named profiles (BmsCore::best_config, the paper's RCSI); explicit
+// flags win as with apply_beyond_paper. Throws InputError for another name.
+void apply_settings(EstimateOptions& o, const std::function<bool(const char* flag)>& given);
+
+// growth_err_pct of the contract: |(R_est - R_est,ref) - (R_true - R_true,ref)| / |R_true - R_true,ref|
+// x 100, ref = the end of the first CC charge with learning, compared at the end of the last.
+double growth_error_pct(const std::vector<EstimateRow>& rows);
 
 using EstimateProgress = std::function<void(std::size_t row, std::size_t rows)>;
 

@@ -3,6 +3,7 @@
 // (identical truth and main model). Same interface as the firmware's ReducedCell, so the
 // firmware's BmsCore runs unchanged on top of it. Every tick in which the input or the film
 // resistance changes restarts IDA from a consistent state (the film drop is algebraic).
+#include <cmath>
 #include <cstddef>
 #include <memory>
 #include <vector>
@@ -32,6 +33,8 @@ class FullDfnMainModel {
   double li_loss_mol() const;
   // The state observer is a firmware-model feature; the paper's setting has none.
   bool resync(double, double, double, double, double) { return false; }
+  // No re-synchronisation, so no inventory direction: the identifier learns no inventory.
+  double inventory_probe_voltage(double, double, double, double) const { return std::nan(""); }
   State state() const;
   bool restore(const State& s);
   const SolverStats& stats() const { return solver_->stats(); }

@@ -14,12 +14,13 @@ void write_file_atomically(const std::filesystem::path& file, const std::string&
 
 void write_truth_csv(const std::filesystem::path& file, const SimulationResult& r, const Measured& m) {
   CsvWriter w(file, {"t_s", "cycle", "mode", "current_a", "voltage_v", "current_meas_a", "voltage_meas_v",
-                     "r_film_ohm_m2", "j_s_a_m3", "li_loss_ah", "temperature_k", "charge_ah"});
+                     "r_film_ohm_m2", "j_s_a_m3", "li_loss_ah", "temperature_k", "charge_ah", "stoich_neg",
+                     "stoich_pos"});
   for (size_t i = 0; i < r.samples.size(); ++i) {
     const auto& s = r.samples[i];
     w.cell(s.t_s).cell(s.cycle).cell(mode_name(s.mode)).cell(s.current_a).cell(s.voltage_v)
         .cell(m.current_a[i]).cell(m.voltage_v[i]).cell(s.r_film_ohm_m2).cell(s.j_s_a_m3)
-        .cell(s.li_loss_ah).cell(s.temperature_k).cell(s.charge_ah);
+        .cell(s.li_loss_ah).cell(s.temperature_k).cell(s.charge_ah).cell(s.stoich_neg).cell(s.stoich_pos);
     w.end_row();
   }
   w.commit();

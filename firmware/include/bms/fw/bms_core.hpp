@@ -27,6 +27,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "bms/fw/film_growth_identifier.hpp"
 #include "bms/fw/fw_status.hpp"
 #include "bms/fw/mode_detector.hpp"
 #include "bms/fw/operating_mode.hpp"
@@ -54,6 +55,11 @@ struct TickOutput {
   Scalar j_side_a_m3;          // y0_hat
   Scalar li_loss_ah;           // lithium lost to the side reaction (model)
   Scalar theta[2 * Nc];
+  // The `best` profile's identified parameters (FilmGrowthIdentifier): initial film, growth-law
+  // gain relative to the nominal cell, relative lithium-inventory deviation. 0 in the paper's.
+  Scalar film_initial_ohm_m2;
+  Scalar growth_gain;
+  Scalar inventory_deviation;
   StatusWord status;           // bits raised in this tick (estimator bits 0..7, tick 8..15)
   std::uint32_t tick;          // committed ticks
   std::uint8_t newton_iterations;
@@ -131,6 +137,18 @@ class BmsCore {
     // then set the level only. The film grows about 0.9 % during each CC charge, and a held or
     // charge-averaged estimate lags it by about half of that. 0: held (the paper).
     Scalar film_growth_ohm_m2_per_a_m3_s = Scalar(0);
+    // The `best` profile: the film is identified in output-error form with its growth gain and
+    // the cell's lithium inventory (FilmGrowthIdentifier) instead of the paper's ARX RCSI;
+    // calibrate_bias, average_estimate and film_growth_ohm_m2_per_a_m3_s are then unused.
+    bool identify_growth = false;
+    typename FilmGrowthIdentifier<Scalar>::Config identifier{};
+    // The reduced model's voltage bias in CC charge per ampere of charge current, computed once
+    // at design time against a converged DFN of the nominal cell (never against the cell in use;
+    // scripts/calibrate-model-bias.sh). In CC a bias is collinear with the film, so without it the
+    // film would carry it (about 2.7 % of R_film for the paper cell).
+    Scalar model_bias_ohm = Scalar(0);
+    // The control run: every RCSI / RLS update switched off (the model and its observers run).
+    bool learning = true;
   };
 
   // The firmware's settings beyond the paper (docs/results/firmware-model.md): H from the
@@ -153,6 +171,29 @@ class BmsCore {
     return c;
   }
 
+  // The project's best estimator (`bmssim estimate --settings best`, the default of estimate, hil,
+  // the demo and the target replay), built from the nominal cell only: H from the model, state
+  // re-synchronisation at power-up and at each CV end over a 50-tick window to the *identified*
+  // inventory, 600 s warm-up, and the film, its growth gain and the inventory identified together
+  // (FilmGrowthIdentifier) against the model's design-time bias. Arguments: the nominal cell's
+  // cyclable lithium, initial film and Ramadass constant, and the main model's calibrated bias.
+  static Config best_config(Scalar nominal_inventory_mol, Scalar r_film_nominal_ohm_m2,
+                            Scalar growth_nominal_ohm_m2_per_a_m3_s, Scalar model_bias_ohm) {
+    Config c;
+    c.markov_from_model = true;
+    c.resync_at_cv_end = true;
+    c.resync_at_start = true;
+    c.resync_window_ticks = 50u;
+    c.nominal_inventory_mol = nominal_inventory_mol;
+    c.rcsi_warmup_s = Scalar(600);
+    c.identify_growth = true;
+    c.identifier.r_film_nominal_ohm_m2 = r_film_nominal_ohm_m2;
+    c.identifier.growth_nominal_ohm_m2_per_a_m3_s = growth_nominal_ohm_m2_per_a_m3_s;
+    c.estimator.r_film_init_ohm_m2 = r_film_nominal_ohm_m2;
+    c.model_bias_ohm = model_bias_ohm;
+    return c;
+  }
+
   static typename Estimator::Config default_estimator() {
     typename Estimator::Config c;
     c.markov_v_per_ohm_m2 = Scalar(0.01);
@@ -167,6 +208,8 @@ class BmsCore {
   }
 
   struct State {
+    typename FilmGrowthIdentifier<Scalar>::State identifier;
+    Scalar inventory_deviation_model;
     std::uint32_t layout_tag;
     std::uint32_t ticks;
     std::uint32_t stale_ticks;
@@ -195,7 +238,8 @@ class BmsCore {
       static_cast<std::uint32_t>(sizeof(Scalar));
 
   BmsCore(const Config& config, MainModel& model)
-      : config_(config), model_(model), detector_(config.detector), estimator_(config.estimator) {
+      : config_(config), model_(model), detector_(config.detector), estimator_(config.estimator),
+        identifier_(config.identifier) {
     r_held_ = config.estimator.r_film_init_ohm_m2;
     last_j_side_ = config.estimator.j_side_init_a_m3;
   }
@@ -221,7 +265,7 @@ class BmsCore {
     // RCSI runs in CC charge after the warm-up, once the bias is known (the film is held at
     // its initial value until then).
     const bool cc_charge = in_cc_charge && warm && !(config_.calibrate_bias && !bias_calibrated_);
-    if (cc_charge && !prev_cc_charge_) {
+    if (!config_.identify_growth && cc_charge && !prev_cc_charge_) {
       // The predicted growth is folded into the held value here, so its sum stays a small
       // number (float keeps the per-tick increments, about 1e-8 of R_film).
       r_held_ += growth_;
@@ -231,7 +275,8 @@ class BmsCore {
       avg_sum_ = Scalar(0);
       avg_samples_ = 0u;
     }
-    const Scalar u = cc_charge ? estimator_.predict() : r_film_ohm_m2();
+    const Scalar u = config_.identify_growth ? identifier_.film_ohm_m2()
+                                             : (cc_charge ? estimator_.predict() : r_film_ohm_m2());
     if (first_sample && config_.resync_at_start) {
       window_.open(config_.resync_window_ticks);
       start_window_ = true;
@@ -239,11 +284,15 @@ class BmsCore {
 
     const Mode raw = detector_.raw_mode();
     const bool voltage_driven = (raw == Mode::cv_charge || raw == Mode::cv_discharge) && raw == mode;
+    const bool identify = config_.identify_growth && config_.learning && cc_charge && !voltage_driven;
+    const Scalar v_probe = identify ? model_.inventory_probe_voltage(in.current_a, u, config_.dt_s,
+                                                                     kInventoryProbe * config_.nominal_inventory_mol)
+                                    : Scalar(0);
     const ModelTickResult<Scalar> r = voltage_driven ? model_.step_voltage(in.voltage_v, u, config_.dt_s)
                                                      : model_.step_current(in.current_a, u, config_.dt_s);
     if (!r.valid) {
       st |= bit(FwStatus::kModelInvalid);
-      if (cc_charge) st |= estimator_.advance_without_learning(last_j_side_);
+      if (cc_charge && !config_.identify_growth) st |= estimator_.advance_without_learning(last_j_side_);
       prev_cc_charge_ = cc_charge;
       status_ |= st;
       return held_output(st);
@@ -264,9 +313,11 @@ class BmsCore {
         const auto m = window_.fit();
         window_.close();
         start_window_ = false;
-        const Scalar target_mol = config_.nominal_inventory_mol - model_.li_loss_mol();
+        const Scalar nu = config_.identify_growth ? identifier_.inventory_deviation() : Scalar(0);
+        const Scalar target_mol = config_.nominal_inventory_mol * (Scalar(1) + nu) - model_.li_loss_mol();
         if (model_.resync(m.voltage_v, m.current_a, u, config_.dt_s, target_mol)) {
           ++resync_count_;
+          nu_model_ = nu;
         } else {
           st |= bit(FwStatus::kResyncFailed);
         }
@@ -278,12 +329,22 @@ class BmsCore {
       ++bias_samples_;
     }
     bool active = false;
-    if (cc_charge) {
+    if (config_.identify_growth) {
+      if (identify) {
+        const Scalar s_v = (v_probe - r.voltage_v) / kInventoryProbe;
+        const StatusWord learned =
+            identifier_.learn(u, z, r.markov_v_per_ohm_m2, s_v, nu_model_, -config_.model_bias_ohm * in.current_a);
+        st |= learned;
+        active = (learned & kIdentifierRejectMask) == 0u;
+      }
+      identifier_.propagate(r.j_side_a_m3, config_.dt_s);
+    } else if (cc_charge) {
       if (config_.markov_from_model && !prev_cc_charge_) {
         estimator_.set_markov_parameter(r.markov_v_per_ohm_m2);
       }
-      st |= estimator_.update(bias_calibrated_ ? z - bias_v_ : z, r.j_side_a_m3);
-      active = estimator_.theta_updated();
+      st |= config_.learning ? estimator_.update(bias_calibrated_ ? z - bias_v_ : z, r.j_side_a_m3)
+                             : estimator_.advance_without_learning(r.j_side_a_m3);
+      active = config_.learning && estimator_.theta_updated();
       const Scalar level = u - growth_;  // what RCSI's data say, less the predicted growth
       r_held_ = level;
       if (config_.average_estimate) {
@@ -292,7 +353,7 @@ class BmsCore {
         r_held_ = avg_sum_ / static_cast<Scalar>(avg_samples_);
       }
     }
-    add_growth(r.j_side_a_m3, config_.dt_s);
+    if (!config_.identify_growth) add_growth(r.j_side_a_m3, config_.dt_s);
     prev_cc_charge_ = cc_charge;
     last_j_side_ = r.j_side_a_m3;
     ++ticks_;
@@ -311,6 +372,8 @@ class BmsCore {
 
   State save() const {
     State s{};
+    s.identifier = identifier_.save();
+    s.inventory_deviation_model = nu_model_;
     s.layout_tag = kLayoutTag;
     s.ticks = ticks_;
     s.stale_ticks = stale_ticks_;
@@ -340,13 +403,14 @@ class BmsCore {
                            std::isfinite(s.bias_v) && std::isfinite(s.avg_sum_ohm_m2) &&
                            std::isfinite(s.r_held_ohm_m2) && std::isfinite(s.growth_ohm_m2) &&
                            std::isfinite(s.last_current_a) &&
-                           std::isfinite(s.last_j_side_a_m3);
+                           std::isfinite(s.last_j_side_a_m3) && std::isfinite(s.inventory_deviation_model);
     Detector d = detector_;
+    FilmGrowthIdentifier<Scalar> id = identifier_;
     Estimator e = estimator_;
     ResyncWindow<Scalar> w;
     const ModelState model_backup = model_.state();
     const bool ok = header_ok && d.restore(s.detector) && e.restore(s.estimator) && w.restore(s.resync_window) &&
-                    model_.restore(s.model);
+                    id.restore(s.identifier) && model_.restore(s.model);
     if (!ok) {
       model_.restore(model_backup);
       status_ |= bit(FwStatus::kRestoreRejected);
@@ -354,6 +418,8 @@ class BmsCore {
     }
     detector_ = d;
     estimator_ = e;
+    identifier_ = id;
+    nu_model_ = s.inventory_deviation_model;
     window_ = w;
     ticks_ = s.ticks;
     stale_ticks_ = s.stale_ticks;
@@ -380,8 +446,10 @@ class BmsCore {
   const Detector& detector() const { return detector_; }
   const MainModel& model() const { return model_; }
   StatusWord status() const { return status_ | estimator_.status(); }
-  // The film resistance in use: the held level plus the growth predicted since it was set.
-  Scalar r_film_ohm_m2() const { return r_held_ + growth_; }
+  const FilmGrowthIdentifier<Scalar>& identifier() const { return identifier_; }
+  // The film resistance in use: identified (best profile), or the held level plus the growth
+  // predicted since it was set.
+  Scalar r_film_ohm_m2() const { return config_.identify_growth ? identifier_.film_ohm_m2() : r_held_ + growth_; }
   std::uint32_t resync_count() const { return resync_count_; }
   // Ticks that passed without reaching tick() at all (the application's clock or the bus's
   // sequence numbers say how many): counted as ticks without a sample, as `tick` would, without
@@ -436,7 +504,11 @@ class BmsCore {
                                                             r_film_ohm_m2(), ticks_per_step * config_.dt_s);
       if (!r.valid) return;
       // The film grew over the gap too: without this, each lost frame drops a tick of growth.
-      add_growth(r.j_side_a_m3, ticks_per_step * config_.dt_s);
+      if (config_.identify_growth) {
+        identifier_.propagate(r.j_side_a_m3, ticks_per_step * config_.dt_s);
+      } else {
+        add_growth(r.j_side_a_m3, ticks_per_step * config_.dt_s);
+      }
     }
     catch_up_ticks_ = catch_up_ticks_ + gap < catch_up_ticks_ ? 0xFFFFFFFFu : catch_up_ticks_ + gap;
   }
@@ -463,6 +535,10 @@ class BmsCore {
     o.j_side_a_m3 = last_j_side_;
     o.li_loss_ah = model_.li_loss_ah();
     for (int i = 0; i < 2 * Nc; ++i) o.theta[i] = estimator_.theta()(i);
+    const bool id = config_.identify_growth;
+    o.film_initial_ohm_m2 = id ? identifier_.initial_film_ohm_m2() : Scalar(0);
+    o.growth_gain = id ? identifier_.gain() : Scalar(0);
+    o.inventory_deviation = id ? identifier_.inventory_deviation() : Scalar(0);
     o.tick = ticks_;
     o.newton_iterations = 0;
     o.status = 0u;
@@ -475,10 +551,18 @@ class BmsCore {
     return o;
   }
 
+  // Relative inventory probe for S = dV/dnu: large enough for float, small against the 1 %
+  // deviations a cell has.
+  static constexpr Scalar kInventoryProbe = Scalar(1e-3);
+  static constexpr StatusWord kIdentifierRejectMask =
+      bit(FwStatus::kRejectedNonFinite) | bit(FwStatus::kThetaRestored) | bit(FwStatus::kConfigInvalid);
+
   Config config_;
   MainModel& model_;
   Detector detector_;
   Estimator estimator_;
+  FilmGrowthIdentifier<Scalar> identifier_;
+  Scalar nu_model_ = Scalar(0);  // inventory deviation of the model's last re-synchronisation
   Scalar r_held_ = Scalar(0);
   Scalar growth_ = Scalar(0);  // predicted film growth since the last charge start (see Config)
   Scalar last_current_ = Scalar(0);

@@ -179,6 +179,14 @@ class EffectsModel {
     return inner_.resync(inner_v, current, r_film_ohm_m2, dt_s, inventory_mol);
   }
 
+  // The inner model's inventory probe seen through the same effects as this tick's voltage
+  // (they cancel in the difference BmsCore takes).
+  Scalar inventory_probe_voltage(Scalar current_meas_a, Scalar r_film_ohm_m2, Scalar dt_s, Scalar d_inventory_mol) const {
+    const Scalar current = cell_current(current_meas_a);
+    return terminal_voltage(inner_.inventory_probe_voltage(current, r_film_ohm_m2, dt_s, d_inventory_mol), current,
+                            hysteresis_after(current, dt_s));
+  }
+
   Scalar li_loss_ah() const { return inner_.li_loss_ah(); }
   Scalar li_loss_mol() const { return inner_.li_loss_mol(); }
   Scalar hysteresis_v() const { return h_v_; }

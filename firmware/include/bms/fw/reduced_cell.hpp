@@ -25,6 +25,7 @@
 // Firmware rules: compile-time sizes, no heap, no exceptions, no RTTI, no globals.
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <type_traits>
 
 #include "bms/fw/dual.hpp"
@@ -106,6 +107,10 @@ class ReducedCell {
     Scalar charge_c;        // integral of current, discharge positive
     Scalar current_a;       // last applied current (Newton start in CV)
     Scalar j_side_a_m2;     // last mean side-reaction current density (fixed-point start)
+    // Stoichiometry shifts of the anode and cathode per mol of cyclable lithium that keep the
+    // voltage of the last re-synchronisation (inventory_probe_voltage); 0 before the first.
+    Scalar inventory_dir_neg_per_mol;
+    Scalar inventory_dir_pos_per_mol;
   };
   static_assert(std::is_trivially_copyable<State>::value, "State must be trivially copyable");
 
@@ -120,6 +125,8 @@ class ReducedCell {
     s_.charge_c = Scalar(0);
     s_.current_a = Scalar(0);
     s_.j_side_a_m2 = Scalar(0);
+    s_.inventory_dir_neg_per_mol = Scalar(0);
+    s_.inventory_dir_pos_per_mol = Scalar(0);
   }
   void init_default() {
     init(Scalar(Cell::kNeg.stoich_init), Scalar(Cell::kPos.stoich_init), Scalar(Cell::kElectrolyteInitMolM3));
@@ -128,7 +135,8 @@ class ReducedCell {
   const State& state() const { return s_; }
   bool restore(const State& s) {
     bool ok = std::isfinite(s.li_loss_mol) && std::isfinite(s.charge_c) && std::isfinite(s.current_a) &&
-              std::isfinite(s.j_side_a_m2);
+              std::isfinite(s.j_side_a_m2) && std::isfinite(s.inventory_dir_neg_per_mol) &&
+              std::isfinite(s.inventory_dir_pos_per_mol);
     for (int i = 0; ok && i < kNrN; ++i) ok = std::isfinite(s.cs_neg_mol_m3[i]);
     for (int i = 0; ok && i < kNrP; ++i) ok = std::isfinite(s.cs_pos_mol_m3[i]);
     for (int k = 0; ok && k < kNx; ++k) ok = std::isfinite(s.ce_mol_m3[k]);
@@ -183,6 +191,19 @@ class ReducedCell {
     Trial<Scalar> t{};
     evaluate(current_a, r_film_ohm_m2, dt_s, t);
     return t.voltage_v;
+  }
+
+  // Terminal voltage of this tick had the cell held `d_inventory_mol` more cyclable lithium
+  // since the last re-synchronisation (which fixed the voltage there, so the extra lithium is
+  // split between the electrodes as the voltage allowed). Solid diffusion is linear, so in a
+  // current-driven phase the difference stays a uniform shift of each particle: one extra
+  // evaluation gives the model's exact response. Without a re-synchronisation: quiet NaN.
+  Scalar inventory_probe_voltage(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s, Scalar d_inventory_mol) const {
+    if (s_.inventory_dir_neg_per_mol == Scalar(0) && s_.inventory_dir_pos_per_mol == Scalar(0))
+      return std::numeric_limits<Scalar>::quiet_NaN();
+    ReducedCell shifted = *this;
+    shifted.shift(d_inventory_mol * s_.inventory_dir_neg_per_mol, d_inventory_mol * s_.inventory_dir_pos_per_mol);
+    return shifted.peek_voltage(current_a, r_film_ohm_m2, dt_s);
   }
 
   // Ramadass film growth per unit of the model's volumetric side current:
@@ -283,10 +304,12 @@ class ReducedCell {
       s_ = base;
       return false;
     }
+    set_inventory_direction(current_a, r_film_ohm_m2, dt_s);
     return true;
   }
 
   static constexpr double kVoltageToleranceV = 1e-9;
+  static constexpr double kInventoryProbeStoich = 1e-3;
   static constexpr double kMaxNewtonStepA = 20.0;
   static constexpr double kResyncMargin = 1e-3;
   static constexpr double kResyncToleranceV = 1e-7;
@@ -294,6 +317,29 @@ class ReducedCell {
   static constexpr double kResyncAcceptV = 1e-4;  // float reaches about 1e-5 V here
 
  private:
+  void shift(Scalar d_stoich_neg, Scalar d_stoich_pos) {
+    for (int i = 0; i < kNrN; ++i) s_.cs_neg_mol_m3[i] += d_stoich_neg * Scalar(Cell::kNeg.max_concentration_mol_m3);
+    for (int i = 0; i < kNrP; ++i) s_.cs_pos_mol_m3[i] += d_stoich_pos * Scalar(Cell::kPos.max_concentration_mol_m3);
+  }
+
+  // At a re-synchronised state: the voltage's slopes to a uniform shift of each particle, and
+  // from them the split (a, b) of one mol of lithium with cap_n a + cap_p b = 1 and
+  // V_a a + V_b b = 0 (the voltage the re-synchronisation matched stays matched).
+  void set_inventory_direction(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s) {
+    const Scalar eps = Scalar(kInventoryProbeStoich);
+    const Scalar v0 = peek_voltage(current_a, r_film_ohm_m2, dt_s);
+    ReducedCell probe = *this;
+    probe.shift(eps, Scalar(0));
+    const Scalar v_a = (probe.peek_voltage(current_a, r_film_ohm_m2, dt_s) - v0) / eps;
+    probe = *this;
+    probe.shift(Scalar(0), eps);
+    const Scalar v_b = (probe.peek_voltage(current_a, r_film_ohm_m2, dt_s) - v0) / eps;
+    const Scalar den = Scalar(solid_capacity_neg_mol()) * v_b - Scalar(solid_capacity_pos_mol()) * v_a;
+    if (!std::isfinite(den) || den == Scalar(0)) return;
+    s_.inventory_dir_neg_per_mol = v_b / den;
+    s_.inventory_dir_pos_per_mol = -v_a / den;
+  }
+
   template <typename T>
   struct Trial {
     T cs_neg[kNrN];

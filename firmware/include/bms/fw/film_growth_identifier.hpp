@@ -1,0 +1,138 @@
+#pragma once
+// RCSI of the SEI film in output-error form: the estimator of the `best` profile
+// (docs/results/blind.md). It knows the nominal cell only; what the cell's film does is learned.
+//
+// Subsystem model (structure assumed, constants identified):
+//   R_film(k) = R0 + g G(k),   G(k) = -k_nom * sum_{i<k} j_s(i) dt
+// which is the paper's first-order subsystem R(k) = M1 R(k-1) + N1 j_s(k-1) with M1 = 1 (an
+// integrator: the film only grows) written with its state: R0 is the unknown initial film and g
+// the unknown gain of the growth law relative to the nominal cell's Ramadass constant k_nom
+// (N1 = -g k_nom dt). In the ARX (equation-error) form the per-tick growth (1e-8 ohm m2) is
+// four orders below the noise of one u*; in this output-error form every tick of every charge
+// informs R0 and g.
+//
+// Beside the film, the cell's lithium inventory is a main-system parameter the data inform: a
+// relative deviation nu from the nominal inventory moves the model's voltage by S = dV/dnu
+// (MainModel::inventory_probe_voltage), with a shape over a charge that differs from the film's
+// nearly constant H. It is the third parameter of the same regression.
+//
+// Retrospective step (D = 0, eta = 0): the model answers u_hat(k) within the tick and the film
+// drop is linear in R_film, so u*(k) = u_hat(k) - (z(k) - b(k)) / H(k) is the film the data
+// imply; b is the reduced model's design-time voltage bias (computed once from the nominal cell,
+// see Config::model_bias_ohm). With z = H (u_hat - R) + S (nu_model - nu) + b + noise:
+//   u*(k) + (S/H) nu_model  =  theta^T [1, G(k), S(k)/H(k)],   theta = [R0, g, nu]
+// which RLS (lambda = 1, never reset: the information of every charge is kept) fits.
+//
+// When it learns (named as in PX4 EKF2's aid sources): start when the tick is in CC charge past
+// the warm-up and the model gave a valid H > 0; continue while so; stop (hold theta) otherwise.
+#include <cmath>
+#include <cstdint>
+#include <type_traits>
+
+#include <Eigen/Core>
+
+#include "bms/fw/fw_status.hpp"
+#include "bms/fw/rls.hpp"
+
+namespace bms::fw {
+
+template <typename Scalar = double>
+class FilmGrowthIdentifier {
+  static_assert(std::is_floating_point<Scalar>::value, "Scalar must be a floating-point type");
+
+ public:
+  static constexpr int kParams = 3;
+  using RlsType = Rls<Scalar, kParams>;
+  using Vector = typename RlsType::Vector;
+
+  struct Config {
+    Scalar r_film_nominal_ohm_m2 = Scalar(0);  // theta(0): the nominal cell's initial film
+    // Nominal Ramadass constant k_nom [ohm m2 per (A/m3) s]: G's unit is ohm m2 at g = 1.
+    Scalar growth_nominal_ohm_m2_per_a_m3_s = Scalar(0);
+    // Prior standard deviations of R0 [ohm m2], g [-] and nu [-], and the assumed standard
+    // deviation of one u* [ohm m2]; P(0) = diag(prior / sigma_u)^2. Weak priors: the data
+    // decide after one charge.
+    Scalar prior_r0_ohm_m2 = Scalar(1e-3);
+    Scalar prior_gain = Scalar(1);
+    Scalar prior_inventory = Scalar(0.02);
+    Scalar sigma_u_ohm_m2 = Scalar(1e-4);
+    Scalar r_film_min_ohm_m2 = Scalar(0);
+    Scalar r_film_max_ohm_m2 = Scalar(1);
+    Scalar inventory_limit = Scalar(0.05);  // |nu| the model is ever moved by
+    bool learn_inventory = true;            // ablation: false keeps nu at 0 (the nominal inventory)
+  };
+
+  struct State {
+    typename RlsType::State rls;
+    Scalar growth_ohm_m2;  // G(k)
+  };
+  static_assert(std::is_trivially_copyable<State>::value, "State must be trivially copyable");
+
+  explicit FilmGrowthIdentifier(const Config& c) : config_(c), rls_(make_rls_config(c)) {}
+
+  // The film resistance in use at this tick: theta_R0 + theta_g G, within the admissible range.
+  Scalar film_ohm_m2() const {
+    const Scalar r = rls_.theta()(0) + rls_.theta()(1) * growth_;
+    if (!std::isfinite(r)) return config_.r_film_nominal_ohm_m2;
+    return r < config_.r_film_min_ohm_m2 ? config_.r_film_min_ohm_m2
+                                         : (r > config_.r_film_max_ohm_m2 ? config_.r_film_max_ohm_m2 : r);
+  }
+  // Relative inventory deviation the model should be placed at (clipped to the limit).
+  Scalar inventory_deviation() const {
+    const Scalar nu = rls_.theta()(2);
+    if (!std::isfinite(nu)) return Scalar(0);
+    const Scalar lim = config_.inventory_limit;
+    return nu < -lim ? -lim : (nu > lim ? lim : nu);
+  }
+  Scalar gain() const { return rls_.theta()(1); }
+  Scalar initial_film_ohm_m2() const { return rls_.theta()(0); }
+  Scalar growth_ohm_m2() const { return growth_; }
+  const Vector& theta() const { return rls_.theta(); }
+  const typename RlsType::Matrix& p() const { return rls_.p(); }
+
+  // Every model tick, in every mode: the film grows whether or not it is observed.
+  void propagate(Scalar j_side_a_m3, Scalar dt_s) {
+    if (std::isfinite(j_side_a_m3)) growth_ -= config_.growth_nominal_ohm_m2_per_a_m3_s * j_side_a_m3 * dt_s;
+  }
+
+  // One learning tick. u_hat: the film the model used; z = y_hat - y [V]; H = dV/dR_film [V per
+  // ohm m2]; S = dV/dnu [V] (0 or non-finite: no inventory information); nu_model: the inventory
+  // deviation the model was placed at; bias_v: the model's design-time bias at this current.
+  StatusWord learn(Scalar u_hat_ohm_m2, Scalar z_v, Scalar h_v_per_ohm_m2, Scalar s_v, Scalar nu_model,
+                   Scalar bias_v) {
+    if (!std::isfinite(z_v) || !std::isfinite(h_v_per_ohm_m2) || !(h_v_per_ohm_m2 > Scalar(0)))
+      return bit(FwStatus::kRejectedNonFinite);
+    const Scalar s_over_h = config_.learn_inventory && std::isfinite(s_v) ? s_v / h_v_per_ohm_m2 : Scalar(0);
+    const Scalar u_star = u_hat_ohm_m2 - (z_v - bias_v) / h_v_per_ohm_m2;
+    Vector phi;
+    phi << Scalar(1), growth_, s_over_h;
+    return rls_.update(phi, u_star + s_over_h * nu_model);
+  }
+
+  State save() const { return State{rls_.save(), growth_}; }
+  bool restore(const State& s) {
+    RlsType candidate = rls_;
+    if (!std::isfinite(s.growth_ohm_m2) || !candidate.restore(s.rls)) return false;
+    rls_ = candidate;
+    growth_ = s.growth_ohm_m2;
+    return true;
+  }
+
+ private:
+  static typename RlsType::Config make_rls_config(const Config& c) {
+    typename RlsType::Config rc;
+    rc.lambda = Scalar(1);
+    const Scalar su = c.sigma_u_ohm_m2;
+    rc.p0_diag << (c.prior_r0_ohm_m2 / su) * (c.prior_r0_ohm_m2 / su), (c.prior_gain / su) * (c.prior_gain / su),
+        (c.prior_inventory / su) * (c.prior_inventory / su);
+    rc.theta0 << c.r_film_nominal_ohm_m2, Scalar(1), Scalar(0);
+    rc.p_trace_cap_factor = Scalar(1);
+    return rc;
+  }
+
+  Config config_;
+  RlsType rls_;
+  Scalar growth_ = Scalar(0);
+};
+
+}  // namespace bms::fw

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Design-time calibration of the firmware's reduced model: its voltage bias in CC charge per
+# ampere, against a converged DFN (40/40 volumes, rtol 1e-9) of the *nominal* paper cell, with
+# the nominal film, growth law and inventory (no --set: nothing of any cell in use).
+# Prints the value for firmware/include/bms/fw/reduced_model_bias.hpp (kPaperReducedModelBiasOhm).
+# Usage: scripts/calibrate-model-bias.sh [OUT_DIR]   (about 10 s)
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+out="${1:-$root/out/calibrate-model-bias}"
+bmssim="$root/build/host/host_sim/bmssim"
+[[ -x "$bmssim" ]] || { echo "calibrate-model-bias: build first (./bms build host)" >&2; exit 1; }
+mkdir -p "$out"
+"$bmssim" simulate --cell paper --cycles 3 --points 40 --radial 40 --rtol 1e-9 --quiet --out "$out/nominal-fine"
+# The nominal cell's own film and law, learning off, no bias: z is the model's bias.
+"$bmssim" estimate --data "$out/nominal-fine/truth.csv" --model reduced --settings best --no-learning \
+  --model-bias-ohm 0 --quiet --out "$out/held"
+python3 - "$out/held/estimates.csv" <<'PY'
+import csv, statistics, sys
+warmup_s, ratios, start = 600.0, [], None
+for r in csv.DictReader(open(sys.argv[1])):
+    if r["mode"] != "cc_charge":
+        start = None
+        continue
+    t = float(r["t_s"])
+    start = t if start is None else start
+    i = float(r["model_current_a"])
+    if t - start > warmup_s and i < 0:
+        ratios.append(float(r["z_v"]) / -i)
+print(f"kPaperReducedModelBiasOhm = {statistics.median(ratios):.6e}  # median over {len(ratios)} CC-charge ticks")
+PY
