@@ -147,6 +147,9 @@ class BmsCore {
     // scripts/calibrate-model-bias.sh). In CC a bias is collinear with the film, so without it the
     // film would carry it (about 2.7 % of R_film for the paper cell).
     Scalar model_bias_ohm = Scalar(0);
+    // With identify_growth: a re-synchronisation that moves the model's inventory by more than
+    // this (relative) restarts the film parameters' learning (FilmGrowthIdentifier::relinearise).
+    Scalar relinearise_inventory = Scalar(1e-3);
     // The control run: every RCSI / RLS update switched off (the model and its observers run).
     bool learning = true;
   };
@@ -317,6 +320,9 @@ class BmsCore {
         const Scalar target_mol = config_.nominal_inventory_mol * (Scalar(1) + nu) - model_.li_loss_mol();
         if (model_.resync(m.voltage_v, m.current_a, u, config_.dt_s, target_mol)) {
           ++resync_count_;
+          if (config_.identify_growth && std::fabs(nu - nu_model_) > config_.relinearise_inventory) {
+            identifier_.relinearise();
+          }
           nu_model_ = nu;
         } else {
           st |= bit(FwStatus::kResyncFailed);
@@ -331,6 +337,7 @@ class BmsCore {
     bool active = false;
     if (config_.identify_growth) {
       if (identify) {
+        if (!prev_identify_) identifier_.begin_charge();
         const Scalar s_v = (v_probe - r.voltage_v) / kInventoryProbe;
         const StatusWord learned =
             identifier_.learn(u, z, r.markov_v_per_ohm_m2, s_v, nu_model_, -config_.model_bias_ohm * in.current_a);
@@ -338,6 +345,7 @@ class BmsCore {
         active = (learned & kIdentifierRejectMask) == 0u;
       }
       identifier_.propagate(r.j_side_a_m3, config_.dt_s);
+      prev_identify_ = identify;
     } else if (cc_charge) {
       if (config_.markov_from_model && !prev_cc_charge_) {
         estimator_.set_markov_parameter(r.markov_v_per_ohm_m2);
@@ -378,7 +386,7 @@ class BmsCore {
     s.ticks = ticks_;
     s.stale_ticks = stale_ticks_;
     s.flags = (prev_cc_charge_ ? 1u : 0u) | (have_sample_ ? 2u : 0u) | (resynced_in_phase_ ? 4u : 0u) |
-              (bias_calibrated_ ? 8u : 0u) | (start_window_ ? 16u : 0u);
+              (bias_calibrated_ ? 8u : 0u) | (start_window_ ? 16u : 0u) | (prev_identify_ ? 32u : 0u);
     s.cc_ticks = cc_ticks_;
     s.resync_count = resync_count_;
     s.bias_samples = bias_samples_;
@@ -399,7 +407,7 @@ class BmsCore {
 
   // All or nothing: a rejected image changes nothing but the sticky kRestoreRejected bit.
   bool restore(const State& s) {
-    const bool header_ok = s.layout_tag == kLayoutTag && (s.flags & ~31u) == 0u && std::isfinite(s.bias_sum_v) &&
+    const bool header_ok = s.layout_tag == kLayoutTag && (s.flags & ~63u) == 0u && std::isfinite(s.bias_sum_v) &&
                            std::isfinite(s.bias_v) && std::isfinite(s.avg_sum_ohm_m2) &&
                            std::isfinite(s.r_held_ohm_m2) && std::isfinite(s.growth_ohm_m2) &&
                            std::isfinite(s.last_current_a) &&
@@ -428,6 +436,7 @@ class BmsCore {
     resynced_in_phase_ = (s.flags & 4u) != 0u;
     bias_calibrated_ = (s.flags & 8u) != 0u;
     start_window_ = (s.flags & 16u) != 0u;
+    prev_identify_ = (s.flags & 32u) != 0u;
     cc_ticks_ = s.cc_ticks;
     resync_count_ = s.resync_count;
     bias_samples_ = s.bias_samples;
@@ -562,6 +571,7 @@ class BmsCore {
   Detector detector_;
   Estimator estimator_;
   FilmGrowthIdentifier<Scalar> identifier_;
+  bool prev_identify_ = false;   // the identifier learned in the previous tick
   Scalar nu_model_ = Scalar(0);  // inventory deviation of the model's last re-synchronisation
   Scalar r_held_ = Scalar(0);
   Scalar growth_ = Scalar(0);  // predicted film growth since the last charge start (see Config)

@@ -20,8 +20,11 @@
 // drop is linear in R_film, so u*(k) = u_hat(k) - (z(k) - b(k)) / H(k) is the film the data
 // imply; b is the reduced model's design-time voltage bias (computed once from the nominal cell,
 // see Config::model_bias_ohm). With z = H (u_hat - R) + S (nu_model - nu) + b + noise:
-//   u*(k) + (S/H) nu_model  =  theta^T [1, G(k), S(k)/H(k)],   theta = [R0, g, nu]
-// which RLS (lambda = 1, never reset: the information of every charge is kept) fits.
+//   u*(k) + (S/H) nu_model - g^ (G(k) - G_c)  =  theta^T [1, G_c, S(k)/H(k)],   theta = [R0, g, nu]
+// which RLS (lambda = 1, never reset: the information of every charge is kept) fits. G_c is G at
+// the start of the charge's learning: g is learned from how the level moves between charges,
+// not from the trend within one, where the model's own bias drifts by about as much as the film
+// grows (0.02 against 0.03-0.05 mV); the growth within the charge is the current estimate's.
 //
 // When it learns (named as in PX4 EKF2's aid sources): start when the tick is in CC charge past
 // the warm-up and the model gave a valid H > 0; continue while so; stop (hold theta) otherwise.
@@ -64,7 +67,8 @@ class FilmGrowthIdentifier {
 
   struct State {
     typename RlsType::State rls;
-    Scalar growth_ohm_m2;  // G(k)
+    Scalar growth_ohm_m2;            // G(k)
+    Scalar growth_at_charge_ohm_m2;  // G_c
   };
   static_assert(std::is_trivially_copyable<State>::value, "State must be trivially copyable");
 
@@ -90,6 +94,9 @@ class FilmGrowthIdentifier {
   const Vector& theta() const { return rls_.theta(); }
   const typename RlsType::Matrix& p() const { return rls_.p(); }
 
+  // The first learning tick of a CC charge (see the header: G_c).
+  void begin_charge() { growth_at_charge_ = growth_; }
+
   // Every model tick, in every mode: the film grows whether or not it is observed.
   void propagate(Scalar j_side_a_m3, Scalar dt_s) {
     if (std::isfinite(j_side_a_m3)) growth_ -= config_.growth_nominal_ohm_m2_per_a_m3_s * j_side_a_m3 * dt_s;
@@ -104,17 +111,31 @@ class FilmGrowthIdentifier {
       return bit(FwStatus::kRejectedNonFinite);
     const Scalar s_over_h = config_.learn_inventory && std::isfinite(s_v) ? s_v / h_v_per_ohm_m2 : Scalar(0);
     const Scalar u_star = u_hat_ohm_m2 - (z_v - bias_v) / h_v_per_ohm_m2;
+    const Scalar within_charge = rls_.theta()(1) * (growth_ - growth_at_charge_);
     Vector phi;
-    phi << Scalar(1), growth_, s_over_h;
-    return rls_.update(phi, u_star + s_over_h * nu_model);
+    phi << Scalar(1), growth_at_charge_, s_over_h;
+    return rls_.update(phi, u_star + s_over_h * nu_model - within_charge);
   }
 
-  State save() const { return State{rls_.save(), growth_}; }
+  // The model was moved to a new inventory far from where the data so far were linearised (S is
+  // a tangent: 1 % of inventory is 3-12 mV over a charge, and the tangent's error on it is read
+  // as film and as inventory): forget what was learned, keep the values as the new prior mean.
+  void relinearise() {
+    typename RlsType::State st = rls_.save();
+    const auto p0 = make_rls_config(config_).p0_diag;
+    for (int i = 0; i < kParams * kParams; ++i) st.p[i] = Scalar(0);
+    for (int i = 0; i < kParams; ++i) st.p[i * (kParams + 1)] = p0(i);
+    rls_.restore(st);
+  }
+
+  State save() const { return State{rls_.save(), growth_, growth_at_charge_}; }
   bool restore(const State& s) {
     RlsType candidate = rls_;
-    if (!std::isfinite(s.growth_ohm_m2) || !candidate.restore(s.rls)) return false;
+    if (!std::isfinite(s.growth_ohm_m2) || !std::isfinite(s.growth_at_charge_ohm_m2) || !candidate.restore(s.rls))
+      return false;
     rls_ = candidate;
     growth_ = s.growth_ohm_m2;
+    growth_at_charge_ = s.growth_at_charge_ohm_m2;
     return true;
   }
 
@@ -133,6 +154,7 @@ class FilmGrowthIdentifier {
   Config config_;
   RlsType rls_;
   Scalar growth_ = Scalar(0);
+  Scalar growth_at_charge_ = Scalar(0);
 };
 
 }  // namespace bms::fw
