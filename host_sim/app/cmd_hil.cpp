@@ -419,6 +419,7 @@ int run_hil(HilCli& c) {
   const double sim_s = run.result.samples[n - 1].t_s - run.result.samples[0].t_s + c.sim.dt_s;
   summary["simulation"] = summary_json(run.result);
   summary["simulation"]["options"] = options_json(c.sim);
+  summary["simulation"]["parameters"] = run.parameters;
   summary["hil"] = {{"bus", c.bus},
                     {"lockstep", !c.realtime},
                     {"estimator", c.beyond_paper ? "beyond-paper" : "paper"},

@@ -5,6 +5,7 @@
 #include "io/input_error.hpp"
 #include "io/measured_profile.hpp"
 #include "sim/cell_catalog.hpp"
+#include "sim/truth_parameters.hpp"
 
 namespace bms::app {
 
@@ -30,6 +31,10 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
                  "particle-size distribution: VALUE = log-space standard deviation sigma of a lognormal of radii, "
                  "3 populations, same surface area), particle_size_negative (the same for the anode; not with the side "
                  "reaction), none");
+  sub.add_option("--set", o.set,
+                 "Hidden truth parameter NAME=VALUE (repeatable; the truth only, never the estimator), e.g. "
+                 "film_growth_scale=2, inventory_scale=0.97, temperature_k=288.15; `bmssim simulate --list-params` "
+                 "lists every name with its nominal value, unit and range");
   sub.add_option("--v-min", o.v_min, "Lower voltage limit (V); default: the cell's");
   sub.add_option("--v-max", o.v_max, "Upper voltage limit (V); default: the cell's");
   sub.add_option("--cv-end-current-a", o.cv_end_current_a, "CV phases end below this current (A)")->capture_default_str();
@@ -42,8 +47,8 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
 nlohmann::json options_json(const SimulateOptions& o) {
   return {{"cell", o.cell}, {"protocol", o.protocol}, {"cycles", o.cycles}, {"current_a", o.current_a},
           {"dt_s", o.dt_s}, {"noise_v_mv", o.noise_v_mv}, {"noise_i_ma", o.noise_i_ma}, {"seed", o.seed},
-          {"ic_error_pct", o.ic_error_pct}, {"effects", o.effects}, {"cv_end_current_a", o.cv_end_current_a},
-          {"points", o.points}, {"radial", o.radial}, {"rtol", o.rtol}};
+          {"ic_error_pct", o.ic_error_pct}, {"effects", o.effects}, {"set", o.set},
+          {"cv_end_current_a", o.cv_end_current_a}, {"points", o.points}, {"radial", o.radial}, {"rtol", o.rtol}};
 }
 
 namespace {
@@ -61,15 +66,21 @@ SimulateRun run_simulation(const SimulateOptions& o, const ProgressFn& progress)
   if (o.noise_v_mv < 0.0 || o.noise_i_ma < 0.0) throw InputError("--noise-v-mv/--noise-i-ma: must be >= 0");
   if (!(o.rtol > 0.0 && o.rtol < 1e-2)) throw InputError("--rtol: must be in (0, 0.01)");
 
+  const TruthSettings truth_settings = TruthSettings::parse(o.set);
+
   SimulateRun run;
   run.cell = load_cell(o.cell);
+  run.parameters = truth_settings.values_json(run.cell);
   SimulationConfig cfg;
-  cfg.cell = run.cell;
+  cfg.cell = truth_settings.apply(run.cell);
   cfg.mesh = {o.points, o.points, o.points, o.radial};
   cfg.solver.rtol = o.rtol;
   cfg.dt_s = o.dt_s;
   cfg.temperature_k = cfg.cell.thermal.ambient_temperature_k;
   cfg.ic = perturbed_initial_conditions(cfg.cell, o.ic_error_pct);
+  // Not from the cell: the initial conditions start a cell without side reaction film-free,
+  // while a film set on it stays as a constant series resistance.
+  cfg.ic.r_film_ohm_m2 = truth_settings.value(run.cell, "r_film_initial_ohm_m2");
 
   MeasurementModel meas;
   meas.noise_v_mv = o.noise_v_mv;

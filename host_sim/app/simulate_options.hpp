@@ -22,6 +22,7 @@ struct SimulateOptions {
   std::uint64_t seed = 1;
   double ic_error_pct = 0.0;
   std::vector<std::string> effects;
+  std::vector<std::string> set;  // hidden truth parameters NAME=VALUE (sim/truth_parameters.hpp)
   double v_min = -1.0, v_max = -1.0;  // < 0: from the cell
   double cv_end_current_a = 0.125;
   int points = 20, radial = 20;
@@ -35,7 +36,8 @@ nlohmann::json options_json(const SimulateOptions& o);
 struct SimulateRun {
   SimulationResult result;
   Measured measured;
-  CellParameters cell;
+  CellParameters cell;           // the nominal cell --cell names (no --set value in it)
+  nlohmann::json parameters;     // every hidden truth parameter and the value this run used
 };
 
 // Validates the options (InputError naming the option) and runs the truth model.

@@ -56,6 +56,10 @@ struct SideReactionParameters {
   double density_kg_m3 = 2.1e3;               // rho_p
   double film_conductivity_s_m = 1.0;         // K_p
   double initial_film_resistance_ohm_m2 = 0.0;  // R_SEI
+  // Factor on the film-growth law dR_film/dt alone (1 = the paper's; `--set film_growth_scale`):
+  // it changes the film's resistance per mole of side product, not the lithium the side
+  // reaction consumes, so the lithium loss derived from the film stays the same.
+  double film_growth_scale = 1.0;
 };
 
 struct ThermalParameters {

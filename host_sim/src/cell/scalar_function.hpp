@@ -3,6 +3,7 @@
 // The truth model's Jacobian is built by forward-mode differentiation, so every functional
 // parameter must provide d/dx exactly, not by finite differences.
 #include <memory>
+#include <utility>
 
 namespace bms {
 
@@ -28,6 +29,24 @@ class ConstantFunction final : public ScalarFunction {
 
  private:
   double v_;
+};
+
+// f times a constant factor, derivative included: a property scaled for one run (the truth's
+// `--set conductivity_scale`, ...) without touching the function it came from.
+class ScaledFunction final : public ScalarFunction {
+ public:
+  ScaledFunction(ScalarFunctionPtr f, double factor) : f_(std::move(f)), factor_(factor) {}
+  double value(double x) const override { return factor_ * f_->value(x); }
+  double derivative(double x) const override { return factor_ * f_->derivative(x); }
+  void value_and_derivative(double x, double& v, double& d) const override {
+    f_->value_and_derivative(x, v, d);
+    v *= factor_;
+    d *= factor_;
+  }
+
+ private:
+  ScalarFunctionPtr f_;
+  double factor_;
 };
 
 }  // namespace bms

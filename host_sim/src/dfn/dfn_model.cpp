@@ -69,6 +69,9 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
     bad("particle_size_negative: not available together with the side reaction");
   if (effects.particle_size_populations != 3 && effects.particle_size_populations != 5)
     bad("particle_size populations: must be 3 or 5");
+  // The lithium loss is read back from the film through the growth factor: it must not be 0.
+  if (!(std::isfinite(cell.side.film_growth_scale) && cell.side.film_growth_scale > 0.0))
+    throw InputError("film_growth_scale: must be a finite value > 0");
   if (!(temperature_k > 150.0 && temperature_k < 500.0))
     bad("temperature " + std::to_string(temperature_k) + " K: outside 150-500 K");
   if (effects.hysteresis_on() && !(cell.nominal_capacity_ah > 0.0))
@@ -278,7 +281,7 @@ void DfnModel::set_side_reaction_enabled(bool on) {
 }
 
 double DfnModel::film_growth_factor(const SideReactionParameters& s) {
-  return s.molar_mass_kg_mol / (s.density_kg_m3 * kFaraday_c_mol * s.film_conductivity_s_m);
+  return s.film_growth_scale * (s.molar_mass_kg_mol / (s.density_kg_m3 * kFaraday_c_mol * s.film_conductivity_s_m));
 }
 
 template <typename T>
@@ -582,7 +585,8 @@ double DfnModel::surface_stoich(const double* y, int e) const {
 
 double DfnModel::lithium_loss_mol(double r_film, double r_film_start) const {
   if (!cell_.side.enabled) return 0.0;
-  // dR/dt = -factor mean(js); Li loss rate = -A L_n a_n mean(js) / F.
+  // dR/dt = -factor mean(js); Li loss rate = -A L_n a_n mean(js) / F. The factor carries
+  // film_growth_scale, so dividing by it gives the lithium whatever the scale (which is > 0).
   const double per_r = cell_.electrode_area_m2 * cell_.negative.thickness_m *
                        cell_.negative.surface_area_per_volume_m() / (kFaraday_c_mol * film_growth_factor());
   return (r_film - r_film_start) * per_r;

@@ -161,7 +161,8 @@ class DfnModel {
   void film_row_jacobian(const double* y, std::vector<std::pair<int, double>>& out) const;
   int film_row() const { return idx_film(); }
   double film_growth_factor() const { return film_growth_factor(cell_.side); }  // dR/dt = -factor * mean(j_s)
-  // The same for any side-reaction set: M / (rho F kappa), ohm m2 per (A/m2 s) of pore-wall current.
+  // The same for any side-reaction set: film_growth_scale M / (rho F kappa), ohm m2 per (A/m2 s)
+  // of pore-wall current.
   static double film_growth_factor(const SideReactionParameters& s);
 
  private:
