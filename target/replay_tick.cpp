@@ -1,6 +1,8 @@
 // See replay_tick.hpp.
 #include "replay_tick.hpp"
 
+#include <bms/fw/paper_cell_profiles.hpp>
+
 namespace bms::target {
 
 namespace {
@@ -11,7 +13,9 @@ Model initial_model() {
 }
 }  // namespace
 
-ReplayFirmware::ReplayFirmware() : model(initial_model()), core(Core::Config{}, model) {}
+// The default profile of every caller (bms/fw/paper_cell_profiles.hpp): best.
+ReplayFirmware::ReplayFirmware()
+    : model(initial_model()), core(bms::fw::paper_cell_config<Core>(bms::fw::Profile::best), model) {}
 
 TickOutput replay_tick(ReplayFirmware& fw, Scalar voltage_v, Scalar current_a) {
   return fw.core.tick({voltage_v, current_a, true});

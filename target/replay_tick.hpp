@@ -22,7 +22,7 @@ using Core = bms::fw::BmsCore<Scalar, Model>;
 using TickOutput = Core::Output;
 
 /// Everything the firmware owns: the main-system model and the core that drives it.
-/// Default configuration of the paper cell; the model starts from the paper's initial state.
+/// The paper cell's best profile; the model starts from the paper's initial state.
 struct ReplayFirmware {
   ReplayFirmware();
   Model model;

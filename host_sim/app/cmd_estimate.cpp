@@ -50,6 +50,11 @@ Runner add_estimate(CLI::App& app) {
   sub->add_option("--model-bias-ohm", c->o.model_bias_ohm,
                   "With --settings best: the main model's voltage bias in CC charge per ampere [ohm] (default: the "
                   "reduced model's design-time calibration, 0 for the full model; 0 = ablation)");
+  sub->add_option("--relinearise", c->o.relinearise_inventory,
+                  "With --settings best: a re-synchronisation that moves the model's inventory by more than this "
+                  "(relative) restarts the film's learning (1 = never: ablation)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
   sub->add_option("--cell", c->cell, "Cell of the main model: paper | aboutenergy | FILE.bpx.json")->capture_default_str();
   sub->add_option("--nc", c->o.nc, "Order n_c of the ARX subsystem model (1..8)")->capture_default_str();
   sub->add_option("--p0", c->o.p0, "RLS initial covariance P(0) = p0 I (paper: 5e-7)")->capture_default_str();

@@ -53,6 +53,7 @@ struct HilCli {
   SimulateOptions sim;
   std::string bus = "vcan0", out, firmware, fault;
   bool lockstep = true, realtime = false, beyond_paper = false;
+  std::string settings = "best";
   double h = 0.01, persist_every_s = 60.0;
   std::size_t max_ticks = 0;
 };
@@ -270,7 +271,11 @@ int run_hil(HilCli& c) {
   std::vector<std::string> fw_args = {"--can", c.bus, c.realtime ? "--realtime" : "--lockstep", "--nvm",
                                             nvm.string(), "--h", fmt::format("{}", c.h), "--persist-every-s",
                                             fmt::format("{}", c.persist_every_s)};
-  if (c.beyond_paper) fw_args.emplace_back("--beyond-paper");
+  if (c.beyond_paper) {
+    fw_args.emplace_back("--beyond-paper");
+  } else {
+    fw_args.insert(fw_args.end(), {"--settings", c.settings});
+  }
   hil::FirmwareProcess fw(c.firmware.empty() ? hil::default_firmware_path() : std::filesystem::path(c.firmware),
                           fw_args);
 
@@ -415,6 +420,7 @@ int run_hil(HilCli& c) {
   write_estimates_csv(dir / "estimates.csv", res);
   EstimateOptions eo;
   eo.h_v_per_ohm_m2 = c.h;
+  eo.settings = c.beyond_paper ? "beyond-paper" : c.settings;
   auto summary = estimate_summary_json(res, eo);
   const double sim_s = run.result.samples[n - 1].t_s - run.result.samples[0].t_s + c.sim.dt_s;
   summary["simulation"] = summary_json(run.result);
@@ -422,7 +428,7 @@ int run_hil(HilCli& c) {
   summary["simulation"]["parameters"] = run.parameters;
   summary["hil"] = {{"bus", c.bus},
                     {"lockstep", !c.realtime},
-                    {"estimator", c.beyond_paper ? "beyond-paper" : "paper"},
+                    {"estimator", c.beyond_paper ? "beyond-paper" : c.settings},
                     {"ticks", n},
                     {"wall_s", res.wall_s},
                     {"sim_s", sim_s},
@@ -465,8 +471,12 @@ Runner add_hil(CLI::App& app) {
   sub->add_flag("--lockstep", c->lockstep, "Simulator-driven ticks, as fast as possible (default)");
   sub->add_flag("--realtime", c->realtime, "One measurement every 0.2 s of wall time; the firmware's timer ticks");
   sub->add_option("--h", c->h, "RCSI Markov parameter passed to the firmware")->capture_default_str();
+  sub->add_option("--settings", c->settings,
+                  "Estimator profile of the firmware: best (default) or paper, as `bmssim estimate --settings`")
+      ->check(CLI::IsMember({"best", "paper"}))
+      ->capture_default_str();
   sub->add_flag("--beyond-paper", c->beyond_paper,
-                "The firmware's best settings (as `bmssim estimate --beyond-paper`; --h is then not used)");
+                "Session 5's profile (as `bmssim estimate --beyond-paper`; --h is then not used)");
   sub->add_option("--firmware", c->firmware, "Path of bms-firmware (default: beside bmssim in the build tree)");
   sub->add_option("--persist-every-s", c->persist_every_s,
                   "Firmware commits its state to NVM every this many seconds of ticks (and at each CC-charge end)")

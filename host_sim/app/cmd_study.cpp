@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "study_blind.hpp"
 #include "io/input_error.hpp"
 #include "sim/truth_output.hpp"
 #include "studies/study_collect.hpp"
@@ -27,6 +28,8 @@ struct StudyCli {
   std::string out, collect_dir, one_case;
   int jobs = 0;
   bool list_cases = false;
+  std::string blind_sets = "1,2";
+  int blind_cycles = 5;
 };
 
 // Single quotes unless the word is plainly safe, so printed command lines paste into a shell.
@@ -76,7 +79,16 @@ Runner add_study(CLI::App& app) {
       "The paper's sensitivity studies: measurement noise (figures 8-13) and initial-condition errors "
       "(figures 14-17), each case a truth simulation plus the estimator arms, run in parallel");
   auto c = std::make_shared<StudyCli>();
-  sub->add_option("mode", c->o.mode, "noise | ic | all")->required()->check(CLI::IsMember({"noise", "ic", "all"}));
+  sub->add_option("mode", c->o.mode,
+                  "noise | ic | all (the paper's studies) | blind (truths the estimator does not know: "
+                  "docs/results/blind.md)")
+      ->required()
+      ->check(CLI::IsMember({"noise", "ic", "all", "blind"}));
+  sub->add_option("--sets", c->blind_sets,
+                  "blind: truth sets, comma-separated: 1 (film, growth law, side i0, inventory), 2 (and conductivity, "
+                  "solid diffusivities)")
+      ->capture_default_str();
+  sub->add_option("--cycles", c->blind_cycles, "blind: CCCV cycles per truth")->capture_default_str();
   sub->add_option("--seeds", c->o.seeds, "Noise seeds per noise level (default 10; 2 with --quick)")
       ->check(CLI::Range(1, 10000));
   sub->add_flag("--quick", c->o.quick,
@@ -110,6 +122,19 @@ Runner add_study(CLI::App& app) {
       return collect_and_report(dir, {{"collected_only", true}}, "bmssim study " + c->o.mode + " --collect " + c->collect_dir);
     }
     if (c->out.empty()) throw InputError("--out: required (or --collect DIR)");
+    if (c->o.mode == "blind") {
+      BlindStudyOptions b;
+      b.seeds = sub->count("--seeds") ? c->o.seeds : (c->o.quick ? 2 : 10);
+      b.cycles = c->o.quick && sub->count("--cycles") == 0 ? 3 : c->blind_cycles;
+      b.sets = c->o.quick && sub->count("--sets") == 0 ? "1" : c->blind_sets;
+      b.jobs = c->jobs > 0 ? c->jobs : static_cast<int>(std::max(1L, sysconf(_SC_NPROCESSORS_ONLN)));
+      b.out = c->out;
+      const std::string command = fmt::format("bmssim study blind --seeds {} --cycles {} --sets {} --out {}", b.seeds,
+                                              b.cycles, b.sets, c->out);
+      const int failed = run_blind_study(b, command);
+      if (failed > 0) std::fprintf(stderr, "study blind: %d truth(s) could not be simulated (summary.json: truth_failures)\n", failed);
+      return failed > 0 ? 1 : 0;
+    }
     if (c->o.quick) {
       if (sub->count("--seeds") == 0) c->o.seeds = 2;
       if (sub->count("--models") == 0) c->o.models = {"reduced"};

@@ -33,8 +33,8 @@ expect_bad negative_resistance "model-effect contact_resistance.*>= 0" contact_r
 expect_bad huge_hysteresis "model-effect hysteresis.*0.5" hysteresis=0.7
 expect_bad huge_gain "model-effect current_gain.*0.5" current_gain=0.6
 
-if "$BMSSIM" estimate --data data.csv --out plain --quiet 2> err_plain &&
-   "$BMSSIM" estimate --data data.csv --model-effect contact_resistance=0.001 --out with --quiet 2> err_with; then
+if "$BMSSIM" estimate --data data.csv --settings paper --out plain --quiet 2> err_plain &&
+   "$BMSSIM" estimate --data data.csv --settings paper --model-effect contact_resistance=0.001 --out with --quiet 2> err_with; then
   if python3 - plain with <<'PY'
 import csv, json, sys
 plain, with_ = sys.argv[1], sys.argv[2]

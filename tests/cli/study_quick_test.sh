@@ -73,8 +73,8 @@ check(s["ic"]["true"]["r_film_change_at_cycle_ends_max_abs_pct"] < 1.0, "true R_
 dv = s["ic"]["true"]["+1"]["cycle1_cc_charge_dv_median_abs_mv"]
 check(0.001 < dv < 10, "true voltage change for +1 %% IC = %s mV" % dv)
 # The model's IC error changes the identified film resistance far more than the truth's.
-# (Not reduced-beyond: its first CC charge calibrates the model's bias with the film held.)
-for arm in ("reduced-paper", "reduced-best"):
+# (Not reduced-beyond, not reduced-best: they re-synchronise the model's state.)
+for arm in ("reduced-paper",):
     v = s["ic"]["identified_r_film_change"][arm]
     check(v["cycle1_change_max_pct"] > true_change, "%s: identified change %s %%" % (arm, v["cycle1_change_max_pct"]))
 # Issue 6's beyond-the-paper targets, on the firmware estimator (reduced-beyond): film error
@@ -85,6 +85,13 @@ for k in ("v0.2mV", "i5mA"):
     check(e["n"] == 2 and e["max"] <= 1.0, "reduced-beyond %s: worst-cycle error %s > 1 %%" % (k, e))
 beyond_ic = s["ic"]["identified_r_film_change"]["reduced-beyond"]["worst_cycle_change_max_pct"]
 check(0 <= beyond_ic <= 1.0, "reduced-beyond: identified change for +-1 %% IC %s > 1 %%" % beyond_ic)
+# The best profile (nominal cell only, film and inventory identified): <= 1 % on the nominal truth
+# at both noise levels (issue 20), and a +-1 % model IC error changes it by <= 1 %.
+for k in ("v0.2mV", "i5mA"):
+    e = levels[k]["arms"]["reduced-best"]["err_worst_cycle_pct"]
+    check(e["n"] == 2 and e["max"] <= 1.0, "reduced-best %s: worst-cycle error %s > 1 %%" % (k, e))
+best_ic = s["ic"]["identified_r_film_change"]["reduced-best"]["worst_cycle_change_max_pct"]
+check(0 <= best_ic <= 1.0, "reduced-best: identified change for +-1 %% IC %s > 1 %%" % best_ic)
 # Figure 8: the film grows every cycle; figure 11: a larger current step moves the voltage more.
 check(all(g > 0 for g in s["fig08"]["film_growth_per_cycle_pct"]), "film growth %s" % s["fig08"]["film_growth_per_cycle_pct"])
 cur = sorted(s["fig11"]["currents"], key=lambda c: c["delta_current_ma"])

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "bms/fw/bms_core.hpp"
+#include "bms/fw/paper_cell_profiles.hpp"
 #include "bms/hal/bms_application.hpp"
 #include "bms/hal/linux/file_nvm.hpp"
 #include "bms/hal/linux/socketcan.hpp"
@@ -66,18 +67,19 @@ class RamOnlyNvm final : public bms::hal::NonVolatileMemory {
 void usage(FILE* to) {
   std::fprintf(to,
                "usage: bms-firmware --can IFACE (--lockstep | --realtime) [--nvm FILE] [--h H] [--h-from-model]\n"
-               "                    [--beyond-paper]\n"
+               "                    [--settings best|paper] [--beyond-paper]\n"
                "                    [--persist-every-s S] [--rcvbuf-bytes N]\n"
                "  --can IFACE          SocketCAN interface (e.g. vcan0)\n"
                "  --lockstep           ticks triggered by the host's HOST_Measurement frames (deterministic)\n"
                "  --realtime           ticks from a 0.2 s timer\n"
                "  --nvm FILE           keep the estimator state in FILE (two slots, CRC); restored at start\n"
-               "  --h H                RCSI Markov parameter [V per ohm m2] (default 0.01, the paper's)\n"
+               "  --settings P         estimator profile: best (default; the nominal cell only: film, growth gain\n"
+               "                       and lithium inventory identified together) or paper (the paper's RCSI)\n"
+               "  --h H                with --settings paper: RCSI Markov parameter [V per ohm m2] (default 0.01)\n"
                "  --h-from-model       H from the model at each charge start\n"
-               "  --beyond-paper       the firmware's best settings (as bmssim estimate --beyond-paper): H from\n"
-               "                       the model, state re-synchronisation, 600 s warm-up, bias calibration,\n"
-               "                       charge-averaged estimate propagated by the model's predicted film\n"
-               "                       growth (--h is then not used)\n"
+               "  --beyond-paper       session 5's profile (as bmssim estimate --beyond-paper): H from the model,\n"
+               "                       state re-synchronisation, 600 s warm-up, bias calibration at the nominal\n"
+               "                       initial film, charge-averaged estimate propagated by the nominal growth law\n"
                "  --persist-every-s S  commit the state every S s of ticks (default 60; 0: only at the end\n"
                "                       of each CC charge and at exit)\n"
                "  --rcvbuf-bytes N     socket receive buffer (default 8388608: a replay sent faster than\n"
@@ -105,6 +107,7 @@ void enlarge_receive_buffer(int fd, int bytes) {
 int main(int argc, char** argv) {
   std::string iface, nvm_path;
   bool lockstep = false, realtime = false, h_from_model = false, beyond_paper = false;
+  std::string settings = "best";
   double h = 0.01, persist_every_s = 60.0, rcvbuf_bytes = 8388608.0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -121,6 +124,13 @@ int main(int argc, char** argv) {
     else if (a == "--realtime") realtime = true;
     else if (a == "--h-from-model") h_from_model = true;
     else if (a == "--beyond-paper") beyond_paper = true;
+    else if (a == "--settings") {
+      settings = value("--settings");
+      if (settings != "best" && settings != "paper") {
+        std::fprintf(stderr, "bms-firmware: --settings must be 'best' or 'paper' (got '%s')\n", settings.c_str());
+        return 2;
+      }
+    }
     else if (a == "--h") {
       const std::string v = value("--h");
       if (!parse_number(v, h) || h == 0.0) {
@@ -179,10 +189,11 @@ int main(int argc, char** argv) {
   static Model model;  // static storage: the firmware's objects are not on the stack
   model.init_default();
   using Cell = bms::fw::PaperCellTraits;
-  Core::Config cfg = beyond_paper ? Core::beyond_paper_config(Model::inventory_of(Cell::kNeg.stoich_init, Cell::kPos.stoich_init),
-                                                               Model::film_growth_ohm_m2_per_a_m3_s())
-                                  : Core::Config{};
-  if (!beyond_paper) {
+  Core::Config cfg =
+      beyond_paper ? Core::beyond_paper_config(Model::inventory_of(Cell::kNeg.stoich_init, Cell::kPos.stoich_init),
+                                               Model::film_growth_ohm_m2_per_a_m3_s())
+                   : bms::fw::paper_cell_config<Core>(settings == "paper" ? bms::fw::Profile::paper : bms::fw::Profile::best);
+  if (!beyond_paper && settings == "paper") {
     cfg.estimator.markov_v_per_ohm_m2 = h;
     cfg.markov_from_model = h_from_model;
   }

@@ -109,6 +109,7 @@ void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, con
     cfg.identifier = best.identifier;
     cfg.identifier.learn_inventory = o.learn_inventory;
     cfg.model_bias_ohm = o.model_bias_ohm;
+    cfg.relinearise_inventory = o.relinearise_inventory;
   }
   cfg.detector.v_max = cell.upper_voltage_v;
   cfg.detector.v_min = cell.lower_voltage_v;
@@ -133,6 +134,9 @@ void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, con
     r.film_initial_ohm_m2 = out.film_initial_ohm_m2;
     r.growth_gain = out.growth_gain;
     r.inventory_deviation = out.inventory_deviation;
+    r.markov_v_per_ohm_m2 = out.markov_v_per_ohm_m2;
+    r.inventory_sensitivity_v = out.inventory_sensitivity_v;
+    r.growth_ohm_m2 = out.growth_ohm_m2;
     r.inventory_err_pct = std::nan("");
     if (!d.stoich_neg_true.empty() && o.nominal_inventory_mol > 0.0) {
       // Scoring only: the truth's solid lithium against the estimate (nominal x (1 + nu) less the model's loss).

@@ -39,6 +39,7 @@ struct EstimateOptions {
   bool identify_growth = false;   // the best profile's FilmGrowthIdentifier instead of ARX RCSI
   bool learn_inventory = true;    // with identify_growth: the inventory is the third parameter
   double model_bias_ohm = -1.0;   // with identify_growth: < 0 = the main model's calibrated bias
+  double relinearise_inventory = 1e-3;  // with identify_growth: BmsCore::Config::relinearise_inventory
   int nc = 1;                     // subsystem order, 1..8
   double p0 = 5e-7;
   double p0_y0 = -1.0;  // < 0: same as p0 (the paper's P(0) = p0 I)
@@ -76,6 +77,7 @@ struct EstimateRow {
   double r_film_est_ohm_m2, r_film_true_ohm_m2, z_v, model_voltage_v, model_current_a, j_side_a_m3,
       li_loss_ah;
   double film_initial_ohm_m2, growth_gain, inventory_deviation;  // identified (best profile)
+  double markov_v_per_ohm_m2, inventory_sensitivity_v, growth_ohm_m2;  // H, S, G (the bound)
   double inventory_err_pct;  // estimated vs true cyclable lithium, NaN without truth stoichiometries
   std::uint32_t status;
 };

@@ -18,9 +18,11 @@ struct Setting {
 };
 const std::vector<Setting>& estimator_settings() {
   static const std::vector<Setting> s = {
-      {"paper", {}, false},  // the paper's n_c = 1, eta = 0, P(0) = 5e-7 I, H = 0.01
-      {"best", {"--h-from-model", "--p0", "5e-7", "--p0-y0", "5e-13"}, false},  // RCSI retuned, nothing added
-      {"beyond", {"--beyond-paper"}, true},  // the firmware's best: RCSI + state re-synchronisation, bias calibration
+      {"paper", {"--settings", "paper"}, false},  // the paper's n_c = 1, eta = 0, P(0) = 5e-7 I, H = 0.01
+      {"best", {"--settings", "best"}, false},    // the project's best from the nominal cell only (BmsCore::best_config)
+      // Session 5's firmware profile (RCSI + resync + bias calibration on a reference charge at the
+      // nominal initial film + the nominal growth law): kept as an ablation row.
+      {"beyond", {"--beyond-paper"}, true},
   };
   return s;
 }

@@ -18,8 +18,6 @@ namespace bms::study {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-namespace {
-
 // gnuplot's exit code, or -1 when it cannot be started (not installed).
 int run_gnuplot(const fs::path& script, const fs::path& log) {
   posix_spawn_file_actions_t fa;
@@ -38,6 +36,8 @@ int run_gnuplot(const fs::path& script, const fs::path& log) {
   if (WIFEXITED(status) && WEXITSTATUS(status) == 127) return -1;  // exec failed in the child
   return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
 }
+
+namespace {
 
 // gnuplot single-quoted strings double a quote to keep it.
 std::string gp_quote(const std::string& text) {

@@ -60,6 +60,9 @@ struct TickOutput {
   Scalar film_initial_ohm_m2;
   Scalar growth_gain;
   Scalar inventory_deviation;
+  Scalar markov_v_per_ohm_m2;      // H = dV/dR_film of this tick's model step (0 when not stepped)
+  Scalar inventory_sensitivity_v;  // S = dV/dnu of this tick (0 unless the identifier learned)
+  Scalar growth_ohm_m2;            // the identifier's G (predicted nominal-law growth so far)
   StatusWord status;           // bits raised in this tick (estimator bits 0..7, tick 8..15)
   std::uint32_t tick;          // committed ticks
   std::uint8_t newton_iterations;
@@ -219,7 +222,8 @@ class BmsCore {
     std::uint32_t flags;  // bit 0: previous tick was CC charge, bit 1: a sample was accepted,
                           // bit 2: the model was re-synchronised in this CV phase,
                           // bit 3: the voltage bias is calibrated,
-                          // bit 4: the open re-synchronisation window is the power-up one
+                          // bit 4: the open re-synchronisation window is the power-up one,
+                          // bit 5: the identifier learned in the previous tick
     std::uint32_t cc_ticks;
     std::uint32_t resync_count;
     std::uint32_t bias_samples;
@@ -335,10 +339,11 @@ class BmsCore {
       ++bias_samples_;
     }
     bool active = false;
+    Scalar s_v = Scalar(0);
     if (config_.identify_growth) {
       if (identify) {
         if (!prev_identify_) identifier_.begin_charge();
-        const Scalar s_v = (v_probe - r.voltage_v) / kInventoryProbe;
+        s_v = (v_probe - r.voltage_v) / kInventoryProbe;
         const StatusWord learned =
             identifier_.learn(u, z, r.markov_v_per_ohm_m2, s_v, nu_model_, -config_.model_bias_ohm * in.current_a);
         st |= learned;
@@ -372,6 +377,8 @@ class BmsCore {
     out.model_voltage_v = r.voltage_v;
     out.model_current_a = r.current_a;
     out.j_side_a_m3 = r.j_side_a_m3;
+    out.markov_v_per_ohm_m2 = r.markov_v_per_ohm_m2;
+    out.inventory_sensitivity_v = s_v;
     out.newton_iterations = r.newton_iterations;
     out.status = st;
     status_ |= st;
@@ -548,6 +555,9 @@ class BmsCore {
     o.film_initial_ohm_m2 = id ? identifier_.initial_film_ohm_m2() : Scalar(0);
     o.growth_gain = id ? identifier_.gain() : Scalar(0);
     o.inventory_deviation = id ? identifier_.inventory_deviation() : Scalar(0);
+    o.markov_v_per_ohm_m2 = Scalar(0);
+    o.inventory_sensitivity_v = Scalar(0);
+    o.growth_ohm_m2 = id ? identifier_.growth_ohm_m2() : Scalar(0);
     o.tick = ticks_;
     o.newton_iterations = 0;
     o.status = 0u;

@@ -1,0 +1,24 @@
+#pragma once
+// `bmssim study blind`: the estimator on truths it does not know (issue 20). Each case draws a
+// truth (seeded, uniform) from ranges the estimator never sees, simulates it with one noise
+// condition, and runs every estimator arm on the measured columns only: the best profile, each
+// of its features switched off, learning off (the control), the paper's RCSI and session 5's
+// profile. Beside them: the Cramer-Rao bound of the joint unknowns for the same data.
+#include <string>
+
+namespace bms::app {
+
+struct BlindStudyOptions {
+  int seeds = 10;
+  int cycles = 5;
+  int jobs = 2;
+  std::string sets = "1,2";  // 1: film, growth law, side i0, inventory; 2: + conductivity, diffusivities
+  std::string out;
+  bool quiet = false;
+};
+
+// Runs (or resumes: finished cases are kept) the study and writes OUT/summary.json, report.md
+// and figures/. Returns the number of cases whose truth could not be simulated.
+int run_blind_study(const BlindStudyOptions& o, const std::string& command);
+
+}  // namespace bms::app

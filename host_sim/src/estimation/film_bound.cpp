@@ -1,0 +1,67 @@
+#include "estimation/film_bound.hpp"
+
+#include <cmath>
+#include <map>
+
+#include <Eigen/Dense>
+
+#include "bms/fw/reduced_cell.hpp"
+
+namespace bms {
+
+namespace {
+
+using Mat3 = Eigen::Matrix3d;
+using Vec3 = Eigen::Vector3d;
+
+// sqrt(a^T J^-1 a), or NaN when J is not positive definite.
+double bound_of(const Mat3& j, const Vec3& a) {
+  const Eigen::LDLT<Mat3> f(j);
+  if (f.info() != Eigen::Success || !f.isPositive() || (f.vectorD().array() <= 0.0).any()) return std::nan("");
+  return std::sqrt(a.dot(f.solve(a)));
+}
+
+}  // namespace
+
+FilmBound film_cramer_rao(const std::vector<EstimateRow>& rows, double sigma_v) {
+  FilmBound out;
+  if (!(sigma_v > 0.0)) return out;
+  Mat3 j = Mat3::Zero();
+  std::size_t learned = 0;
+  std::map<int, std::size_t> last_cc;  // cycle -> last CC-charge row
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    if (rows[i].mode == fw::Mode::cc_charge) last_cc[rows[i].cycle] = i;
+  auto cycle_it = last_cc.begin();
+  const double w = 1.0 / (sigma_v * sigma_v);
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const auto& r = rows[i];
+    if (r.rcsi_active) {
+      const Vec3 phi(r.markov_v_per_ohm_m2, r.markov_v_per_ohm_m2 * r.growth_ohm_m2, r.inventory_sensitivity_v);
+      j += w * phi * phi.transpose();
+      ++learned;
+    }
+    while (cycle_it != last_cc.end() && cycle_it->second == i) {
+      const Vec3 a(1.0, r.growth_ohm_m2, 0.0);
+      const double sd = bound_of(j, a);
+      const double nu_sd = bound_of(j, Vec3(0.0, 0.0, 1.0));
+      out.cycles.push_back({cycle_it->first, sd / r.r_film_true_ohm_m2 * 100.0, nu_sd * 100.0});
+      ++cycle_it;
+    }
+  }
+  if (learned == 0) return out;
+  out.r0_sd_ohm_m2 = bound_of(j, Vec3(1.0, 0.0, 0.0));
+  out.gain_sd = bound_of(j, Vec3(0.0, 1.0, 0.0));
+  out.inventory_sd_pct = bound_of(j, Vec3(0.0, 0.0, 1.0)) * 100.0;
+  out.valid = std::isfinite(out.r0_sd_ohm_m2) && std::isfinite(out.gain_sd);
+  return out;
+}
+
+double effective_voltage_noise_v(double sigma_v, double sigma_i, double current_a) {
+  fw::ReducedCell<double> cell;
+  cell.init(0.05, 0.95, fw::PaperCellTraits::kElectrolyteInitMolM3);  // discharged, as a CC charge starts
+  const double r0 = fw::PaperCellTraits::kInitialFilmOhmM2, dt = 0.2, di = 1e-3;
+  const double r_ohm = (cell.peek_voltage(-current_a + di, r0, dt) - cell.peek_voltage(-current_a, r0, dt)) / -di;
+  return std::sqrt(sigma_v * sigma_v + r_ohm * r_ohm * sigma_i * sigma_i);
+}
+
+}  // namespace bms

@@ -1,0 +1,33 @@
+#pragma once
+// Cramer-Rao bound of the best profile's joint unknowns, theta = [R0, g, nu] (initial film,
+// growth gain, relative lithium inventory), for the same data, noise and information as the
+// estimator: the linearised measurement z(k) = H(k) (R0 + g G(k)) + S(k) nu + e(k) over the
+// ticks in which it learned, e white with the effective voltage noise. The bound on the film
+// at a tick is sqrt(a^T J^-1 a), a = [1, G(k), 0], with J built from the data up to that tick.
+#include <vector>
+
+#include "estimation/estimate_run.hpp"
+
+namespace bms {
+
+struct CycleBound {
+  int cycle;
+  double film_sd_pct;       // at the cycle's last CC-charge tick, relative to the true film
+  double inventory_sd_pct;  // of nu, with the data up to then
+};
+
+struct FilmBound {
+  std::vector<CycleBound> cycles;
+  double r0_sd_ohm_m2 = 0.0, gain_sd = 0.0, inventory_sd_pct = 0.0;  // with all the data
+  bool valid = false;  // false: no learning tick, or J singular
+};
+
+// rows: an estimate run of the best profile (H, S, G recorded per tick). sigma_v: standard
+// deviation of the voltage noise the estimator sees [V], current noise folded in by the caller.
+FilmBound film_cramer_rao(const std::vector<EstimateRow>& rows, double sigma_v);
+
+// The voltage noise the estimator sees: sqrt(sigma_v^2 + (R sigma_i)^2), R = dV/dI of the
+// nominal reduced model at the start of a CC charge at `current_a` (one tick).
+double effective_voltage_noise_v(double sigma_v, double sigma_i, double current_a);
+
+}  // namespace bms
