@@ -50,6 +50,10 @@ Runner add_estimate(CLI::App& app) {
   sub->add_option("--model-bias-ohm", c->o.model_bias_ohm,
                   "With --settings best: the main model's voltage bias in CC charge per ampere [ohm] (default: the "
                   "reduced model's design-time calibration, 0 for the full model; 0 = ablation)");
+  sub->add_option("--theta0", c->o.theta0,
+                  "RCSI's theta(0) = M1..Mnc,N1..Nnc (comma-separated; default 1,0: hold the film at a charge start; "
+                  "0,0 is what the paper's figure 6 suggests)")
+      ->delimiter(',');
   sub->add_option("--relinearise", c->o.relinearise_inventory,
                   "With --settings best: a re-synchronisation that moves the model's inventory by more than this "
                   "(relative) restarts the film's learning (1 = never: ablation)")

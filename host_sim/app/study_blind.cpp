@@ -17,6 +17,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "baselines/baseline_run.hpp"
 #include "estimation/estimate_run.hpp"
 #include "estimation/film_bound.hpp"
 #include "io/input_error.hpp"
@@ -141,19 +142,23 @@ json finite_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr
 json score(const EstimateResult& r) {
   json j;
   double worst = 0.0, inv_worst = 0.0;
+  bool inv_any = false;
   json medians = json::array(), inventory = json::array();
   for (const auto& c : r.cycles) {
     medians.push_back(c.r_film_err_median_pct);
     inventory.push_back(finite_or_null(c.inventory_err_end_pct));
     if (c.cycle >= 3 || r.cycles.size() < 3) {
       worst = std::max(worst, c.r_film_err_median_pct);
-      if (std::isfinite(c.inventory_err_end_pct)) inv_worst = std::max(inv_worst, std::abs(c.inventory_err_end_pct));
+      if (std::isfinite(c.inventory_err_end_pct)) {
+        inv_worst = std::max(inv_worst, std::abs(c.inventory_err_end_pct));
+        inv_any = true;
+      }
     }
   }
   j["median_err_pct_by_cycle"] = medians;
   j["worst_err_pct_cycles_3_on"] = worst;
   j["inventory_err_end_pct_by_cycle"] = inventory;
-  j["inventory_worst_abs_pct_cycles_3_on"] = inv_worst;
+  j["inventory_worst_abs_pct_cycles_3_on"] = inv_any ? json(inv_worst) : json(nullptr);
   j["growth_err_pct"] = finite_or_null(r.growth_err_pct);
   if (!r.rows.empty()) {
     const auto& last = r.rows.back();
@@ -221,6 +226,28 @@ json run_case(const TruthDraw& t, const Noise& n, int cycles, const CellParamete
     j["arms"][arm.name] = score(r);
     if (std::string(arm.name) == "best") j["crlb"] = bound_json(film_cramer_rao(r.rows, sigma_eff));
   }
+  // The reference estimators with the same information (nominal cell, measured columns, the
+  // sensor's noise from its data sheet).
+  for (const char* method : {"ekf", "batch"}) {
+    baselines::BaselineOptions bo;
+    bo.method = method;
+    if (n.v_mv > 0.0) bo.sigma_v_v = n.v_mv * 1e-3;
+    if (n.i_ma > 0.0) bo.sigma_i_a = n.i_ma * 1e-3;
+    bo.ic = default_initial_conditions(nominal);
+    try {
+      const auto b = baselines::run_baseline(data, bo);
+      EstimateResult r;
+      r.rows = b.rows;
+      r.cycles = b.scores;
+      for (auto& c : r.cycles) c.inventory_err_end_pct = std::nan("");  // it estimates no inventory
+      r.growth_err_pct = growth_error_pct(b.rows);
+      json sj = score(r);
+      for (const char* k : {"gain", "film_initial_ohm_m2", "inventory_deviation"}) sj.erase(k);
+      j["arms"][method] = sj;
+    } catch (const std::exception& e) {
+      j["baseline_failed"][method] = e.what();
+    }
+  }
   j["crlb"]["sigma_v_effective_mv"] = sigma_eff * 1e3;
   return j;
 }
@@ -248,7 +275,8 @@ json aggregate(const std::vector<json>& cases) {
     for (const auto& [arm, s] : c["arms"].items()) {
       acc[group][arm]["film_worst_pct"].push_back(s["worst_err_pct_cycles_3_on"].get<double>());
       if (!s["growth_err_pct"].is_null()) acc[group][arm]["growth_err_pct"].push_back(s["growth_err_pct"].get<double>());
-      acc[group][arm]["inventory_worst_pct"].push_back(s["inventory_worst_abs_pct_cycles_3_on"].get<double>());
+      if (!s["inventory_worst_abs_pct_cycles_3_on"].is_null())
+        acc[group][arm]["inventory_worst_pct"].push_back(s["inventory_worst_abs_pct_cycles_3_on"].get<double>());
     }
     acc[group]["crlb"]["film_sd_pct"].push_back(c["crlb"].value("film_sd_pct_worst_cycles_3_on", 0.0));
     if (!c["crlb"]["inventory_sd_pct"].is_null())

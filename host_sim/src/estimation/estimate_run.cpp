@@ -74,8 +74,17 @@ namespace {
 
 double nominal_growth_ohm_m2_per_a_m3_s(const CellParameters& cell);
 
+// What the firmware may see (the information rule): the measured columns and the sample
+// clock. run_core gets only this; the truth is attached to its rows afterwards, for scoring.
+struct MeasuredSeries {
+  const std::vector<double>& t_s;
+  const std::vector<double>& current_a;
+  const std::vector<double>& voltage_v;
+  const std::vector<int>& cycle;
+};
+
 template <int Nc, class Model>
-void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, const CellParameters& cell,
+void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, const CellParameters& cell,
               double dt_s, EstimateResult& res, const EstimateProgress& progress) {
   using Core = fw::BmsCore<double, Model, Nc, 0>;
   typename Core::Config cfg;
@@ -84,6 +93,11 @@ void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, con
   cfg.estimator.p0_u = o.p0;
   cfg.estimator.p0_y0 = o.p0_y0 > 0.0 ? o.p0_y0 : o.p0;
   cfg.estimator.lambda = o.lambda;
+  if (!o.theta0.empty()) {
+    if (o.theta0.size() != static_cast<std::size_t>(2 * Nc))
+      throw InputError(fmt::format("--theta0: needs 2 n_c = {} values (got {})", 2 * Nc, o.theta0.size()));
+    for (int k = 0; k < 2 * Nc; ++k) cfg.estimator.theta0(k) = o.theta0[static_cast<std::size_t>(k)];
+  }
   cfg.estimator.eta = o.eta;
   cfg.estimator.r_film_init_ohm_m2 =
       o.r_film_init_ohm_m2 >= 0.0 ? o.r_film_init_ohm_m2 : cell.side.initial_film_resistance_ohm_m2;
@@ -125,7 +139,7 @@ void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, con
     r.mode = out.mode;
     r.rcsi_active = out.rcsi_active;
     r.r_film_est_ohm_m2 = out.r_film_est_ohm_m2;
-    r.r_film_true_ohm_m2 = d.r_film_true_ohm_m2.empty() ? std::nan("") : d.r_film_true_ohm_m2[i];
+    r.r_film_true_ohm_m2 = std::nan("");
     r.z_v = out.z_v;
     r.model_voltage_v = out.model_voltage_v;
     r.model_current_a = out.model_current_a;
@@ -138,13 +152,6 @@ void run_core(Model& model, const EstimateData& d, const EstimateOptions& o, con
     r.inventory_sensitivity_v = out.inventory_sensitivity_v;
     r.growth_ohm_m2 = out.growth_ohm_m2;
     r.inventory_err_pct = std::nan("");
-    if (!d.stoich_neg_true.empty() && o.nominal_inventory_mol > 0.0) {
-      // Scoring only: the truth's solid lithium against the estimate (nominal x (1 + nu) less the model's loss).
-      const double truth_mol = fw::ReducedCell<double>::inventory_of(d.stoich_neg_true[i], d.stoich_pos_true[i]);
-      const double est_mol = o.nominal_inventory_mol * (1.0 + out.inventory_deviation) -
-                             out.li_loss_ah * 3600.0 / fw::kFaradayC_mol;
-      r.inventory_err_pct = (est_mol - truth_mol) / truth_mol * 100.0;
-    }
     r.status = out.status;
     res.status |= out.status;
     if (fw::has_status(out.status, fw::FwStatus::kModelNotConverged)) ++res.newton_cap_hits;
@@ -169,8 +176,21 @@ fw::EffectParameters<double> effect_parameters(const EstimateOptions& o, const C
   return p;
 }
 
+// Scoring only: the truth's film and, where the file has the stoichiometries, its solid lithium
+// against the estimate (nominal x (1 + nu) less the model's own lithium loss).
+void attach_truth(std::vector<EstimateRow>& rows, const EstimateData& d, double nominal_inventory_mol) {
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    auto& r = rows[i];
+    if (!d.r_film_true_ohm_m2.empty()) r.r_film_true_ohm_m2 = d.r_film_true_ohm_m2[i];
+    if (d.stoich_neg_true.empty() || !(nominal_inventory_mol > 0.0)) continue;
+    const double truth_mol = fw::ReducedCell<double>::inventory_of(d.stoich_neg_true[i], d.stoich_pos_true[i]);
+    const double est_mol = nominal_inventory_mol * (1.0 + r.inventory_deviation) - r.li_loss_ah * 3600.0 / fw::kFaradayC_mol;
+    r.inventory_err_pct = (est_mol - truth_mol) / truth_mol * 100.0;
+  }
+}
+
 template <class Model>
-void dispatch_nc(Model& model, const EstimateData& d, const EstimateOptions& o, const CellParameters& cell,
+void dispatch_nc(Model& model, const MeasuredSeries& d, const EstimateOptions& o, const CellParameters& cell,
                  double dt_s, EstimateResult& res, const EstimateProgress& progress) {
   switch (o.nc) {
     case 1: run_core<1>(model, d, o, cell, dt_s, res, progress); break;
@@ -271,6 +291,7 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
   const double dt_s = fixed_tick_s(d);
   const auto wall0 = std::chrono::steady_clock::now();
   EstimateResult res;
+  const MeasuredSeries measured{d.t_s, d.current_a, d.voltage_v, d.cycle};
   if (o.model == "reduced") {
     if (cell.name != "paper")
       throw InputError("--model reduced is the firmware's model of the paper cell; use --cell paper or --model full");
@@ -283,9 +304,9 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
     if (o.model_bias_ohm < 0.0) o.model_bias_ohm = fw::kPaperReducedModelBiasOhm;
     if (o.model_effects_on) {
       fw::EffectsModel<fw::ReducedCell<double>, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
-      dispatch_nc(augmented, d, o, cell, dt_s, res, progress);
+      dispatch_nc(augmented, measured, o, cell, dt_s, res, progress);
     } else {
-      dispatch_nc(model, d, o, cell, dt_s, res, progress);
+      dispatch_nc(model, measured, o, cell, dt_s, res, progress);
     }
   } else if (o.model == "full") {
     if (o.resync) throw InputError("--resync is a feature of the firmware model; use --model reduced");
@@ -300,14 +321,15 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
     FullDfnMainModel model(cell, o.mesh, s, ic, cell.thermal.initial_temperature_k);
     if (o.model_effects_on) {
       fw::EffectsModel<FullDfnMainModel, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
-      dispatch_nc(augmented, d, o, cell, dt_s, res, progress);
+      dispatch_nc(augmented, measured, o, cell, dt_s, res, progress);
     } else {
-      dispatch_nc(model, d, o, cell, dt_s, res, progress);
+      dispatch_nc(model, measured, o, cell, dt_s, res, progress);
     }
   } else {
     throw InputError("--model must be 'reduced' or 'full' (got '" + o.model + "')");
   }
   res.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  attach_truth(res.rows, d, o.nominal_inventory_mol);
   res.cycles = score_cycles(res.rows, !d.true_mode.empty(), d.true_mode);
   res.growth_err_pct = growth_error_pct(res.rows);
   return res;

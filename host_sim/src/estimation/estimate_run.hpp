@@ -39,7 +39,8 @@ struct EstimateOptions {
   bool identify_growth = false;   // the best profile's FilmGrowthIdentifier instead of ARX RCSI
   bool learn_inventory = true;    // with identify_growth: the inventory is the third parameter
   double model_bias_ohm = -1.0;   // with identify_growth: < 0 = the main model's calibrated bias
-  double relinearise_inventory = 1e-3;  // with identify_growth: BmsCore::Config::relinearise_inventory
+  double relinearise_inventory = 1e-3;
+  std::vector<double> theta0;     // paper profile: RCSI's theta(0), 2 n_c values; empty = [1, 0, ..] (hold)  // with identify_growth: BmsCore::Config::relinearise_inventory
   int nc = 1;                     // subsystem order, 1..8
   double p0 = 5e-7;
   double p0_y0 = -1.0;  // < 0: same as p0 (the paper's P(0) = p0 I)
