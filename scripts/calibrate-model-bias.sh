@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Design-time calibration of the firmware's reduced model: its voltage bias in CC charge per
-# ampere, against a converged DFN (40/40 volumes, rtol 1e-9) of the *nominal* paper cell, with
+# ampere over the ticks the best profile learns from (after its warm-up), against a converged DFN (40/40 volumes, rtol 1e-9) of the *nominal* paper cell, with
 # the nominal film, growth law and inventory (no --set: nothing of any cell in use).
 # Prints the value for firmware/include/bms/fw/reduced_model_bias.hpp (kPaperReducedModelBiasOhm).
 # Usage: scripts/calibrate-model-bias.sh [OUT_DIR]   (about 10 s)
@@ -14,10 +14,12 @@ mkdir -p "$out"
 # The nominal cell's own film and law, learning off, no bias: z is the model's bias.
 "$bmssim" estimate --data "$out/nominal-fine/truth.csv" --model reduced --settings best --no-learning \
   --model-bias-ohm 0 --quiet --out "$out/held"
-python3 - "$out/held/estimates.csv" <<'PY'
-import csv, statistics, sys
-warmup_s, ratios, start = 600.0, [], None
-for r in csv.DictReader(open(sys.argv[1])):
+python3 - "$out/held" <<'PY'
+import csv, json, statistics, sys
+# The same warm-up as the profile's learning: the bias of the ticks it learns from.
+warmup_s = json.load(open(sys.argv[1] + "/summary.json"))["options"]["warmup_s"]
+ratios, start = [], None
+for r in csv.DictReader(open(sys.argv[1] + "/estimates.csv")):
     if r["mode"] != "cc_charge":
         start = None
         continue
@@ -26,5 +28,6 @@ for r in csv.DictReader(open(sys.argv[1])):
     i = float(r["model_current_a"])
     if t - start > warmup_s and i < 0:
         ratios.append(float(r["z_v"]) / -i)
-print(f"kPaperReducedModelBiasOhm = {statistics.median(ratios):.6e}  # median over {len(ratios)} CC-charge ticks")
+print(f"kPaperReducedModelBiasOhm = {statistics.median(ratios):.6e}  # median over {len(ratios)} CC-charge ticks "
+      f"after {warmup_s:g} s")
 PY

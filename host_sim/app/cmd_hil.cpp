@@ -417,6 +417,7 @@ int run_hil(HilCli& c) {
   log.commit();
   res.theta = res.theta_rows.back();
   res.cycles = score_cycles(res.rows, true, modes);
+  res.growth_err_pct = growth_error_pct(res.rows);
   write_estimates_csv(dir / "estimates.csv", res);
   EstimateOptions eo;
   eo.h_v_per_ohm_m2 = c.h;

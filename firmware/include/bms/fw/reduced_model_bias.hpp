@@ -7,6 +7,6 @@
 // measured value are in docs/results/blind.md).
 namespace bms::fw {
 
-inline constexpr double kPaperReducedModelBiasOhm = 3.395188e-05;  // 0.085 mV at 2.5 A
+inline constexpr double kPaperReducedModelBiasOhm = 3.361195e-05;  // 0.084 mV at 2.5 A
 
 }  // namespace bms::fw
