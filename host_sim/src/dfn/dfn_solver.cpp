@@ -11,6 +11,8 @@
 #include <mutex>
 #include <tuple>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <random>
 #include <string>
 
@@ -27,6 +29,7 @@ struct DfnSolver::Impl {
   double tn = 0.0;  // time of IDA's internal solution (>= the caller's time)
   bool root_pending = false;  // a stop condition was found after the time last asked for
   double root_t = 0.0;
+  int roots[4] = {0, 0, 0, 0};  // IDAGetRootInfo of the pending root
   SUNMatrix jac = nullptr;
   SUNLinearSolver ls = nullptr;
   // Compressed-column pattern of dF/dy + cj dF/dy', and the colour of every column.
@@ -38,12 +41,22 @@ struct DfnSolver::Impl {
   DfnSolver* owner = nullptr;
   const StopConditions* stop = nullptr;
 
-  ~Impl() {
+  // Frees the integrator (not the context): start() may be called again (a caller returning
+  // to a saved state after a failure).
+  void release() {
     if (ida) IDAFree(&ida);
     if (ls) SUNLinSolFree(ls);
     if (jac) SUNMatDestroy(jac);
-    for (N_Vector v : {y, yp, atol, id, tmp})
-      if (v) N_VDestroy(v);
+    for (N_Vector* v : {&y, &yp, &atol, &id, &tmp}) {
+      if (*v) N_VDestroy(*v);
+      *v = nullptr;
+    }
+    ida = nullptr;
+    ls = nullptr;
+    jac = nullptr;
+  }
+  ~Impl() {
+    release();
     if (ctx) SUNContext_Free(&ctx);
   }
 };
@@ -137,6 +150,14 @@ void keep_ida_message(int /*code*/, const char* /*module*/, const char* function
   last_ida_message = std::string(function) + ": " + msg;
 }
 
+// IDA's name of a return flag (IDAGetReturnFlagName returns a malloc'ed string).
+std::string flag_name(int flag) {
+  char* name = IDAGetReturnFlagName(flag);
+  std::string out = name ? name : "?";
+  std::free(name);
+  return out;
+}
+
 void check(int flag, const char* what) {
   if (flag < 0) {
     std::string text = std::string("IDA: ") + what + " failed (flag " + std::to_string(flag) + ")";
@@ -147,6 +168,35 @@ void check(int flag, const char* what) {
 }
 
 }  // namespace
+
+SurfaceLimit nearest_surface_limit(const DfnModel& m, const double* y) {
+  SurfaceLimit best;
+  double margin = HUGE_VAL;
+  for (int e = 0; e < m.n_electrode_nodes(); ++e) {
+    const double x = m.surface_stoich(y, e);
+    for (const double limit : {0.0, 1.0}) {
+      if (std::abs(x - limit) < margin) {
+        margin = std::abs(x - limit);
+        best.negative = e < m.mesh().n_neg;
+        best.node = best.negative ? e : e - m.mesh().n_neg;
+        best.nodes = best.negative ? m.mesh().n_neg : m.mesh().n_pos;
+        best.stoich = x;
+        best.limit = limit;
+      }
+    }
+  }
+  return best;
+}
+
+std::string describe(const SurfaceLimit& s) {
+  if (s.node < 0) return "no particle";
+  // Nodes count from the negative current collector; the cathode's first node is next to the separator.
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "nearest particle surface to a limit: %s electrode, node %d of %d, stoichiometry %.6f (limit %g)",
+                s.negative ? "negative" : "positive", s.node + 1, s.nodes, s.stoich, s.limit);
+  return buf;
+}
+
 }  // namespace bms
 
 namespace bms {
@@ -239,6 +289,9 @@ DfnSolver::~DfnSolver() = default;
 void DfnSolver::start(double t0, const std::vector<double>& y0) {
   const int n = model_.size();
   Impl& im = *impl_;
+  im.release();
+  im.tn = t0;
+  im.root_pending = false;
   t_ = t0;
   y_ = y0;
   yp_.assign(n, 0.0);
@@ -319,9 +372,29 @@ void DfnSolver::consistent_init() {
   im.tn = t_;
   im.root_pending = false;
   check(IDAReInit(im.ida, t_, im.y, im.yp), "IDAReInit");
+  last_ida_message.clear();
   int flag = IDACalcIC(im.ida, IDA_YA_YDP_INIT, t_ + 1e-3);
-  if (flag < 0) throw RuntimeFailure("IDACalcIC: no consistent state at t = " + std::to_string(t_) +
-                                     " s (flag " + std::to_string(flag) + ")");
+  if (flag < 0) {
+    const std::string first_message = last_ida_message;
+    double reached = 0.0;
+    if (settings_.ic_continuation) flag = continuation_init(reached);
+    if (flag < 0) {
+      std::string text = "IDACalcIC: no consistent state at t = " + std::to_string(t_) + " s (flag " +
+                         std::to_string(flag) + ", " + flag_name(flag) + ")";
+      if (!first_message.empty()) text += ": " + first_message;
+      const Control& c = model_.control();
+      const double* yv = y_.data();
+      const bool by_voltage = c.kind == ControlKind::voltage;
+      text += by_voltage ? "; asked for " + std::to_string(c.value) + " V from " +
+                               std::to_string(model_.terminal_voltage_v(yv)) + " V"
+                         : "; asked for " + std::to_string(model_.current_setpoint_a(t_)) + " A from " +
+                               std::to_string(yv[model_.idx_current()]) + " A";
+      text += " (a continuation in the setpoint got " + std::to_string(static_cast<int>(100.0 * reached)) +
+              " % of the way); " + describe(nearest_surface_limit(model_, yv));
+      last_ida_message.clear();
+      throw RuntimeFailure(text);
+    }
+  }
   check(IDAGetConsistentIC(im.ida, im.y, im.yp), "IDAGetConsistentIC");
   const int n = model_.size();
   for (int i = 0; i < n; ++i) {
@@ -329,6 +402,71 @@ void DfnSolver::consistent_init() {
     yp_[i] = NV_Ith_S(im.yp, i);
   }
   ++stats_.reinits;
+}
+
+// Newton from the previous state's algebraic variables does not always converge after a large
+// step in the input: e.g. 2.5 A of discharge right after a CV charge that left the anode's
+// surface at a stoichiometry of 0.997 (inventory_scale=1.005), where the exchange current
+// (~ sqrt(1 - x)) is small and the first Newton iterates leave the region where the kinetics
+// are well approximated by their linearisation. The differential states are fixed here, so the
+// consistent state is a function of the setpoint alone: walk the setpoint from the state's own
+// value (its current, or its terminal voltage under voltage control) to the target, each solve
+// starting from the previous one, halving the walk's step on a failure and doubling it on a
+// success. Called only after the direct solve failed, so runs that never needed it are
+// unchanged bit for bit. Returns IDACalcIC's flag at the target (IDA then holds its solution)
+// and in `reached` the fraction of the walk done.
+int DfnSolver::continuation_init(double& reached) {
+  Impl& im = *impl_;
+  const Control target = model_.control();
+  const int n = model_.size();
+  const bool by_voltage = target.kind == ControlKind::voltage;
+  // IDACalcIC leaves the vectors it was started from untouched: the first attempt's guess.
+  std::vector<double> guess(n), guess_p(n);
+  for (int i = 0; i < n; ++i) {
+    guess[i] = NV_Ith_S(im.y, i);
+    guess_p[i] = NV_Ith_S(im.yp, i);
+  }
+  const double from = by_voltage ? model_.terminal_voltage_v(guess.data()) : guess[model_.idx_current()];
+  const double to = by_voltage ? target.value : model_.current_setpoint_a(t_);
+  int flag = -1;
+  double s = 0.0, ds = 0.25;
+  constexpr double kMinStep = 1.0 / 1024.0;
+  while (s < 1.0) {
+    const double s1 = std::min(1.0, s + ds);
+    Control c = target;
+    if (s1 < 1.0) {
+      c = Control{};
+      c.kind = by_voltage ? ControlKind::voltage : ControlKind::current;
+      c.value = from + s1 * (to - from);
+    }
+    model_.set_control(c);
+    for (int i = 0; i < n; ++i) {
+      NV_Ith_S(im.y, i) = guess[i];
+      NV_Ith_S(im.yp, i) = guess_p[i];
+    }
+    update_stats();
+    stats_base_ = stats_;
+    check(IDAReInit(im.ida, t_, im.y, im.yp), "IDAReInit");
+    flag = IDACalcIC(im.ida, IDA_YA_YDP_INIT, t_ + 1e-3);
+    if (flag >= 0) {
+      if (s1 >= 1.0) break;  // IDA holds the target's solution
+      check(IDAGetConsistentIC(im.ida, im.y, im.yp), "IDAGetConsistentIC");
+      for (int i = 0; i < n; ++i) {
+        guess[i] = NV_Ith_S(im.y, i);
+        guess_p[i] = NV_Ith_S(im.yp, i);
+      }
+      s = s1;
+      ds *= 2.0;
+    } else {
+      ds *= 0.5;
+      if (ds < kMinStep) break;
+    }
+  }
+  model_.set_control(target);
+  reached = flag >= 0 ? 1.0 : s;
+  // The walk's failed attempts are not the caller's error.
+  if (flag >= 0) last_ida_message.clear();
+  return flag;
 }
 
 void DfnSolver::switch_control(const Control& control, const StopConditions& stop) {
@@ -360,17 +498,59 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
   if (exact && im.tn < tout && !im.root_pending) check(IDASetStopTime(im.ida, tout), "IDASetStopTime");
   else exact = false;
   const int n = model_.size();
+  int restarts = 0;
+  bool small_first_step = false;
   while (!im.root_pending && im.tn < tout) {
     realtype tret = im.tn;
     const int flag = IDASolve(im.ida, tout, &tret, im.y, im.yp, IDA_ONE_STEP);
     if (flag < 0) {
+      // IDA could not take a step even after cutting it (repeated error-test or Newton
+      // failures): it returns its last accepted state, at tret. Restart there, as after a
+      // discontinuity (consistent algebraic variables, order 1) with a first step far below the
+      // last one, at most kMaxStepRestarts times in one call (not reset by a later step: a
+      // state IDA can only leave by tiny steps is a failure, not a reason to crawl on).
+      const std::string ida_message = last_ida_message;
+      last_ida_message.clear();
+      realtype h_last = 0.0;
+      IDAGetLastStep(im.ida, &h_last);
+      if (++restarts <= kMaxStepRestarts && tret >= im.tn && tret < tout) {
+        const double caller_t = t_;
+        const std::vector<double> caller_y = y_;
+        t_ = im.tn = tret;  // im.y holds IDA's state at tret
+        for (int i = 0; i < n; ++i) y_[i] = NV_Ith_S(im.y, i);
+        const double h0 = std::abs(h_last) > 0.0 ? 1e-3 * std::abs(h_last) : 1e-6;
+        check(IDASetInitStep(im.ida, std::min(h0, 0.5 * (tout - tret))), "IDASetInitStep");
+        small_first_step = true;
+        try {
+          consistent_init();  // also IDAReInit: the stop time (if any) stays set
+        } catch (const RuntimeFailure&) {
+          t_ = caller_t;
+          y_ = caller_y;
+          if (exact) IDASetStopTime(im.ida, 1e300);
+          IDASetInitStep(im.ida, 0.0);
+          throw;
+        }
+        continue;
+      }
       if (exact) IDASetStopTime(im.ida, 1e300);
-      throw RuntimeFailure("IDA failed at t = " + std::to_string(tret) + " s (flag " + std::to_string(flag) + ")");
+      IDASetInitStep(im.ida, 0.0);
+      std::string text = "IDA could not step on from t = " + std::to_string(tret) + " s towards " +
+                         std::to_string(tout) + " s (flag " + std::to_string(flag) + ", " +
+                         flag_name(flag) + ", last step " + std::to_string(h_last) + " s, after " +
+                         std::to_string(restarts - 1) + " restarts)";
+      if (!ida_message.empty()) text += ": " + ida_message;
+      text += "; " + describe(nearest_surface_limit(model_, N_VGetArrayPointer(im.y)));
+      throw RuntimeFailure(text);
+    }
+    if (small_first_step) {  // back to IDA's own estimate for later re-initialisations
+      check(IDASetInitStep(im.ida, 0.0), "IDASetInitStep");
+      small_first_step = false;
     }
     if (flag == IDA_ROOT_RETURN) {
       // IDA's y is the state at the root; its internal step may reach past both.
       im.root_pending = true;
       im.root_t = tret;
+      check(IDAGetRootInfo(im.ida, im.roots), "IDAGetRootInfo");
       break;
     }
     im.tn = tret;
@@ -381,6 +561,11 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
     im.root_pending = false;
     im.tn = t_ = im.root_t;
     for (int i = 0; i < n; ++i) y_[i] = NV_Ith_S(im.y, i);
+    cause_ = StopCause{};
+    cause_.voltage_below = im.roots[0] != 0;
+    cause_.voltage_above = im.roots[1] != 0;
+    cause_.current_below = im.roots[2] != 0;
+    cause_.surface_stoich = im.roots[3] != 0;
     update_stats();
     return Result::stopped;
   }

@@ -4,6 +4,7 @@
 // Mode switches re-initialise IDA and recompute consistent algebraic variables (IDACalcIC).
 #include <limits>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "dfn/dfn_model.hpp"
@@ -14,6 +15,9 @@ struct SolverSettings {
   double rtol = 1e-6;
   double atol = 1e-8;  // multiplied by each variable's scale (V, mol/m3, ohm.m2, ...)
   long max_steps = 200000;
+  // When IDACalcIC finds no consistent state after a change of the input, walk the setpoint
+  // there from the state's own value (DfnSolver::continuation_init). Off: fail at once.
+  bool ic_continuation = true;
 };
 
 // Conditions that end the current mode; IDA locates their crossing by root-finding.
@@ -23,6 +27,22 @@ struct StopConditions {
   double abs_current_below_a = -1.0;  // < 0: not watched
   double min_surface_stoich = -1.0;   // < 0: not watched (stops a driven run before a particle empties)
 };
+
+// Which stop conditions ended the last advance that returned Result::stopped (several may
+// fire together).
+struct StopCause {
+  bool voltage_below = false, voltage_above = false, current_below = false, surface_stoich = false;
+};
+
+// The particle surface nearest a stoichiometry limit (0 or 1) in a state, for messages; node
+// counts from 0 at the negative current collector (anode) or at the separator (cathode).
+struct SurfaceLimit {
+  bool negative = true;
+  int node = -1, nodes = 0;
+  double stoich = 0.0, limit = 0.0;
+};
+SurfaceLimit nearest_surface_limit(const DfnModel& m, const double* y);
+std::string describe(const SurfaceLimit& s);
 
 struct SolverStats {
   long steps = 0, residual_evals = 0, jacobian_evals = 0, reinits = 0, colors = 0, nonzeros = 0;
@@ -52,6 +72,8 @@ class DfnSolver {
   const std::vector<double>& y() const { return y_; }
   void set_state(const std::vector<double>& y);  // for IC perturbation studies
   const SolverStats& stats() const { return stats_; }
+  // Valid after advance_to / advance_exactly_to returned Result::stopped.
+  const StopCause& stop_cause() const { return cause_; }
   DfnModel& model() { return model_; }
 
   struct Impl;
@@ -59,11 +81,15 @@ class DfnSolver {
  private:
   Result advance(double tout, bool exact);
   void consistent_init();
+  int continuation_init(double& reached);
   void update_stats();
+
+  static constexpr int kMaxStepRestarts = 3;  // restarts of IDA after a step it cannot take
 
   DfnModel& model_;
   SolverSettings settings_;
   StopConditions stop_;
+  StopCause cause_;
   double t_ = 0.0;
   std::vector<double> y_, yp_;
   SolverStats stats_, stats_base_;

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <string>
 
 #include "io/input_error.hpp"
 
@@ -68,6 +70,33 @@ class Recorder {
   double r0_;
 };
 
+// Stop a mode when a particle surface comes this close to 0 or 1 (the exchange current
+// vanishes there and the OCP fits diverge).
+constexpr double kSurfaceStoichMargin = 1e-4;
+
+// Why a mode ended at a particle's stoichiometry limit: where, which electrode, which limit.
+std::string surface_limit_message(const DfnModel& model, const DfnSolver& solver, const std::string& where, Mode mode,
+                                  const CccvProtocol& protocol) {
+  const auto& y = solver.y();
+  const SurfaceLimit s = nearest_surface_limit(model, y.data());
+  const bool full = s.limit > 0.5;
+  const char* electrode = s.negative ? "negative" : "positive";
+  char before[96];
+  if (mode == Mode::cc_discharge) std::snprintf(before, sizeof before, "the lower voltage limit %g V", protocol.v_min);
+  else if (mode == Mode::cc_charge) std::snprintf(before, sizeof before, "the upper voltage limit %g V", protocol.v_max);
+  else std::snprintf(before, sizeof before, "the CV end current %g A", protocol.cv_end_current_a);
+  char buf[640];
+  std::snprintf(buf, sizeof buf,
+                "%s: at t = %.3f s the %s electrode's particle surface reached stoichiometry %.6f (limit %g, "
+                "stop margin %g; node %d of %d from the %s) at %.4f V and %.4f A, before %s: the %s electrode "
+                "is %s, so the protocol cannot go on (too %s cyclable lithium for this cell's window, or a "
+                "current it cannot sustain)",
+                where.c_str(), solver.t(), electrode, s.stoich, s.limit, kSurfaceStoichMargin, s.node + 1, s.nodes,
+                s.negative ? "negative current collector" : "separator", model.terminal_voltage_v(y.data()),
+                y[model.idx_current()], before, electrode, full ? "full" : "empty", full ? "much" : "little");
+  return buf;
+}
+
 std::vector<double> initial_state_of(const DfnModel& model, const SimulationConfig& cfg) {
   return model.initial_state(cfg.ic.stoich_neg, cfg.ic.stoich_pos, cfg.ic.electrolyte_mol_m3,
                              cfg.ic.r_film_ohm_m2);
@@ -119,32 +148,46 @@ SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& proto
         case Mode::rest:
         case Mode::unknown: break;
       }
-      stop.min_surface_stoich = 1e-4;
-      solver.switch_control(c, stop);
-      if (out.samples.empty()) out.samples.push_back(rec.sample(0.0, cycle, mode, solver.y()));
+      stop.min_surface_stoich = kSurfaceStoichMargin;
+      const std::string where = "cycle " + std::to_string(cycle) + ", " + mode_name(mode);
       const double t_mode0 = solver.t();
+      try {
+        solver.switch_control(c, stop);
+      } catch (const RuntimeFailure& e) {
+        throw RuntimeFailure(where + ", starting at t = " + std::to_string(t_mode0) + " s: " + e.what());
+      }
+      if (out.samples.empty()) out.samples.push_back(rec.sample(0.0, cycle, mode, solver.y()));
       const double r_mode0 = solver.y()[model.idx_film()];
       while (true) {
         const double tnext = static_cast<double>(k + 1) * cfg.dt_s;
-        const auto res = solver.advance_to(tnext);
+        DfnSolver::Result res;
+        try {
+          res = solver.advance_to(tnext);
+        } catch (const RuntimeFailure& e) {
+          throw RuntimeFailure(where + ": " + e.what());
+        }
         if (res == DfnSolver::Result::stopped) break;
         ++k;
         out.samples.push_back(rec.sample(tnext, cycle, mode, solver.y()));
         if (solver.t() - t_mode0 > protocol.max_mode_s)
-          throw RuntimeFailure(std::string("mode ") + mode_name(mode) + " did not end within " +
+          throw RuntimeFailure(where + ": did not end within " +
                                std::to_string(protocol.max_mode_s) + " s: check the voltage limits and current");
         if (progress && k % 5000 == 0) progress(tnext, cycle, mode);
       }
+      // A particle surface at its stoichiometry limit ends the run: the protocol cannot continue
+      // physically (the electrode can take or give no more lithium at this current or voltage).
+      if (solver.stop_cause().surface_stoich)
+        throw RuntimeFailure(surface_limit_message(model, solver, where, mode, protocol));
       out.phases.push_back({cycle, mode, t_mode0, solver.t()});
       const auto mi = static_cast<int>(mode);
       cs.growth_by_mode_ohm_m2[mi] += solver.y()[model.idx_film()] - r_mode0;
       cs.duration_by_mode_s[mi] += solver.t() - t_mode0;
-      // A particle emptying ends the run: the protocol cannot continue physically.
+      // Any other early end of a CC phase (none is expected) also ends the run.
       const double v = model.terminal_voltage_v(solver.y().data());
       if ((mode == Mode::cc_discharge && v > protocol.v_min + 1e-6) ||
           (mode == Mode::cc_charge && v < protocol.v_max - 1e-6))
-        throw RuntimeFailure(std::string("a particle reached its stoichiometry limit during ") + mode_name(mode) +
-                             " at t = " + std::to_string(solver.t()) + " s before the voltage limit");
+        throw RuntimeFailure(where + ": ended at t = " + std::to_string(solver.t()) + " s at " + std::to_string(v) +
+                             " V, before the voltage limit");
     }
     cs.r_film_end_ohm_m2 = solver.y()[model.idx_film()];
     cs.growth_pct = cs.r_film_start_ohm_m2 > 0.0
@@ -310,8 +353,16 @@ SimulationResult run_current_profile(const SimulationConfig& cfg, const std::vec
       res = solver.advance_exactly_to(prof.knot_s[next_knot++]);
     if (res == DfnSolver::Result::reached) res = solver.advance_to(ts[i]);
     if (res == DfnSolver::Result::stopped) {
-      out.note = "model stopped at t = " + std::to_string(solver.t() + t0) +
-                 " s (voltage limit or particle stoichiometry limit) before the end of the profile";
+      const StopCause& cause = solver.stop_cause();
+      std::string why;
+      if (cause.surface_stoich)
+        why = "a particle's stoichiometry limit: " + describe(nearest_surface_limit(model, solver.y().data()));
+      else if (cause.voltage_below)
+        why = "the lower voltage limit " + std::to_string(v_stop_low) + " V";
+      else
+        why = "the upper voltage limit " + std::to_string(v_stop_high) + " V";
+      out.note = "model stopped at t = " + std::to_string(solver.t() + t0) + " s at " + why +
+                 ", before the end of the profile";
       break;
     }
     out.samples.push_back(rec.sample(t_s[i], 1, mode_of(current_a[i]), solver.y()));

@@ -79,6 +79,9 @@ InitialConditions default_initial_conditions(const CellParameters& cell);
 // the electrolyte concentration scaled by (1 + pct/100). Throws InputError outside +-50 %.
 InitialConditions perturbed_initial_conditions(const CellParameters& cell, double ic_error_pct);
 
+// Throws RuntimeFailure naming the cycle, the phase and the time if the solver fails, and, if
+// a particle's surface reaches its stoichiometry limit (within 1e-4) before the phase's own end
+// (voltage limit or CV end current), which electrode's surface reached which limit.
 SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& protocol,
                           const ProgressFn& progress = {});
 
