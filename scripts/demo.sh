@@ -52,7 +52,7 @@ awk -F, 'NR > 1 {
 read -r z0 z1 < <(awk -F, 'NR > 1 && $3 == "cc_charge" { if (!in_cc) { s = $1 }; in_cc = 1; e = $1 }
   NR > 1 && $3 != "cc_charge" { in_cc = 0 } END { printf "%.6f %.6f\n", s / 3600 - 0.05, e / 3600 + 0.05 }' "$out/truth.csv")
 
-# Growth since the end of the first CC charge (the reference of growth_err_pct): estimate, truth,
+# Growth (comma-separated, as gnuplot reads the CSVs) since the end of the first CC charge (the reference of growth_err_pct): estimate, truth,
 # and what the nominal law predicts (the true growth divided by the hidden factor 2).
 python3 - "$out" <<'PY'
 import csv, sys
@@ -68,7 +68,7 @@ with open(out + "/growth.dat", "w") as f:
         e0, t0 = float(rows[ref]["r_film_est_ohm_m2"]), float(rows[ref]["r_film_true_ohm_m2"])
         for r in rows[ref::10]:
             dt = float(r["r_film_true_ohm_m2"]) - t0
-            f.write(f"{float(r['t_s']) / 3600:.5f} {float(r['r_film_est_ohm_m2']) - e0:.6e} {dt:.6e} {dt / 2:.6e}\n")
+            f.write(f"{float(r['t_s']) / 3600:.5f},{float(r['r_film_est_ohm_m2']) - e0:.6e},{dt:.6e},{dt / 2:.6e}\n")
 PY
 
 gnuplot <<GP

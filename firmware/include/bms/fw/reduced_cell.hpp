@@ -304,7 +304,8 @@ class ReducedCell {
       s_ = base;
       return false;
     }
-    set_inventory_direction(current_a, r_film_ohm_m2, dt_s);
+    // The voltage of this state is the last mismatch's (the same evaluation): no third one.
+    set_inventory_direction(current_a, r_film_ohm_m2, dt_s, voltage_v + fx);
     return true;
   }
 
@@ -325,9 +326,8 @@ class ReducedCell {
   // At a re-synchronised state: the voltage's slopes to a uniform shift of each particle, and
   // from them the split (a, b) of one mol of lithium with cap_n a + cap_p b = 1 and
   // V_a a + V_b b = 0 (the voltage the re-synchronisation matched stays matched).
-  void set_inventory_direction(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s) {
+  void set_inventory_direction(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s, Scalar v0) {
     const Scalar eps = Scalar(kInventoryProbeStoich);
-    const Scalar v0 = peek_voltage(current_a, r_film_ohm_m2, dt_s);
     ReducedCell probe = *this;
     probe.shift(eps, Scalar(0));
     const Scalar v_a = (probe.peek_voltage(current_a, r_film_ohm_m2, dt_s) - v0) / eps;
