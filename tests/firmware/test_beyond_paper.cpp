@@ -227,7 +227,7 @@ struct GrowingRig {
   }
   Core::Output tick(double current_a) {
     const auto r = plant.step_current(current_a, r_true, 0.2);
-    r_true -= Model::film_growth_ohm_m2_per_a_m3_s() * r.j_side_a_m3 * 0.2;
+    r_true -= Model::nominal_film_growth_ohm_m2_per_a_m3_s() * r.j_side_a_m3 * 0.2;
     return core.tick({r.voltage_v, current_a, true});
   }
   Core::Output run(double current_a, int n) {
@@ -239,7 +239,7 @@ struct GrowingRig {
 
 Core::Config growth_config() {
   Core::Config cfg = beyond_config();
-  cfg.film_growth_ohm_m2_per_a_m3_s = Model::film_growth_ohm_m2_per_a_m3_s();
+  cfg.nominal_growth_ohm_m2_per_a_m3_s = Model::nominal_film_growth_ohm_m2_per_a_m3_s();
   return cfg;
 }
 
@@ -294,7 +294,7 @@ TEST(BmsCoreGrowthPropagation, LostSamplesStillCountTheirGrowth) {
   for (int k = 0; k < 500; ++k) {  // 100 s of lost samples in the reference charge; the cell goes on
     full.tick(-2.5);
     const auto r = gappy.plant.step_current(-2.5, gappy.r_true, 0.2);
-    gappy.r_true -= Model::film_growth_ohm_m2_per_a_m3_s() * r.j_side_a_m3 * 0.2;
+    gappy.r_true -= Model::nominal_film_growth_ohm_m2_per_a_m3_s() * r.j_side_a_m3 * 0.2;
     gappy.core.tick({0.0, 0.0, false});
   }
   const auto a = full.run(-2.5, 500);
@@ -312,7 +312,7 @@ TEST(BmsCoreGrowthPropagation, FloatKeepsThePerTickIncrements) {
   cf.markov_from_model = true;
   cf.calibrate_bias = true;
   cf.average_estimate = true;
-  cf.film_growth_ohm_m2_per_a_m3_s = static_cast<float>(ModelF::film_growth_ohm_m2_per_a_m3_s());
+  cf.nominal_growth_ohm_m2_per_a_m3_s = static_cast<float>(ModelF::nominal_film_growth_ohm_m2_per_a_m3_s());
   ModelF mf;
   mf.init_default();
   CoreF cfl(cf, mf);

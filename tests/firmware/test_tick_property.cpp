@@ -24,7 +24,7 @@ Core::Config all_features() {
   c.rcsi_warmup_s = 2.0;
   c.calibrate_bias = true;
   c.average_estimate = true;
-  c.film_growth_ohm_m2_per_a_m3_s = Model::film_growth_ohm_m2_per_a_m3_s();
+  c.nominal_growth_ohm_m2_per_a_m3_s = Model::nominal_film_growth_ohm_m2_per_a_m3_s();
   c.estimator.p0_u = 1e-2;  // far larger than the paper's: a loop that can run away
   c.estimator.p0_y0 = 1e-2;
   return c;

@@ -191,7 +191,7 @@ int main(int argc, char** argv) {
   using Cell = bms::fw::PaperCellTraits;
   Core::Config cfg =
       beyond_paper ? Core::beyond_paper_config(Model::inventory_of(Cell::kNeg.stoich_init, Cell::kPos.stoich_init),
-                                               Model::film_growth_ohm_m2_per_a_m3_s())
+                                               Model::nominal_film_growth_ohm_m2_per_a_m3_s())
                    : bms::fw::paper_cell_config<Core>(settings == "paper" ? bms::fw::Profile::paper : bms::fw::Profile::best);
   if (!beyond_paper && settings == "paper") {
     cfg.estimator.markov_v_per_ohm_m2 = h;

@@ -112,7 +112,7 @@ void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, c
   cfg.reference_after_resyncs = o.resync ? o.reference_after_resyncs : 0u;
   cfg.average_estimate = o.average_estimate;
   // The nominal cell's Ramadass law per volumetric side current (the cell in use may differ).
-  cfg.film_growth_ohm_m2_per_a_m3_s = o.propagate_growth ? o.growth_scale * nominal_growth_ohm_m2_per_a_m3_s(cell) : 0.0;
+  cfg.nominal_growth_ohm_m2_per_a_m3_s = o.propagate_growth ? o.growth_scale * nominal_growth_ohm_m2_per_a_m3_s(cell) : 0.0;
   cfg.learning = o.learning;
   cfg.identify_growth = o.identify_growth;
   if (o.identify_growth) {
@@ -255,7 +255,7 @@ void apply_beyond_paper(EstimateOptions& o, const std::function<bool(const char*
   o.calibrate_bias = o.calibrate_bias || cfg.calibrate_bias;
   if (!given("--reference-after-resyncs")) o.reference_after_resyncs = cfg.reference_after_resyncs;
   o.average_estimate = o.average_estimate || cfg.average_estimate;
-  o.propagate_growth = o.propagate_growth || cfg.film_growth_ohm_m2_per_a_m3_s != 0.0;
+  o.propagate_growth = o.propagate_growth || cfg.nominal_growth_ohm_m2_per_a_m3_s != 0.0;
 }
 
 void apply_settings(EstimateOptions& o, const std::function<bool(const char* flag)>& given) {

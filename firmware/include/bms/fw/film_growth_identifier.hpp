@@ -117,9 +117,9 @@ class FilmGrowthIdentifier {
     return rls_.update(phi, u_star + s_over_h * nu_model - within_charge);
   }
 
-  // The model was moved to a new inventory far from where the data so far were linearised (S is
+  // The model was moved to an inventory far from where the data so far were linearised (S is
   // a tangent: 1 % of inventory is 3-12 mV over a charge, and the tangent's error on it is read
-  // as film and as inventory): forget what was learned, keep the values as the new prior mean.
+  // as film and as inventory): forget what was learned, keep the values as the prior mean.
   void relinearise() {
     typename RlsType::State st = rls_.save();
     const auto p0 = make_rls_config(config_).p0_diag;

@@ -19,7 +19,7 @@ typename Core::Config paper_cell_config(Profile profile) {
   using Cell = PaperCellTraits;
   if (profile == Profile::paper) return typename Core::Config{};
   return Core::best_config(Model::inventory_of(Scalar(Cell::kNeg.stoich_init), Scalar(Cell::kPos.stoich_init)),
-                           Scalar(Cell::kInitialFilmOhmM2), Scalar(Model::film_growth_ohm_m2_per_a_m3_s()),
+                           Scalar(Cell::kInitialFilmOhmM2), Scalar(Model::nominal_film_growth_ohm_m2_per_a_m3_s()),
                            Scalar(kPaperReducedModelBiasOhm));
 }
 

@@ -207,8 +207,9 @@ class ReducedCell {
   }
 
   // Ramadass film growth per unit of the model's volumetric side current:
-  // dR_film/dt = -film_growth_ohm_m2_per_a_m3_s() * j_side_a_m3 (the truth's law, its constants).
-  static constexpr double film_growth_ohm_m2_per_a_m3_s() {
+  // dR_film/dt = -nominal_film_growth_ohm_m2_per_a_m3_s() * j_side_a_m3 with the nominal paper
+  // cell's constants: what a BMS knows of the law, not what the cell in use does.
+  static constexpr double nominal_film_growth_ohm_m2_per_a_m3_s() {
     return Cell::kFilmMolarMassKgMol /
            (Cell::kFilmDensityKgM3 * kFaradayC_mol * Cell::kFilmConductivitySM * a_neg());
   }
