@@ -7,6 +7,7 @@
 
 #include "commands.hpp"
 #include "io/input_error.hpp"
+#include "io/output_folder.hpp"
 #include "io/measured_profile.hpp"
 #include "sim/cell_catalog.hpp"
 #include "sim/truth_parameters.hpp"
@@ -40,24 +41,47 @@ Runner add_simulate(CLI::App& app) {
       std::fputs(truth_parameter_listing(load_cell(opts->cell)).c_str(), stdout);
       return 0;
     }
+    const SimulationPlan plan = plan_simulation(*opts);  // bad input: exit 2 before any work
+    OutputFolder folder(*out_dir);
     const bool tty = isatty(STDERR_FILENO) != 0;
     auto progress = [tty](double t, int cycle, Mode mode) {
       std::fprintf(stderr, tty ? "\rsimulate: t = %8.0f s, cycle %d, %-12s" : "simulate: t = %.0f s, cycle %d, %s\n",
                    t, cycle, mode_name(mode));
     };
-    const SimulateRun run = run_simulation(*opts, opts->quiet ? ProgressFn{} : ProgressFn(progress));
+    TruthCsvStream truth(folder.staging() / "truth.csv", plan.sensor);
+    SimulationResult result;
+    std::string failure;
+    try {
+      result = execute_simulation(plan, truth, opts->quiet ? ProgressFn{} : ProgressFn(progress));
+    } catch (const RuntimeFailure& e) {
+      failure = e.what();  // keep what was finished, marked incomplete
+    }
     if (tty && !opts->quiet) std::fprintf(stderr, "\n");
-    std::filesystem::create_directories(*out_dir);
-    const std::filesystem::path dir(*out_dir);
-    write_truth_csv(dir / "truth.csv", run.result, run.measured);
-    auto summary = summary_json(run.result);
+    if (!failure.empty()) {
+      result.cycles = truth.cycles();
+      result.sim_s = truth.last().t_s;
+    }
+    truth.commit();
+    auto summary = summary_json(result);
+    summary["samples"] = truth.samples();
+    summary["complete"] = failure.empty();
+    if (!failure.empty()) summary["failure"] = failure;
     summary["options"] = options_json(*opts);
-    summary["parameters"] = run.parameters;
-    write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
+    summary["parameters"] = plan.parameters;
+    write_file_atomically(folder.staging() / "summary.json", summary.dump(2) + "\n");
+    folder.commit();
+    const std::filesystem::path dir = folder.destination();
+    if (!failure.empty()) {
+      std::fprintf(stderr,
+                   "bmssim simulate: %s\n  kept %zu finished cycle(s) and %ld samples in %s (summary.json says "
+                   "\"complete\": false); try a smaller current, a wider window or --rtol 1e-7\n",
+                   failure.c_str(), truth.cycles().size(), truth.samples(), dir.c_str());
+      return 1;
+    }
     if (!opts->quiet) {
-      std::fprintf(stderr, "simulate: %.0f s simulated in %.2f s wall (%zu samples) -> %s\n", run.result.sim_s,
-                   run.result.wall_s, run.result.samples.size(), (dir / "truth.csv").c_str());
-      if (!run.result.note.empty()) std::fprintf(stderr, "simulate: note: %s\n", run.result.note.c_str());
+      std::fprintf(stderr, "simulate: %.0f s simulated in %.2f s wall (%ld samples) -> %s\n", result.sim_s,
+                   result.wall_s, truth.samples(), (dir / "truth.csv").c_str());
+      if (!result.note.empty()) std::fprintf(stderr, "simulate: note: %s\n", result.note.c_str());
     }
     return 0;
   };

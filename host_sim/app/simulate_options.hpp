@@ -7,7 +7,9 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "io/measured_profile.hpp"
 #include "sim/cycler.hpp"
+#include "sim/experiment.hpp"
 #include "sim/measurement.hpp"
 
 namespace bms::app {
@@ -40,7 +42,24 @@ struct SimulateRun {
   nlohmann::json parameters;     // every hidden truth parameter and the value this run used
 };
 
-// Validates the options (InputError naming the option) and runs the truth model.
+// What a run will do, checked: every option validated (InputError naming the option) before
+// any long work.
+struct SimulationPlan {
+  SimulationConfig config;
+  MeasurementModel sensor;
+  CellParameters cell;        // the nominal cell --cell names
+  nlohmann::json parameters;  // every hidden truth parameter and its value in this run
+  bool driven = false;        // csv: a measured current drives the model
+  Experiment experiment;      // when not driven
+  MeasuredProfile profile;    // when driven
+  double v_stop_low_v = 0.0, v_stop_high_v = 0.0;
+};
+SimulationPlan plan_simulation(const SimulateOptions& o);
+
+// Runs a plan, handing every sample to `sink` as it is made. Throws RuntimeFailure.
+SimulationResult execute_simulation(const SimulationPlan& plan, SampleSink& sink, const ProgressFn& progress);
+
+// plan + execute with the whole run in memory (hil and the studies, which need it all).
 SimulateRun run_simulation(const SimulateOptions& o, const ProgressFn& progress);
 
 }  // namespace bms::app

@@ -5,27 +5,42 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
-#include <sstream>
+#include <algorithm>
 
 #include "io/input_error.hpp"
 
 namespace bms {
 
-std::string read_text_file(const std::filesystem::path& file) {
+std::string read_text_file(const std::filesystem::path& file, std::uintmax_t max_bytes) {
   std::error_code ec;
-  if (std::filesystem::is_directory(file, ec)) {
+  const auto st = std::filesystem::status(file, ec);
+  if (std::filesystem::is_directory(st)) {
     throw InputError(fmt::format("{}: cannot read: is a directory", file.string()));
+  }
+  if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) {
+    throw InputError(fmt::format("{}: cannot read: not a regular file (a device, FIFO or socket)", file.string()));
+  }
+  const std::uintmax_t size = std::filesystem::file_size(file, ec);
+  if (ec) throw InputError(fmt::format("{}: cannot read: {}", file.string(), ec.message()));
+  if (size > max_bytes) {
+    throw InputError(fmt::format("{}: {} bytes, larger than the {} bytes an input may have", file.string(), size,
+                                 max_bytes));
   }
   std::ifstream in(file, std::ios::binary);
   if (!in) {
     throw InputError(fmt::format("{}: cannot read: {}", file.string(), std::strerror(errno)));
   }
-  std::ostringstream text;
-  text << in.rdbuf();
+  // Read at most max_bytes + 1, in case the file grows while it is read.
+  std::string text(std::min(size, max_bytes) + 1, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<size_t>(in.gcount()));
+  if (text.size() > max_bytes) {
+    throw InputError(fmt::format("{}: larger than the {} bytes an input may have", file.string(), max_bytes));
+  }
   if (in.bad()) {
     throw InputError(fmt::format("{}: read error: {}", file.string(), std::strerror(errno)));
   }
-  return std::move(text).str();
+  return text;
 }
 
 }  // namespace bms

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "io/input_error.hpp"
+#include "sim/experiment.hpp"
 #include "sim/sample_recorder.hpp"
 
 namespace bms {
@@ -50,17 +51,21 @@ namespace {
 // vanishes there and the OCP fits diverge).
 constexpr double kSurfaceStoichMargin = 1e-4;
 
-// Why a mode ended at a particle's stoichiometry limit: where, which electrode, which limit.
-std::string surface_limit_message(const DfnModel& model, const DfnSolver& solver, const std::string& where, Mode mode,
-                                  const CccvProtocol& protocol) {
+// Why a step ended at a particle's stoichiometry limit: where, which electrode, which limit.
+std::string surface_limit_message(const DfnModel& model, const DfnSolver& solver, const std::string& where,
+                                  const ExperimentStep& step) {
   const auto& y = solver.y();
   const SurfaceLimit s = nearest_surface_limit(model, y.data());
   const bool full = s.limit > 0.5;
   const char* electrode = s.negative ? "negative" : "positive";
   char before[96];
-  if (mode == Mode::cc_discharge) std::snprintf(before, sizeof before, "the lower voltage limit %g V", protocol.v_min);
-  else if (mode == Mode::cc_charge) std::snprintf(before, sizeof before, "the upper voltage limit %g V", protocol.v_max);
-  else std::snprintf(before, sizeof before, "the CV end current %g A", protocol.cv_end_current_a);
+  if (std::isfinite(step.until_voltage_v))
+    std::snprintf(before, sizeof before, "the %s voltage limit %g V", step.value > 0.0 ? "lower" : "upper",
+                  step.until_voltage_v);
+  else if (step.until_abs_current_a > 0.0)
+    std::snprintf(before, sizeof before, "the CV end current %g A", step.until_abs_current_a);
+  else
+    std::snprintf(before, sizeof before, "the step's end");
   char buf[640];
   std::snprintf(buf, sizeof buf,
                 "%s: at t = %.3f s the %s electrode's particle surface reached stoichiometry %.6f (limit %g, "
@@ -73,14 +78,112 @@ std::string surface_limit_message(const DfnModel& model, const DfnSolver& solver
   return buf;
 }
 
+Control control_of(const ExperimentStep& step) { return {step.kind, step.value}; }
+
+StopConditions stop_of(const ExperimentStep& step) {
+  StopConditions stop;
+  if (std::isfinite(step.until_voltage_v)) {
+    if (step.value > 0.0) stop.voltage_below_v = step.until_voltage_v;
+    else stop.voltage_above_v = step.until_voltage_v;
+  }
+  stop.abs_current_below_a = step.until_abs_current_a;
+  stop.min_surface_stoich = kSurfaceStoichMargin;
+  return stop;
+}
+
+// True when the step's own end is already met as it starts (IDA's root finding only sees a
+// crossing, so such a step would run to its safety net).
+bool already_ended(const DfnModel& model, const DfnSolver& solver, const ExperimentStep& step) {
+  const double v = model.terminal_voltage_v(solver.y().data());
+  const double i = solver.y()[model.idx_current()];
+  if (std::isfinite(step.until_voltage_v))
+    return step.value > 0.0 ? v <= step.until_voltage_v : v >= step.until_voltage_v;
+  return step.until_abs_current_a > 0.0 && std::abs(i) <= step.until_abs_current_a;
+}
+
+struct StepRun {
+  DfnModel& model;
+  DfnSolver& solver;
+  const SimulationConfig& cfg;
+  const Experiment& experiment;
+  SampleSink& sink;
+  Recorder rec;
+  const ProgressFn& progress;
+  long k = 0;  // output index: t = k * dt
+  bool first_sample = true;
+
+  // Runs one step; returns false when the step ended on a voltage or current limit (and its
+  // time limit did not come first), true otherwise.
+  void run(int cycle, const ExperimentStep& step, CycleSummary& cs, SimulationResult& out) {
+    const std::string where = "cycle " + std::to_string(cycle) + ", " + step.text;
+    const double t_mode0 = solver.t();
+    try {
+      solver.switch_control(control_of(step), stop_of(step));
+    } catch (const RuntimeFailure& e) {
+      throw RuntimeFailure(where + ", starting at t = " + std::to_string(t_mode0) + " s: " + e.what());
+    }
+    if (first_sample) sink.on_sample(rec.sample(0.0, cycle, step.mode, solver.y()));
+    first_sample = false;
+    const double r_mode0 = solver.y()[model.idx_film()];
+    const double t_end = t_mode0 + step.duration_s;
+    bool limit_reached = already_ended(model, solver, step);
+    while (!limit_reached) {
+      const double tnext = static_cast<double>(k + 1) * cfg.dt_s;
+      const bool last = tnext >= t_end;
+      DfnSolver::Result res;
+      try {
+        res = last ? solver.advance_exactly_to(t_end) : solver.advance_to(tnext);
+      } catch (const RuntimeFailure& e) {
+        throw RuntimeFailure(where + ": " + e.what());
+      }
+      if (res == DfnSolver::Result::stopped) {
+        limit_reached = true;
+        break;
+      }
+      if (last && tnext > t_end) break;  // the step ends between two output times
+      ++k;
+      sink.on_sample(rec.sample(tnext, cycle, step.mode, solver.y()));
+      if (last) break;
+      if (solver.t() - t_mode0 > experiment.max_step_s)
+        throw RuntimeFailure(where + ": did not end within " + std::to_string(experiment.max_step_s) +
+                             " s: check the voltage limits and current");
+      if (progress && k % 5000 == 0) progress(tnext, cycle, step.mode);
+    }
+    // A particle surface at its stoichiometry limit ends the run: the protocol cannot continue
+    // physically (the electrode can take or give no more lithium at this current or voltage).
+    if (limit_reached && solver.stop_cause().surface_stoich)
+      throw RuntimeFailure(surface_limit_message(model, solver, where, step));
+    out.phases.push_back({cycle, step.mode, t_mode0, solver.t()});
+    const auto mi = static_cast<int>(step.mode);
+    cs.growth_by_mode_ohm_m2[mi] += solver.y()[model.idx_film()] - r_mode0;
+    cs.duration_by_mode_s[mi] += solver.t() - t_mode0;
+    check_voltage_end(where, step, limit_reached);
+  }
+
+  // Any other early end of a CC step that should end at a voltage (none is expected) ends the run.
+  void check_voltage_end(const std::string& where, const ExperimentStep& step, bool limit_reached) const {
+    if (!limit_reached || !std::isfinite(step.until_voltage_v)) return;
+    const double v = model.terminal_voltage_v(solver.y().data());
+    const bool short_of_limit = step.value > 0.0 ? v > step.until_voltage_v + 1e-6 : v < step.until_voltage_v - 1e-6;
+    if (short_of_limit)
+      throw RuntimeFailure(where + ": ended at t = " + std::to_string(solver.t()) + " s at " + std::to_string(v) +
+                           " V, before the voltage limit");
+  }
+};
+
+class CollectingSink : public SampleSink {
+ public:
+  explicit CollectingSink(std::vector<SampleRecord>& to) : to_(to) {}
+  void on_sample(const SampleRecord& s) override { to_.push_back(s); }
+
+ private:
+  std::vector<SampleRecord>& to_;
+};
 
 }  // namespace
 
-SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& protocol, const ProgressFn& progress) {
-  if (!(protocol.v_min < protocol.v_max))
-    throw InputError("voltage limits inverted: lower " + std::to_string(protocol.v_min) +
-                     " V must be below upper " + std::to_string(protocol.v_max) + " V");
-  if (!(protocol.current_a > 0.0)) throw InputError("--current-a must be positive (a magnitude)");
+SimulationResult run_experiment(const SimulationConfig& cfg, const Experiment& experiment, SampleSink& sink,
+                                const ProgressFn& progress) {
   if (!(cfg.dt_s > 0.0)) throw InputError("--dt must be positive");
   const auto wall0 = std::chrono::steady_clock::now();
   DfnModel model(cfg.cell, cfg.mesh, cfg.temperature_k, cfg.effects);
@@ -88,89 +191,34 @@ SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& proto
   Control rest_control{ControlKind::current, 0.0};
   model.set_control(rest_control);
   solver.start(0.0, initial_state_of(model, cfg));
-  Recorder rec(model, cfg.ic.r_film_ohm_m2);
+  StepRun steps{model, solver, cfg, experiment, sink, Recorder(model, cfg.ic.r_film_ohm_m2), progress};
 
   SimulationResult out;
-  long k = 0;  // output index: t = k * dt
-  const Mode sequence[4] = {Mode::cc_discharge, Mode::cv_discharge, Mode::cc_charge, Mode::cv_charge};
-  for (int cycle = 1; cycle <= protocol.cycles; ++cycle) {
+  for (int cycle = 1; cycle <= experiment.cycles; ++cycle) {
     CycleSummary cs{};
     cs.cycle = cycle;
     cs.r_film_start_ohm_m2 = solver.y()[model.idx_film()];
-    for (Mode mode : sequence) {
-      Control c;
-      StopConditions stop;
-      switch (mode) {
-        case Mode::cc_discharge:
-          c = {ControlKind::current, protocol.current_a};
-          stop.voltage_below_v = protocol.v_min;
-          break;
-        case Mode::cv_discharge:
-          c = {ControlKind::voltage, protocol.v_min};
-          stop.abs_current_below_a = protocol.cv_end_current_a;
-          break;
-        case Mode::cc_charge:
-          c = {ControlKind::current, -protocol.current_a};
-          stop.voltage_above_v = protocol.v_max;
-          break;
-        case Mode::cv_charge:
-          c = {ControlKind::voltage, protocol.v_max};
-          stop.abs_current_below_a = protocol.cv_end_current_a;
-          break;
-        case Mode::rest:
-        case Mode::unknown: break;
-      }
-      stop.min_surface_stoich = kSurfaceStoichMargin;
-      const std::string where = "cycle " + std::to_string(cycle) + ", " + mode_name(mode);
-      const double t_mode0 = solver.t();
-      try {
-        solver.switch_control(c, stop);
-      } catch (const RuntimeFailure& e) {
-        throw RuntimeFailure(where + ", starting at t = " + std::to_string(t_mode0) + " s: " + e.what());
-      }
-      if (out.samples.empty()) out.samples.push_back(rec.sample(0.0, cycle, mode, solver.y()));
-      const double r_mode0 = solver.y()[model.idx_film()];
-      while (true) {
-        const double tnext = static_cast<double>(k + 1) * cfg.dt_s;
-        DfnSolver::Result res;
-        try {
-          res = solver.advance_to(tnext);
-        } catch (const RuntimeFailure& e) {
-          throw RuntimeFailure(where + ": " + e.what());
-        }
-        if (res == DfnSolver::Result::stopped) break;
-        ++k;
-        out.samples.push_back(rec.sample(tnext, cycle, mode, solver.y()));
-        if (solver.t() - t_mode0 > protocol.max_mode_s)
-          throw RuntimeFailure(where + ": did not end within " +
-                               std::to_string(protocol.max_mode_s) + " s: check the voltage limits and current");
-        if (progress && k % 5000 == 0) progress(tnext, cycle, mode);
-      }
-      // A particle surface at its stoichiometry limit ends the run: the protocol cannot continue
-      // physically (the electrode can take or give no more lithium at this current or voltage).
-      if (solver.stop_cause().surface_stoich)
-        throw RuntimeFailure(surface_limit_message(model, solver, where, mode, protocol));
-      out.phases.push_back({cycle, mode, t_mode0, solver.t()});
-      const auto mi = static_cast<int>(mode);
-      cs.growth_by_mode_ohm_m2[mi] += solver.y()[model.idx_film()] - r_mode0;
-      cs.duration_by_mode_s[mi] += solver.t() - t_mode0;
-      // Any other early end of a CC phase (none is expected) also ends the run.
-      const double v = model.terminal_voltage_v(solver.y().data());
-      if ((mode == Mode::cc_discharge && v > protocol.v_min + 1e-6) ||
-          (mode == Mode::cc_charge && v < protocol.v_max - 1e-6))
-        throw RuntimeFailure(where + ": ended at t = " + std::to_string(solver.t()) + " s at " + std::to_string(v) +
-                             " V, before the voltage limit");
-    }
+    for (const ExperimentStep& step : experiment.steps) steps.run(cycle, step, cs, out);
     cs.r_film_end_ohm_m2 = solver.y()[model.idx_film()];
     cs.growth_pct = cs.r_film_start_ohm_m2 > 0.0
                         ? 100.0 * (cs.r_film_end_ohm_m2 - cs.r_film_start_ohm_m2) / cs.r_film_start_ohm_m2
                         : 0.0;
     cs.li_loss_ah = model.lithium_loss_mol(cs.r_film_end_ohm_m2, cs.r_film_start_ohm_m2) * kFaraday_c_mol / 3600.0;
     out.cycles.push_back(cs);
+    sink.on_cycle(cs);
   }
   out.sim_s = solver.t();
   out.stats = solver.stats();
   out.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  return out;
+}
+
+SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& protocol, const ProgressFn& progress) {
+  const Experiment experiment = cccv_experiment(protocol);
+  std::vector<SampleRecord> samples;
+  CollectingSink sink(samples);
+  SimulationResult out = run_experiment(cfg, experiment, sink, progress);
+  out.samples = std::move(samples);
   return out;
 }
 

@@ -74,6 +74,17 @@ struct SimulationResult {
 
 using ProgressFn = std::function<void(double t_s, int cycle, Mode mode)>;
 
+// Receives a run's output as it is produced, so a run of any length holds one sample at a
+// time. A cycle's summary arrives when the cycle ends; a failure after it keeps it.
+class SampleSink {
+ public:
+  virtual ~SampleSink() = default;
+  virtual void on_sample(const SampleRecord& s) = 0;
+  virtual void on_cycle(const CycleSummary& c) { (void)c; }
+};
+
+struct Experiment;
+
 InitialConditions default_initial_conditions(const CellParameters& cell);
 // The cell's initial state with the paper's initial-condition error: both stoichiometries and
 // the electrolyte concentration scaled by (1 + pct/100). Throws InputError outside +-50 %.
@@ -84,6 +95,12 @@ InitialConditions perturbed_initial_conditions(const CellParameters& cell, doubl
 // (voltage limit or CV end current), which electrode's surface reached which limit.
 SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& protocol,
                           const ProgressFn& progress = {});
+
+// Runs an experiment's steps `cycles` times (sim/experiment.hpp), sampling every cfg.dt_s into
+// `sink`; the returned result holds no samples. Failures as run_cccv; a step whose end is
+// already met when it starts ends at once.
+SimulationResult run_experiment(const SimulationConfig& cfg, const Experiment& experiment, SampleSink& sink,
+                                const ProgressFn& progress = {});
 
 // Drives the model with current(t) (piecewise linear between samples; steps larger than
 // step_threshold_a restart the integrator) and samples at the profile's times. Stops early,

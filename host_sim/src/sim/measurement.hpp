@@ -2,6 +2,7 @@
 // What a BMS sensor reports: the truth plus seeded Gaussian noise and, as undeclared effects,
 // a current-sensor offset and gain error.
 #include <cstdint>
+#include <random>
 #include <vector>
 
 #include "sim/cycler.hpp"
@@ -18,6 +19,24 @@ struct MeasurementModel {
 
 struct Measured {
   std::vector<double> current_a, voltage_v;
+};
+
+struct MeasuredSample {
+  double current_a, voltage_v;
+};
+
+// The sensor applied one sample at a time, in order: the same draws as measure() on the whole
+// series, so a streamed run and a whole one measure alike.
+class Measurer {
+ public:
+  explicit Measurer(const MeasurementModel& m);
+  MeasuredSample next(const SampleRecord& truth);
+
+ private:
+  MeasurementModel m_;
+  // Separate streams so that changing one noise level leaves the other's draws unchanged.
+  std::mt19937_64 rng_v_, rng_i_;
+  std::normal_distribution<double> unit_{0.0, 1.0};
 };
 
 Measured measure(const std::vector<SampleRecord>& truth, const MeasurementModel& m);

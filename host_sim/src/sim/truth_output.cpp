@@ -12,18 +12,38 @@ void write_file_atomically(const std::filesystem::path& file, const std::string&
   out.commit();
 }
 
+namespace {
+
+const std::vector<std::string>& truth_columns() {
+  static const std::vector<std::string> columns = {
+      "t_s",           "cycle",      "mode",          "current_a", "voltage_v",  "current_meas_a", "voltage_meas_v",
+      "r_film_ohm_m2", "j_s_a_m3",   "li_loss_ah",    "temperature_k", "charge_ah", "stoich_neg", "stoich_pos"};
+  return columns;
+}
+
+void write_row(CsvWriter& w, const SampleRecord& s, double current_meas_a, double voltage_meas_v) {
+  w.cell(s.t_s).cell(s.cycle).cell(mode_name(s.mode)).cell(s.current_a).cell(s.voltage_v)
+      .cell(current_meas_a).cell(voltage_meas_v).cell(s.r_film_ohm_m2).cell(s.j_s_a_m3)
+      .cell(s.li_loss_ah).cell(s.temperature_k).cell(s.charge_ah).cell(s.stoich_neg).cell(s.stoich_pos);
+  w.end_row();
+}
+
+}  // namespace
+
 void write_truth_csv(const std::filesystem::path& file, const SimulationResult& r, const Measured& m) {
-  CsvWriter w(file, {"t_s", "cycle", "mode", "current_a", "voltage_v", "current_meas_a", "voltage_meas_v",
-                     "r_film_ohm_m2", "j_s_a_m3", "li_loss_ah", "temperature_k", "charge_ah", "stoich_neg",
-                     "stoich_pos"});
-  for (size_t i = 0; i < r.samples.size(); ++i) {
-    const auto& s = r.samples[i];
-    w.cell(s.t_s).cell(s.cycle).cell(mode_name(s.mode)).cell(s.current_a).cell(s.voltage_v)
-        .cell(m.current_a[i]).cell(m.voltage_v[i]).cell(s.r_film_ohm_m2).cell(s.j_s_a_m3)
-        .cell(s.li_loss_ah).cell(s.temperature_k).cell(s.charge_ah).cell(s.stoich_neg).cell(s.stoich_pos);
-    w.end_row();
-  }
+  CsvWriter w(file, truth_columns());
+  for (size_t i = 0; i < r.samples.size(); ++i) write_row(w, r.samples[i], m.current_a[i], m.voltage_v[i]);
   w.commit();
+}
+
+TruthCsvStream::TruthCsvStream(const std::filesystem::path& file, const MeasurementModel& sensor)
+    : csv_(file, truth_columns()), sensor_(sensor) {}
+
+void TruthCsvStream::on_sample(const SampleRecord& s) {
+  const MeasuredSample m = sensor_.next(s);
+  write_row(csv_, s, m.current_a, m.voltage_v);
+  last_ = s;
+  ++samples_;
 }
 
 nlohmann::json summary_json(const SimulationResult& r) {
@@ -36,7 +56,7 @@ nlohmann::json summary_json(const SimulationResult& r) {
                       {"growth_pct", c.growth_pct},
                       {"li_loss_ah", c.li_loss_ah}};
     nlohmann::json by_mode;
-    for (Mode m : {Mode::cc_discharge, Mode::cv_discharge, Mode::cc_charge, Mode::cv_charge}) {
+    for (Mode m : {Mode::rest, Mode::cc_discharge, Mode::cv_discharge, Mode::cc_charge, Mode::cv_charge}) {
       const auto i = static_cast<int>(m);
       by_mode[mode_name(m)] = {{"duration_s", c.duration_by_mode_s[i]},
                                {"film_growth_ohm_m2", c.growth_by_mode_ohm_m2[i]}};

@@ -1,0 +1,32 @@
+#pragma once
+// An output folder built whole: the files are written into a staging folder beside the
+// destination (DIR.partial-PID) and the staging folder replaces DIR only in commit(), so a
+// failed or interrupted run never leaves a folder that looks complete, nor mixes a new
+// truth.csv with an old summary.json. Without commit() the destructor removes the staging
+// folder. The checks run in the constructor, before any long work.
+#include <filesystem>
+
+namespace bms {
+
+class OutputFolder {
+ public:
+  // Throws InputError naming `option` when DIR cannot be an output folder: an existing file,
+  // a non-empty folder that no bmssim run wrote (no summary.json in it), a parent that cannot
+  // be created or written.
+  OutputFolder(std::filesystem::path dir, const char* option = "--out");
+  ~OutputFolder();
+  OutputFolder(const OutputFolder&) = delete;
+  OutputFolder& operator=(const OutputFolder&) = delete;
+
+  // Where to write the files until commit().
+  const std::filesystem::path& staging() const { return staging_; }
+  const std::filesystem::path& destination() const { return dir_; }
+  // Replaces DIR with the staging folder (an older DIR is removed). RuntimeFailure on error.
+  void commit();
+
+ private:
+  std::filesystem::path dir_, staging_;
+  bool committed_ = false;
+};
+
+}  // namespace bms
