@@ -6,16 +6,31 @@
 #include <string>
 #include <vector>
 
+#include "bms/fw/fw_status.hpp"
 #include "commands.hpp"
 #include "estimation/estimate_output.hpp"
 #include "estimation/estimate_run.hpp"
 #include "io/input_error.hpp"
+#include "io/output_folder.hpp"
 #include "sim/cell_catalog.hpp"
 #include "sim/truth_output.hpp"
 
 namespace bms::app {
 
 namespace {
+
+// An estimate from data the firmware rejected sample by sample is no estimate: say so.
+void require_accepted_samples(const EstimateResult& r, const std::string& data) {
+  constexpr auto rejected = static_cast<std::uint32_t>(fw::FwStatus::kSampleNonFinite) |
+                            static_cast<std::uint32_t>(fw::FwStatus::kVoltageOutOfRange) |
+                            static_cast<std::uint32_t>(fw::FwStatus::kCurrentImplausible);
+  std::size_t accepted = 0;
+  for (const auto& row : r.rows) accepted += (row.status & rejected) == 0 ? 1 : 0;
+  if (accepted == 0)
+    throw RuntimeFailure(data + ": the firmware rejected every one of its " + std::to_string(r.rows.size()) +
+                         " samples (non-finite, voltage outside 0-5 V or an implausible current): check the file's "
+                         "columns and units (V, A, discharge positive)");
+}
 struct EstimateCli {
   std::string data, out, cell = "paper";
   EstimateOptions o;
@@ -137,6 +152,9 @@ Runner add_estimate(CLI::App& app) {
       apply_settings(c->o, given);
     }
     for (const auto& e : c->model_effects) add_model_effect(c->o, e);
+    if (given("--r-film-init") && !(std::isfinite(c->o.r_film_init_ohm_m2) && c->o.r_film_init_ohm_m2 >= 0.0 &&
+                                    c->o.r_film_init_ohm_m2 <= 1.0))
+      throw InputError("--r-film-init: must be a finite film resistance in [0, 1] ohm m2");
     const CellParameters cell = load_cell(c->cell);
     c->o.ic = perturbed_initial_conditions(cell, c->ic_error_pct);
     const EstimateData data = read_estimate_data(c->data);
@@ -144,9 +162,10 @@ Runner add_estimate(CLI::App& app) {
     auto progress = [quiet](std::size_t row, std::size_t rows) {
       if (!quiet) std::fprintf(stderr, "estimate: %zu / %zu ticks\n", row, rows);
     };
+    OutputFolder folder(c->out);
     const EstimateResult r = run_estimate(data, cell, c->o, progress);
-    const std::filesystem::path dir(c->out);
-    std::filesystem::create_directories(dir);
+    require_accepted_samples(r, c->data);
+    const std::filesystem::path dir = folder.staging();
     write_estimates_csv(dir / "estimates.csv", r);
     nlohmann::json summary = estimate_summary_json(r, c->o);
     const auto& fx = c->o.model_effects;
@@ -157,6 +176,7 @@ Runner add_estimate(CLI::App& app) {
                                                {"current_gain", fx.current_gain}}
                               : nlohmann::json::object();
     write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
+    folder.commit();
     if (!quiet) {
       for (const auto& cs : r.cycles)
         std::fprintf(stderr,
@@ -165,7 +185,7 @@ Runner add_estimate(CLI::App& app) {
                      cs.cycle, cs.r_film_err_median_pct, cs.r_film_err_end_pct, cs.inventory_err_end_pct);
       if (std::isfinite(r.growth_err_pct)) std::fprintf(stderr, "estimate: growth_err_pct %.2f %%\n", r.growth_err_pct);
       std::fprintf(stderr, "estimate: %zu ticks in %.2f s wall -> %s\n", r.rows.size(), r.wall_s,
-                   (dir / "estimates.csv").c_str());
+                   (folder.destination() / "estimates.csv").c_str());
     }
     return 0;
   };

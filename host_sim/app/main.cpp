@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "io/child_process.hpp"
 #include "io/input_error.hpp"
 
 int main(int argc, char** argv) {
@@ -25,6 +26,7 @@ int main(int argc, char** argv) {
   add(bms::app::add_study);
   add(bms::app::add_baseline);
   add(bms::app::add_diagnose);
+  bms::install_interrupt_handlers();
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -39,6 +41,9 @@ int main(int argc, char** argv) {
   try {
     for (auto& [sub, run] : commands)
       if (sub->parsed()) return run();
+  } catch (const bms::Interrupted& e) {
+    std::fprintf(stderr, "bmssim: %s; unfinished output removed\n", e.what());
+    return 128 + e.signal();
   } catch (const bms::InputError& e) {
     std::fprintf(stderr, "bmssim: error: %s\n", e.what());
     return 2;

@@ -1,6 +1,7 @@
 #include "sim/truth_output.hpp"
 
 #include "io/atomic_file.hpp"
+#include "io/child_process.hpp"
 #include "io/csv_table.hpp"
 #include "io/input_error.hpp"
 
@@ -40,6 +41,7 @@ TruthCsvStream::TruthCsvStream(const std::filesystem::path& file, const Measurem
     : csv_(file, truth_columns()), sensor_(sensor) {}
 
 void TruthCsvStream::on_sample(const SampleRecord& s) {
+  throw_if_interrupted();
   const MeasuredSample m = sensor_.next(s);
   write_row(csv_, s, m.current_a, m.voltage_v);
   last_ = s;

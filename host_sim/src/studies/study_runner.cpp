@@ -15,6 +15,7 @@
 
 #include "io/atomic_file.hpp"
 #include "sim/truth_output.hpp"
+#include "io/child_process.hpp"
 #include "io/input_error.hpp"
 #include "io/text_file.hpp"
 
@@ -28,37 +29,14 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// posix_spawn rather than fork: the parent may hold large buffers, and spawn never copies them.
+// posix_spawn rather than fork (the parent may hold large buffers, and spawn never copies
+// them), in a process group of its own so an interrupt reaches the whole case.
 pid_t spawn_logged(const fs::path& exe, const std::vector<std::string>& args, const fs::path& log) {
-  std::vector<std::string> argv_s;
-  argv_s.push_back(exe.string());
-  argv_s.insert(argv_s.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : argv_s) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, STDOUT_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-  posix_spawn_file_actions_adddup2(&fa, STDOUT_FILENO, STDERR_FILENO);
-  pid_t pid = 0;
-  const int rc = posix_spawn(&pid, exe.c_str(), &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  if (rc != 0) throw RuntimeFailure("cannot start " + exe.string() + ": " + std::strerror(rc));
-  return pid;
-}
-
-int exit_code(int status) {
-  if (WIFEXITED(status)) return WEXITSTATUS(status);
-  if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
-  return 1;
-}
-
-int wait_for(pid_t pid) {
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) throw RuntimeFailure(std::string("waitpid: ") + std::strerror(errno));
-  }
-  return exit_code(status);
+  std::vector<std::string> argv{exe.string()};
+  argv.insert(argv.end(), args.begin(), args.end());
+  SpawnOptions o;
+  o.log = log;
+  return spawn_process(argv, o);
 }
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
@@ -78,9 +56,22 @@ std::vector<std::string> step_args(const fs::path& out_dir, const CaseSpec& c, c
   return out;
 }
 
+namespace {
+
+// A step's output is done when its summary.json exists and does not say "complete": false
+// (a simulate that failed keeps its finished cycles under such a summary).
+bool step_done(const fs::path& step_dir) {
+  const fs::path file = step_dir / "summary.json";
+  if (!fs::exists(file)) return false;
+  const auto j = nlohmann::json::parse(read_text_file(file), nullptr, false);
+  return j.is_object() && j.value("complete", true);
+}
+
+}  // namespace
+
 bool case_complete(const fs::path& out_dir, const CaseSpec& c) {
   for (const auto& s : c.steps)
-    if (!fs::exists(case_dir(out_dir, c.name) / s.name / "summary.json")) return false;
+    if (!step_done(case_dir(out_dir, c.name) / s.name)) return false;
   return true;
 }
 
@@ -102,14 +93,15 @@ int run_case(const fs::path& exe, const fs::path& out_dir, const CaseSpec& c) {
   nlohmann::json steps = nlohmann::json::array();
   int failed = 0;
   for (const auto& s : c.steps) {
-    if (fs::exists(dir / s.name / "summary.json")) {
+    if (step_done(dir / s.name)) {
       steps.push_back({{"name", s.name}, {"status", "existing"}});
       continue;
     }
     const auto t0 = Clock::now();
     std::fprintf(stderr, "study: case %s: step %s\n", c.name.c_str(), s.name.c_str());
     std::fflush(stderr);
-    const int rc = wait_for(spawn_logged(exe, step_args(out_dir, c, s), dir / "log.txt"));
+    const int rc = wait_process(spawn_logged(exe, step_args(out_dir, c, s), dir / "log.txt")).second;
+    throw_if_interrupted();  // the step was stopped: no summary, so a re-run resumes it
     steps.push_back({{"name", s.name}, {"status", rc == 0 ? "done" : "failed"}, {"exit_code", rc},
                      {"wall_s", seconds_since(t0)}});
     if (rc != 0) {
@@ -142,7 +134,7 @@ int run_cases(const fs::path& exe, const fs::path& out_dir, const std::vector<Ca
   std::map<pid_t, Running> running;
   const auto t_study = Clock::now();
   while (!pending.empty() || !running.empty()) {
-    while (!pending.empty() && static_cast<int>(running.size()) < jobs) {
+    while (interrupt_signal() == 0 && !pending.empty() && static_cast<int>(running.size()) < jobs) {
       const CaseSpec* c = pending.front();
       pending.pop_front();
       const fs::path dir = case_dir(out_dir, c->name);
@@ -150,15 +142,10 @@ int run_cases(const fs::path& exe, const fs::path& out_dir, const std::vector<Ca
       running[spawn_logged(exe, case_args(*c), dir / "log.txt")] = {c, Clock::now()};
       std::fprintf(stderr, "study: [%zu/%zu] started %s\n", ++started, total, c->name.c_str());
     }
-    int status = 0;
-    const pid_t pid = waitpid(-1, &status, 0);
-    if (pid < 0) {
-      if (errno == EINTR) continue;
-      throw RuntimeFailure(std::string("waitpid: ") + std::strerror(errno));
-    }
+    if (running.empty()) break;  // interrupted before the next start
+    const auto [pid, rc] = wait_process(-1);
     const auto it = running.find(pid);
     if (it == running.end()) continue;
-    const int rc = exit_code(status);
     ++finished;
     const fs::path log = case_dir(out_dir, it->second.spec->name) / "log.txt";
     if (rc == 0) {
@@ -171,6 +158,7 @@ int run_cases(const fs::path& exe, const fs::path& out_dir, const std::vector<Ca
     }
     running.erase(it);
   }
+  throw_if_interrupted();  // every child has ended (each got the signal)
   return failures;
 }
 
