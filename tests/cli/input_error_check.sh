@@ -16,7 +16,7 @@ check_input_error() {
   first=$(head -n 1 "$WORK/err_$name")
   if [ "$rc" -ne 2 ]; then fail "$name" "exit code $rc, expected 2 (stderr: $first)"; return; fi
   if [ "$(wc -l < "$WORK/err_$name")" -ne 1 ]; then fail "$name" "stderr is not one line: $(cat "$WORK/err_$name")"; return; fi
-  if ! grep -qiE "$needle" <<< "$first"; then fail "$name" "stderr '$first' does not match '$needle'"; return; fi
+  if ! grep -qiE -- "$needle" <<< "$first"; then fail "$name" "stderr '$first' does not match '$needle'"; return; fi
   if [ -e "$out/summary.json" ]; then fail "$name" "summary.json written for bad input"; return; fi
   pass "$name"
 }

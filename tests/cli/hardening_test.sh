@@ -1,0 +1,111 @@
+#!/usr/bin/env bash
+# Hardening of the host tool (issue 21): bad input exits 2 with one line naming it before any
+# work; inputs that never end are refused; output folders are built whole (a failed run keeps
+# its finished cycles under "complete": false, an interrupted one leaves nothing); simulate's
+# memory does not grow with the run; an interrupted study stops its children.
+# Usage: hardening_test.sh BMSSIM
+set -u
+BMSSIM="$1"
+HERE="$(cd "$(dirname "$0")" && pwd)"
+WORK="$(mktemp -d)"
+trap 'rm -rf "$WORK"' EXIT
+cd "$WORK" || exit 1
+# shellcheck source=input_error_check.sh
+. "$HERE/input_error_check.sh"
+sim() { timeout 60 "$BMSSIM" simulate --quiet "$@"; }
+
+# Bad values of every kind the issue lists: exit 2, one line naming the option, no output.
+mkfifo fifo
+i=0
+while IFS='|' read -r needle args; do
+  i=$((i + 1))
+  # shellcheck disable=SC2086
+  eval "check_input_error bad_$i \"\$needle\" out_bad -- sim $args --out out_bad"
+done <<'CASES'
+--dt|--dt 1e-9
+--current-a|--current-a 1e6
+--current-a|--current-a 23
+--current-a|--current-a nan
+contact_resistance|--effect contact_resistance=1e6
+--v-min/--v-max|--v-min 3.30 --v-max 3.31
+--cv-end-current-a|--cv-end-current-a 3
+hysteresis|--effect hysteresis=0.49
+thermal|--effect thermal=-1
+step 1 'Discharge at 1C'|--protocol 'Discharge at 1C'
+8.7C|--protocol 'Charge at 20 A until 3.6 V'
+unknown step|--protocol 'Discharge at 1C until 2 V; Dance'
+/dev/zero.*not a regular file|--protocol csv:/dev/zero
+fifo.*not a regular file|--protocol csv:fifo
+CASES
+
+# A measured current far beyond the cell: exit 2 naming the file, sample and value.
+printf 't_s,current_a,voltage_v\n0,1,3.3\n1,1e6,3.3\n2,1,3.3\n' > huge.csv
+check_input_error huge_current "huge.csv: sample 2.*1e\+06 A" out_huge -- sim --protocol csv:huge.csv --out out_huge
+
+# --out is checked before any work: an existing file, a foreign folder (1000 cycles requested).
+echo keep > afile
+mkdir foreign && echo mine > foreign/notes.txt
+start=$(date +%s)
+check_input_error out_is_file "--out 'afile': exists and is not a folder" afile -- sim --cycles 1000 --out afile
+check_input_error out_foreign "--out 'foreign'.*no bmssim run wrote" foreign -- sim --cycles 1000 --out foreign
+if [ "$(cat afile)" = keep ] && [ "$(cat foreign/notes.txt)" = mine ] && [ $(($(date +%s) - start)) -lt 10 ]; then
+  pass out_checked_first
+else fail out_checked_first "files touched or the check took $(($(date +%s) - start)) s"; fi
+
+# Re-running into an earlier output replaces the folder whole.
+sim --cycles 1 --dt 10 --out run && touch run/stale.txt && sim --cycles 1 --dt 10 --out run
+if [ ! -e run/stale.txt ] && [ -f run/truth.csv ] && grep -q '"complete": true' run/summary.json; then pass rerun_replaces_whole
+else fail rerun_replaces_whole "stale file kept or summary incomplete"; fi
+
+# A runtime failure (too much lithium: the anode fills in the CV charge) into that folder: exit 1,
+# the samples so far kept under "complete": false with the reason; no staging folder left.
+sim --cycles 3 --dt 10 --set inventory_scale=1.04 --out run 2> fail.err
+rc=$?
+if [ $rc -eq 1 ] && grep -q '"complete": false' run/summary.json && grep -q '"failure": "cycle 1, cv_charge' run/summary.json &&
+   [ "$(wc -l < run/truth.csv)" -gt 100 ] && ! ls -d ./*.partial-* >/dev/null 2>&1 && grep -q 'complete": false' fail.err; then
+  pass failure_keeps_finished_work
+else fail failure_keeps_finished_work "exit $rc: $(head -c 300 fail.err)"; fi
+
+# SIGTERM in the middle of a run: exit 143 and nothing left behind.
+"$BMSSIM" simulate --quiet --cycles 50 --out term & pid=$!
+sleep 2; kill -TERM $pid; wait $pid; rc=$?
+if [ $rc -eq 143 ] && [ ! -e term ] && ! ls -d ./term.partial-* >/dev/null 2>&1; then pass sigterm_leaves_nothing
+else fail sigterm_leaves_nothing "exit $rc, left: $(ls)"; fi
+
+# Memory bounded by what is written: 4 cycles at 0.2 s hold no more than 1 cycle + 8 MB
+# (each cycle's samples held in memory were about 5.7 MB).
+rss_kb() { /usr/bin/time -f %M "$BMSSIM" simulate --quiet --cycles "$1" --out "rss$1" 2>&1 >/dev/null | tail -1; }
+rss1=$(rss_kb 1); rss4=$(rss_kb 4)
+if [ $((rss4 - rss1)) -lt 8192 ]; then pass "memory_bounded ($rss1 kB for 1 cycle, $rss4 kB for 4)"
+else fail memory_bounded "$rss1 kB for 1 cycle, $rss4 kB for 4"; fi
+
+# estimate: every sample rejected (voltage column in mV) is a failure, not an empty answer.
+python3 - rss1/truth.csv mv.csv <<'PY'
+import csv, sys
+rows = list(csv.reader(open(sys.argv[1])))
+k = rows[0].index("voltage_meas_v")
+with open(sys.argv[2], "w", newline="") as f:
+    w = csv.writer(f)
+    w.writerow(rows[0])
+    for r in rows[1:]:
+        r[k] = str(float(r[k]) * 1000.0)
+        w.writerow(r)
+PY
+timeout 120 "$BMSSIM" estimate --data mv.csv --quiet --out est_mv 2> est.err
+rc=$?
+if [ $rc -eq 1 ] && grep -q "rejected every one" est.err && [ ! -e est_mv ]; then pass estimate_all_rejected
+else fail estimate_all_rejected "exit $rc: $(head -c 200 est.err)"; fi
+check_input_error r_film_init_nan "--r-film-init" est_nan -- timeout 60 "$BMSSIM" estimate --data rss1/truth.csv --r-film-init nan --out est_nan
+check_input_error r_film_init_neg "--r-film-init" est_neg -- timeout 60 "$BMSSIM" estimate --data rss1/truth.csv --r-film-init -1 --out est_neg
+
+# SIGTERM to a study reaches its running cases (own process groups), which stop too.
+"$BMSSIM" study noise --quick --jobs 2 --out study 2> study.err & pid=$!
+sleep 4; kill -TERM $pid
+timeout 30 tail --pid=$pid -f /dev/null; wait $pid; rc=$?
+sleep 1
+left=$(pgrep -f "$WORK/study" | wc -l)
+if [ $rc -eq 143 ] && [ "$left" -eq 0 ]; then pass study_sigterm_stops_children
+else fail study_sigterm_stops_children "exit $rc, $left processes left"; fi
+
+echo "$PASSED passed, $FAILED failed"
+[ "$FAILED" -eq 0 ]
