@@ -14,8 +14,13 @@ namespace bms::app {
 void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
   sub.add_option("--cell", o.cell, "paper | aboutenergy | FILE.bpx.json")->capture_default_str();
   sub.add_option("--protocol", o.protocol,
-                 "cccv (repeated CC-CV discharge/charge) or csv:FILE (drive with a measured current: "
-                 "truth.csv or About:Energy 'Time [s],I[A],U[V]' format)")
+                 "cccv (repeated CC-CV discharge/charge: CC discharge at --current-a to --v-min, CV there to "
+                 "--cv-end-current-a, CC charge to --v-max, CV there), an experiment as PyBaMM writes one "
+                 "(\"Discharge at 1C until 2.0 V; Rest for 30 minutes; Charge at 2.5 A until 3.6 V; Hold at 3.6 V "
+                 "until 50 mA\": steps split by ';', Discharge|Charge at A, mA, xC or C/n, 'for D "
+                 "seconds|minutes|hours' and/or 'until V'; Rest for D; Hold at V until A or C/n; repeated --cycles "
+                 "times), or csv:FILE (drive with a measured current: truth.csv or About:Energy "
+                 "'Time [s],I[A],U[V]' format)")
       ->capture_default_str();
   sub.add_option("--cycles", o.cycles, "Number of CCCV cycles")->capture_default_str()->check(CLI::Range(1, 100000));
   sub.add_option("--current-a", o.current_a, "CC current magnitude (A)")->capture_default_str();
@@ -37,8 +42,11 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
                  "Hidden truth parameter NAME=VALUE (repeatable; the truth only, never the estimator), e.g. "
                  "film_growth_scale=2, inventory_scale=0.97, temperature_k=288.15; `bmssim simulate --list-params` "
                  "lists every name with its nominal value, unit and range");
-  sub.add_option("--v-min", o.v_min, "Lower voltage limit (V); default: the cell's");
-  sub.add_option("--v-max", o.v_max, "Upper voltage limit (V); default: the cell's");
+  sub.add_option("--v-min", o.v_min,
+                 "Lower voltage limit (V; default: the cell's): cccv discharges to it; an experiment's voltages must "
+                 "lie within 0.5 V of the window; a csv: drive stops only 0.5 V below it (a measured record may "
+                 "overshoot the limits a little)");
+  sub.add_option("--v-max", o.v_max, "Upper voltage limit (V; default: the cell's); as --v-min, 0.5 V above it for csv:");
   sub.add_option("--cv-end-current-a", o.cv_end_current_a, "CV phases end below this current (A)")->capture_default_str();
   sub.add_option("--points", o.points, "Finite volumes per region (anode, separator, cathode)")->capture_default_str()->check(CLI::Range(2, 400));
   sub.add_option("--radial", o.radial, "Finite volumes per particle")->capture_default_str()->check(CLI::Range(3, 400));
