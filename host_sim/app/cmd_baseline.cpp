@@ -10,6 +10,7 @@
 #include "baselines/baseline_run.hpp"
 #include "commands.hpp"
 #include "io/input_error.hpp"
+#include "io/output_folder.hpp"
 #include "sim/cell_catalog.hpp"
 #include "sim/truth_output.hpp"
 
@@ -88,15 +89,16 @@ Runner add_baseline(CLI::App& app) {
     const CellParameters cell = load_cell("paper");
     c->o.ic = perturbed_initial_conditions(cell, c->ic_error_pct);
     const EstimateData data = read_estimate_data(c->data);
+    OutputFolder folder(c->out);
     if (!c->quiet) std::fprintf(stderr, "baseline: %s on %zu ticks of %s\n", c->o.method.c_str(), data.t_s.size(), c->data.c_str());
     const baselines::BaselineResult r = baselines::run_baseline(data, c->o);
-    const std::filesystem::path dir(c->out);
-    std::filesystem::create_directories(dir);
+    const std::filesystem::path dir = folder.staging();
     baselines::write_baseline_csv(dir / "estimates.csv", r);
     auto summary = baselines::baseline_summary_json(r, c->o);
     summary["options"]["ic_error_pct"] = c->ic_error_pct;
     summary["data"] = c->data;
     write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
+    folder.commit();
     if (!c->quiet) {
       std::fprintf(stderr, "baseline: noise sigma_v %.4g mV (%s), sigma_i %.4g mA (%s)\n", r.noise.sigma_v_v * 1e3,
                    r.noise.v_source.c_str(), r.noise.sigma_i_a * 1e3, r.noise.i_source.c_str());
@@ -108,7 +110,7 @@ Runner add_baseline(CLI::App& app) {
                      "Cramer-Rao bound %.4f %%\n", b.cycle, med, end, b.rel_pct);
       }
       std::fprintf(stderr, "baseline: %zu ticks in %.2f s wall -> %s\n", r.rows.size(), r.wall_s,
-                   (dir / "estimates.csv").c_str());
+                   (folder.destination() / "estimates.csv").c_str());
     }
     return 0;
   };

@@ -9,6 +9,7 @@
 
 #include "cell/paper_cell.hpp"
 #include "commands.hpp"
+#include "io/output_folder.hpp"
 #include "sim/truth_output.hpp"
 #include "studies/truth_validation.hpp"
 
@@ -24,6 +25,7 @@ Runner add_validate(CLI::App& app) {
   sub->add_option("--finest", *fine, "Finest base mesh of the convergence study (compared with its double)")
       ->capture_default_str()->check(CLI::Range(10, 80));
   return [out_dir, fine]() {
+    OutputFolder folder(*out_dir);
     nlohmann::json j;
     std::ostringstream md;
     md << "# Truth-model validation\n\nMade by `bmssim validate --out " << *out_dir << "`.\n\n";
@@ -106,9 +108,9 @@ Runner add_validate(CLI::App& app) {
                           mc.rmse_mv, mc.rmse_mv / mc.pybamm_rmse_mv, mc.max_abs_mv, mc.wall_s);
       }
     }
-    std::filesystem::create_directories(*out_dir);
-    write_file_atomically(std::filesystem::path(*out_dir) / "report.md", md.str());
-    write_file_atomically(std::filesystem::path(*out_dir) / "summary.json", j.dump(2) + "\n");
+    write_file_atomically(folder.staging() / "report.md", md.str());
+    write_file_atomically(folder.staging() / "summary.json", j.dump(2) + "\n");
+    folder.commit();
     std::fputs(md.str().c_str(), stdout);
     return 0;
   };
