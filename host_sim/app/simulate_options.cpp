@@ -265,26 +265,13 @@ SimulationResult execute_simulation(const SimulationPlan& plan, SampleSink& sink
   return r;
 }
 
-namespace {
-
-class CollectingSink : public SampleSink {
- public:
-  explicit CollectingSink(std::vector<SampleRecord>& to) : to_(to) {}
-  void on_sample(const SampleRecord& s) override { to_.push_back(s); }
-
- private:
-  std::vector<SampleRecord>& to_;
-};
-
-}  // namespace
-
 SimulateRun run_simulation(const SimulateOptions& o, const ProgressFn& progress) {
   const SimulationPlan plan = plan_simulation(o);
   SimulateRun run;
   run.cell = plan.cell;
   run.parameters = plan.parameters;
   std::vector<SampleRecord> samples;
-  CollectingSink sink(samples);
+  SampleCollector sink(samples);
   run.result = execute_simulation(plan, sink, progress);
   run.result.samples = std::move(samples);
   run.measured = measure(run.result.samples, plan.sensor);

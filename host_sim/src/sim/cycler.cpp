@@ -171,15 +171,6 @@ struct StepRun {
   }
 };
 
-class CollectingSink : public SampleSink {
- public:
-  explicit CollectingSink(std::vector<SampleRecord>& to) : to_(to) {}
-  void on_sample(const SampleRecord& s) override { to_.push_back(s); }
-
- private:
-  std::vector<SampleRecord>& to_;
-};
-
 }  // namespace
 
 SimulationResult run_experiment(const SimulationConfig& cfg, const Experiment& experiment, SampleSink& sink,
@@ -216,7 +207,7 @@ SimulationResult run_experiment(const SimulationConfig& cfg, const Experiment& e
 SimulationResult run_cccv(const SimulationConfig& cfg, const CccvProtocol& protocol, const ProgressFn& progress) {
   const Experiment experiment = cccv_experiment(protocol);
   std::vector<SampleRecord> samples;
-  CollectingSink sink(samples);
+  SampleCollector sink(samples);
   SimulationResult out = run_experiment(cfg, experiment, sink, progress);
   out.samples = std::move(samples);
   return out;

@@ -83,6 +83,16 @@ class SampleSink {
   virtual void on_cycle(const CycleSummary& c) { (void)c; }
 };
 
+// Keeps every sample in memory (callers that need the whole run: studies, hil, tests).
+class SampleCollector : public SampleSink {
+ public:
+  explicit SampleCollector(std::vector<SampleRecord>& to) : to_(to) {}
+  void on_sample(const SampleRecord& s) override { to_.push_back(s); }
+
+ private:
+  std::vector<SampleRecord>& to_;
+};
+
 struct Experiment;
 
 InitialConditions default_initial_conditions(const CellParameters& cell);
