@@ -307,7 +307,7 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
   const bool want_heat = thermal || heat != nullptr;
   const T temp = thermal ? y[idx_temp_] : T(temperature_k_);
   const T f_rt = temp_dep ? T(kFaraday_c_mol / kGas_j_mol_k) / temp : T(f_rt_);
-  const T nu = temp_dep ? T(2.0 * (1.0 - tplus)) / f_rt : T(2.0 * (1.0 - tplus) / f_rt_);  // V, TDF = 1
+  const T nu = temp_dep ? T(2.0 * (1.0 - tplus)) / f_rt : T(2.0 * (1.0 - tplus) / f_rt_);  // V, without the TDF
   const T half_f = temp_dep ? T(0.5) * f_rt : T(0.5 * f_rt_);
   const T minus_alpha_f_side =
       temp_dep ? T(-cell_.side.transfer_coefficient) * f_rt : T(-cell_.side.transfer_coefficient * f_rt_);
@@ -339,20 +339,34 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
   T ce_k = clamp_above(y[idx_ce(0)], 1e-3);
   T d_k = d_eff(ce_k, 0);
   T kap_k = kappa_eff(ce_k, 0);
-  T psi_k = y[idx_phie(0)] - nu * log(ce_k);
+  // Ideal solution (no thermodynamic factor): i_e = -kappa grad(phi_e - nu ln c_e), written
+  // with the potential psi = phi_e - nu ln c_e. With a factor TDF(c_e) the diffusion term is
+  // nu TDF grad ln c_e, TDF taken on each face as the mean of its two cells (exact for a
+  // constant factor).
+  const ScalarFunction* tdf = el.thermodynamic_factor.get();
+  T lnc_k = log(ce_k);
+  T tdf_k = tdf ? apply(*tdf, ce_k) : T(1.0);
+  T psi_k = y[idx_phie(0)] - nu * lnc_k;
   for (int k = 0; k < nx_; ++k) {
     T flux_right = T(0.0), ie_right = T(0.0);
-    T ce_n{}, d_n{}, kap_n{}, psi_n{};
+    T ce_n{}, d_n{}, kap_n{}, psi_n{}, lnc_n{}, tdf_n{};
     if (k + 1 < nx_) {
       ce_n = clamp_above(y[idx_ce(k + 1)], 1e-3);
       d_n = d_eff(ce_n, k + 1);
       kap_n = kappa_eff(ce_n, k + 1);
-      psi_n = y[idx_phie(k + 1)] - nu * log(ce_n);
+      lnc_n = log(ce_n);
+      psi_n = y[idx_phie(k + 1)] - nu * lnc_n;
       // Series resistance of the two half cells: exact at region interfaces.
       const T rd = dx_[k] / (2.0 * d_k) + dx_[k + 1] / (2.0 * d_n);
       const T rk = dx_[k] / (2.0 * kap_k) + dx_[k + 1] / (2.0 * kap_n);
       flux_right = (y[idx_ce(k + 1)] - y[idx_ce(k)]) / rd;
-      ie_right = -(psi_n - psi_k) / rk;
+      if (tdf) {
+        tdf_n = apply(*tdf, ce_n);
+        const T diffusion_v = nu * (0.5 * (tdf_k + tdf_n)) * (lnc_n - lnc_k);
+        ie_right = -((y[idx_phie(k + 1)] - y[idx_phie(k)]) - diffusion_v) / rk;
+      } else {
+        ie_right = -(psi_n - psi_k) / rk;
+      }
       // Ohmic heat of the ionic current, -i_e grad(phi_e), including the diffusion potential.
       if (want_heat) add_heat(k, ie_right * (y[idx_phie(k)] - y[idx_phie(k + 1)]), q_joule);
     }
@@ -368,7 +382,7 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
     flux_left = flux_right;
     ie_left = ie_right;
     if (k + 1 < nx_) {
-      ce_k = ce_n; d_k = d_n; kap_k = kap_n; psi_k = psi_n;
+      ce_k = ce_n; d_k = d_n; kap_k = kap_n; psi_k = psi_n; lnc_k = lnc_n; tdf_k = tdf_n;
     }
   }
 

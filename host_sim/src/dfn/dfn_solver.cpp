@@ -7,6 +7,7 @@
 #include <sunmatrix/sunmatrix_sparse.h>
 
 #include <algorithm>
+#include <chrono>
 #include <map>
 #include <mutex>
 #include <tuple>
@@ -27,6 +28,9 @@ struct DfnSolver::Impl {
   void* ida = nullptr;
   N_Vector y = nullptr, yp = nullptr, atol = nullptr, id = nullptr, tmp = nullptr;
   double tn = 0.0;  // time of IDA's internal solution (>= the caller's time)
+  // Crawl detection: IDA's step count and time at the start of the current window.
+  long window_steps0 = 0;
+  double window_t0 = 0.0;
   bool root_pending = false;  // a stop condition was found after the time last asked for
   double root_t = 0.0;
   int roots[4] = {0, 0, 0, 0};  // IDAGetRootInfo of the pending root
@@ -371,6 +375,8 @@ void DfnSolver::consistent_init() {
   stats_base_ = stats_;
   im.tn = t_;
   im.root_pending = false;
+  im.window_steps0 = 0;
+  im.window_t0 = t_;
   check(IDAReInit(im.ida, t_, im.y, im.yp), "IDAReInit");
   last_ida_message.clear();
   int flag = IDACalcIC(im.ida, IDA_YA_YDP_INIT, t_ + 1e-3);
@@ -500,7 +506,13 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
   const int n = model_.size();
   int restarts = 0;
   bool small_first_step = false;
+  const auto wall0 = std::chrono::steady_clock::now();
+  long steps_here = 0;
   while (!im.root_pending && im.tn < tout) {
+    if (++steps_here > settings_.max_steps || (steps_here % 64 == 0 && wall_limit_passed(wall0))) {
+      if (exact) IDASetStopTime(im.ida, 1e300);
+      throw RuntimeFailure(limit_message(tout, steps_here > settings_.max_steps));
+    }
     realtype tret = im.tn;
     const int flag = IDASolve(im.ida, tout, &tret, im.y, im.yp, IDA_ONE_STEP);
     if (flag < 0) {
@@ -555,6 +567,7 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
     }
     im.tn = tret;
     if (flag == IDA_TSTOP_RETURN) im.tn = tout;
+    check_crawl(exact);
   }
   if (im.root_pending && im.root_t <= tout) {
     if (exact) IDASetStopTime(im.ida, 1e300);
@@ -579,6 +592,47 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
   t_ = tout;
   update_stats();
   return Result::reached;
+}
+
+bool DfnSolver::wall_limit_passed(std::chrono::steady_clock::time_point since) const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count() > settings_.max_wall_s;
+}
+
+std::string DfnSolver::limit_message(double tout, bool by_steps) const {
+  const Impl& im = *impl_;
+  realtype h_last = 0.0;
+  IDAGetLastStep(im.ida, &h_last);
+  char buf[512];
+  if (by_steps)
+    std::snprintf(buf, sizeof buf, "solver step limit: %ld internal steps from t = %.6g s did not reach %.6g s (now at %.9g s, last step %.3g s)",
+                  settings_.max_steps, t_, tout, im.tn, h_last);
+  else
+    std::snprintf(buf, sizeof buf, "solver wall-clock limit: %.0f s spent from t = %.6g s towards %.6g s (now at %.9g s, last step %.3g s)",
+                  settings_.max_wall_s, t_, tout, im.tn, h_last);
+  return std::string(buf) + kLimitAdvice;
+}
+
+void DfnSolver::check_crawl(bool exact) {
+  Impl& im = *impl_;
+  long nst = 0;
+  IDAGetNumSteps(im.ida, &nst);
+  if (nst - im.window_steps0 < settings_.crawl_window_steps) return;
+  const double advanced_s = im.tn - im.window_t0;
+  if (advanced_s < settings_.crawl_min_advance_s) {
+    realtype h_last = 0.0;
+    IDAGetLastStep(im.ida, &h_last);
+    long conv_fails = 0;
+    IDAGetNumNonlinSolvConvFails(im.ida, &conv_fails);
+    if (exact) IDASetStopTime(im.ida, 1e300);
+    char buf[512];
+    std::snprintf(buf, sizeof buf,
+                  "solver is crawling: %ld steps from t = %.9g s advanced the model by only %.3g s (last step %.3g s, "
+                  "%ld Newton convergence failures since the last restart)",
+                  nst - im.window_steps0, im.window_t0, advanced_s, h_last, conv_fails);
+    throw RuntimeFailure(std::string(buf) + kLimitAdvice);
+  }
+  im.window_steps0 = nst;
+  im.window_t0 = im.tn;
 }
 
 void DfnSolver::update_stats() {
