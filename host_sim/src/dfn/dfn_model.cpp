@@ -4,6 +4,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "dfn/multi_dual.hpp"
+#include "dfn/sparsity_tracer.hpp"
 #include "io/input_error.hpp"
 
 namespace bms {
@@ -13,12 +15,15 @@ using fw::Dual;
 
 // Keeps trial states that the Newton iteration may visit away from the singular edges of the
 // kinetics (sqrt of a negative concentration, 1/x in the OCP fits).
+// The sparsity tracer keeps its argument's dependences whatever the value (structural pattern).
 template <typename T>
 T clamp_above(const T& x, double lo) {
+  if constexpr (std::is_same_v<T, SparsityTracer>) return x.with_value(std::max(x.v, lo));
   return fw::value_of(x) < lo ? T(lo) : x;
 }
 template <typename T>
 T clamp_between(const T& x, double lo, double hi) {
+  if constexpr (std::is_same_v<T, SparsityTracer>) return x.with_value(std::min(std::max(x.v, lo), hi));
   if (fw::value_of(x) < lo) return T(lo);
   if (fw::value_of(x) > hi) return T(hi);
   return x;
@@ -28,6 +33,12 @@ template <typename T>
 T apply(const ScalarFunction& f, const T& x) {
   if constexpr (std::is_same_v<T, double>) {
     return f.value(x);
+  } else if constexpr (std::is_same_v<T, SparsityTracer>) {
+    return x.with_value(f.value(x.v));
+  } else if constexpr (std::is_same_v<T, JacobianDual>) {
+    double v = 0.0, d = 0.0;
+    f.value_and_derivative(x.v, v, d);
+    return T::chain(x, v, d);
   } else {
     double v = 0.0, d = 0.0;
     f.value_and_derivative(x.v, v, d);
@@ -608,5 +619,7 @@ double DfnModel::lithium_loss_mol(double r_film, double r_film_start) const {
 
 template void DfnModel::eval_g<double>(double, const double*, double*, HeatRates*) const;
 template void DfnModel::eval_g<fw::Dual<double>>(double, const fw::Dual<double>*, fw::Dual<double>*, HeatRates*) const;
+template void DfnModel::eval_g<JacobianDual>(double, const JacobianDual*, JacobianDual*, HeatRates*) const;
+template void DfnModel::eval_g<SparsityTracer>(double, const SparsityTracer*, SparsityTracer*, HeatRates*) const;
 
 }  // namespace bms

@@ -57,6 +57,14 @@ struct SurfaceLimit {
 SurfaceLimit nearest_surface_limit(const DfnModel& m, const double* y);
 std::string describe(const SurfaceLimit& s);
 
+// Column-wise row lists of d(residual)/d(unknowns), the diagonal and the couplings a side
+// reaction or temperature may add included. Structural: one evaluation of the residual with
+// sparsity tracers per control kind, O(nonzeros).
+std::vector<std::vector<int>> structural_jacobian_pattern(DfnModel& m, const std::vector<double>& y0);
+// The same found numerically, column by column with dual numbers near y0: O(n^2) (3.35 s at
+// 80/80); the structural pattern's test reference.
+std::vector<std::vector<int>> probed_jacobian_pattern(DfnModel& m, const std::vector<double>& y0);
+
 struct SolverStats {
   long steps = 0, residual_evals = 0, jacobian_evals = 0, reinits = 0, colors = 0, nonzeros = 0;
 };
