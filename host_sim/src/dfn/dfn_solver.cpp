@@ -159,6 +159,16 @@ int root_fn(realtype, N_Vector y, N_Vector, realtype* gout, void* user) {
   return 0;
 }
 
+// IDA re-initialises its linear solver at every IDAReInit (each change of control and each
+// restart), and KLU's initialisation throws away its symbolic analysis (ordering) and pivots,
+// so the next setup analyses and factors from scratch. The matrix pattern never changes: keep
+// both and let the setup refactor; it still factors afresh when the refactored matrix is
+// ill-conditioned (SUNLinSolSetup_KLU's reciprocal condition check).
+int klu_initialize_once(SUNLinearSolver ls) {
+  if (SUNLinSol_KLUGetNumeric(ls) == nullptr) return SUNLinSolInitialize_KLU(ls);
+  return SUNLS_SUCCESS;
+}
+
 // IDA's own error text, kept for the exception instead of IDA printing it to stderr: a caller
 // that recovers from a failed step (the estimator's full main model) must not flood the
 // terminal, and one that does not gets the text in its error message.
@@ -416,6 +426,7 @@ void DfnSolver::start(double t0, const std::vector<double>& y0) {
   if (im.jac) use_fast_sparse_zero(im.jac);
   im.ls = SUNLinSol_KLU(im.y, im.jac, im.ctx);
   if (!im.jac || !im.ls) throw RuntimeFailure("cannot create the KLU sparse solver");
+  im.ls->ops->initialize = klu_initialize_once;
   check(IDASetLinearSolver(im.ida, im.ls, im.jac), "IDASetLinearSolver");
   check(IDASetJacFn(im.ida, jacobian_fn), "IDASetJacFn");
   check(IDARootInit(im.ida, 4, root_fn), "IDARootInit");
