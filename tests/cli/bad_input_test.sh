@@ -120,9 +120,14 @@ B_MISSING="$WORK/missing_key.bpx.json"
 B_BADEXPR="$WORK/bad_ocp_expression.bpx.json"
 B_RANGE="$WORK/negative_thickness.bpx.json"
 B_NOTJSON="$WORK/not_json.bpx.json"
+B_DIFFUSIVITY="$WORK/diffusivity_1e10.bpx.json"
+B_THICK="$WORK/thickness_1e10.bpx.json"
 bpx_edit 'del p["Negative electrode"]["Particle radius [m]"]' "$B_MISSING"
 bpx_edit 'p["Positive electrode"]["OCP [V]"] = "3.4 + * x"' "$B_BADEXPR"
 bpx_edit 'p["Negative electrode"]["Thickness [m]"] = -1e-5' "$B_RANGE"
+# Issue 21: a solid diffusivity of 1e10 m2/s made the solver crawl forever; 1e10 m thick failed in it.
+bpx_edit 'p["Negative electrode"]["Diffusivity [m2.s-1]"] = 1e10' "$B_DIFFUSIVITY"
+bpx_edit 'p["Separator"]["Thickness [m]"] = 1e10' "$B_THICK"
 printf 'This is not JSON at all.\nTime [s],I[A],U[V]\n0,1,3.3\n' >"$B_NOTJSON"
 
 # About:Energy format, 1 s steps, 20 data rows (file lines 2..21): line L holds t = L - 2.
@@ -159,6 +164,8 @@ P1C="csv:$CSV1C"
 expect_bad bpx_missing_key      "f:$B_MISSING" "w:Particle radius" -- --cell "$B_MISSING" --protocol "$P1C"
 expect_bad bpx_bad_ocp_expr     "f:$B_BADEXPR" "w:OCP"             -- --cell "$B_BADEXPR" --protocol "$P1C"
 expect_bad bpx_negative_thickness "f:$B_RANGE" "w:Thickness"       -- --cell "$B_RANGE"   --protocol "$P1C"
+expect_bad bpx_diffusivity_1e10 "f:$B_DIFFUSIVITY" "w:Diffusivity" -- --cell "$B_DIFFUSIVITY" --protocol "$P1C"
+expect_bad bpx_thickness_1e10   "f:$B_THICK" "w:Separator.Thickness" -- --cell "$B_THICK" --protocol "$P1C"
 expect_bad bpx_not_json         "f:$B_NOTJSON"                     -- --cell "$B_NOTJSON" --protocol "$P1C"
 
 expect_bad csv_non_monotonic_time "f:$C_NONMONO" "r:$(line_re "$C_NONMONO" 12)" -- --cell aboutenergy --protocol "csv:$C_NONMONO"

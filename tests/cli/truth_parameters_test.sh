@@ -90,5 +90,30 @@ else
   fail "valid_runs" "$(cat err_plain err_film err_nominal 2>/dev/null | head -n 2)"
 fi
 
+# A BPX cell has no side reaction, but a set initial film is a constant series resistance in
+# the anode's overpotential (issue 16): at 1 A the voltage falls by R_film I / (A a_n L_n).
+run_ae() { # OUT ARGS...
+  local out=$1; shift
+  "$BMSSIM" simulate --cell aboutenergy --protocol csv:drive.csv --points 8 --radial 8 "$@" --out "$out" --quiet 2> "err_$out"
+}
+if run_ae ae_plain && run_ae ae_film --set r_film_initial_ohm_m2=0.02; then
+  if python3 - "$BMS_SHARED_DIR/data/aboutenergy-lfp18650/lfp_18650_cell_BPX.json" <<'PY'
+import csv, json, sys
+n = json.load(open(sys.argv[1]))["Parameterisation"]
+area = n["Cell"]["Electrode area [m2]"] * n["Cell"]["Number of electrode pairs connected in parallel to make a cell"]
+al = n["Negative electrode"]["Surface area per unit volume [m-1]"] * n["Negative electrode"]["Thickness [m]"]
+plain = list(csv.DictReader(open("ae_plain/truth.csv")))
+film = list(csv.DictReader(open("ae_film/truth.csv")))
+assert float(film[-1]["r_film_ohm_m2"]) == 0.02, film[-1]["r_film_ohm_m2"]  # no growth without a side reaction
+drop_mv = 1000 * (float(plain[60]["voltage_v"]) - float(film[60]["voltage_v"]))
+expected_mv = 1000 * 0.02 * float(plain[60]["current_a"]) / (area * al)
+assert abs(drop_mv - expected_mv) < 0.05 * expected_mv, (drop_mv, expected_mv)
+assert json.load(open("ae_film/summary.json"))["parameters"]["r_film_initial_ohm_m2"] == 0.02
+PY
+  then pass "set_film_on_bpx_cell"; else fail "set_film_on_bpx_cell" "see above"; fi
+else
+  fail "valid_bpx_runs" "$(cat err_ae_plain err_ae_film 2>/dev/null | head -n 2)"
+fi
+
 echo "$PASSED passed, $FAILED failed"
 [ "$FAILED" -eq 0 ]

@@ -176,10 +176,10 @@ TEST(BpxReader, BadExpressionNamesTheFieldAndColumn) {
 TEST(BpxReader, OutOfRangeValuesNameFieldValueAndRange) {
   EXPECT_EQ(error_after([](json& j) { negative(j)["Thickness [m]"] = -4.44e-5; }),
             "lfp.json: field 'Parameterisation.Negative electrode.Thickness [m]' = -4.44e-05 is "
-            "out of range (allowed: > 0)");
+            "out of range (allowed: [1e-07, 0.005])");
   EXPECT_EQ(error_after([](json& j) { j["Parameterisation"]["Separator"]["Porosity"] = 1.2; }),
             "lfp.json: field 'Parameterisation.Separator.Porosity' = 1.2 is out of range "
-            "(allowed: (0, 1))");
+            "(allowed: (0, 1])");
   EXPECT_EQ(error_after([](json& j) { positive(j)["Maximum stoichiometry"] = 1.5; }),
             "lfp.json: field 'Parameterisation.Positive electrode.Maximum stoichiometry' = 1.5 "
             "is out of range (allowed: [0, 1])");
@@ -206,6 +206,55 @@ TEST(BpxReader, OutOfRangeValuesNameFieldValueAndRange) {
   EXPECT_NE(error_after([](json& j) {
               j["Parameterisation"]["Cell"]["Upper voltage cut-off [V]"] = 1.5;
             }).find("must be below 'Upper voltage cut-off [V]' = 1.5"),
+            std::string::npos);
+}
+
+// Physically absurd values (issue 21: a solid diffusivity of 1e10 m2/s hung the solver, a
+// thickness of 1e10 m failed deep in it) are input errors naming the field and the range.
+TEST(BpxReader, PhysicallyAbsurdValuesAreInputErrors) {
+  EXPECT_EQ(error_after([](json& j) { negative(j)["Diffusivity [m2.s-1]"] = 1e10; }),
+            "lfp.json: field 'Parameterisation.Negative electrode.Diffusivity [m2.s-1]' evaluates to "
+            "10000000000 (derivative 0) at x = 0.5; allowed values: [1e-25, 1e-08]");
+  EXPECT_EQ(error_after([](json& j) { j["Parameterisation"]["Separator"]["Thickness [m]"] = 1e10; }),
+            "lfp.json: field 'Parameterisation.Separator.Thickness [m]' = 10000000000 is out of range "
+            "(allowed: [1e-07, 0.005])");
+  const auto names = [](const std::string& msg, const std::string& field) {
+    return msg.find("'" + field + "'") != std::string::npos && msg.find("out of range") != std::string::npos;
+  };
+  EXPECT_TRUE(names(error_after([](json& j) { positive(j)["Particle radius [m]"] = 5.0; }),
+                    "Parameterisation.Positive electrode.Particle radius [m]"));
+  EXPECT_TRUE(names(error_after([](json& j) { positive(j)["Conductivity [S.m-1]"] = 1e12; }),
+                    "Parameterisation.Positive electrode.Conductivity [S.m-1]"));
+  EXPECT_TRUE(names(error_after([](json& j) { negative(j)["Reaction rate constant [mol.m-2.s-1]"] = 1e3; }),
+                    "Parameterisation.Negative electrode.Reaction rate constant [mol.m-2.s-1]"));
+  EXPECT_TRUE(names(error_after([](json& j) { j["Parameterisation"]["Cell"]["Electrode area [m2]"] = 1e9; }),
+                    "Parameterisation.Cell.Electrode area [m2]"));
+  EXPECT_TRUE(names(error_after([](json& j) {
+                      j["Parameterisation"]["Electrolyte"]["Initial concentration [mol.m-3]"] = 1e7;
+                    }),
+                    "Parameterisation.Electrolyte.Initial concentration [mol.m-3]"));
+  EXPECT_NE(error_after([](json& j) { j["Parameterisation"]["Electrolyte"]["Diffusivity [m2.s-1]"] = 1.0; })
+                .find("'Parameterisation.Electrolyte.Diffusivity [m2.s-1]' evaluates to 1"),
+            std::string::npos);
+  EXPECT_NE(error_after([](json& j) { j["Parameterisation"]["Electrolyte"]["Conductivity [S.m-1]"] = 1e5; })
+                .find("'Parameterisation.Electrolyte.Conductivity [S.m-1]' evaluates to 100000"),
+            std::string::npos);
+}
+
+// A free electrolyte gap (PyBaMM sets allow separator porosity 1) and PyBaMM's thermodynamic
+// factor, a number or an expression of the concentration x.
+TEST(BpxReader, SeparatorPorosityOneAndThermodynamicFactor) {
+  json j = lfp_json();
+  j["Parameterisation"]["Separator"]["Porosity"] = 1.0;
+  const CellParameters plain = read_bpx_text(j.dump(), "lfp.json");
+  EXPECT_EQ(plain.separator.porosity, 1.0);
+  EXPECT_EQ(plain.electrolyte.thermodynamic_factor, nullptr);
+  j["Parameterisation"]["Electrolyte"]["Thermodynamic factor"] = "1 + 0.5 * x / 1000";
+  const CellParameters with = read_bpx_text(j.dump(), "lfp.json");
+  ASSERT_NE(with.electrolyte.thermodynamic_factor, nullptr);
+  EXPECT_DOUBLE_EQ(with.electrolyte.thermodynamic_factor->value(2000.0), 2.0);
+  EXPECT_NE(error_after([](json& k) { k["Parameterisation"]["Electrolyte"]["Thermodynamic factor"] = -1.0; })
+                .find("'Parameterisation.Electrolyte.Thermodynamic factor' evaluates to -1"),
             std::string::npos);
 }
 

@@ -42,6 +42,8 @@ struct ElectrolyteParameters {
   double transference_number = 0.0;
   ScalarFunctionPtr diffusivity_m2_s;     // D_e(c_e)
   ScalarFunctionPtr conductivity_s_m;     // kappa(c_e)
+  // Thermodynamic factor 1 + dln f/dln c_e (c_e); null = 1 (ideal solution, the paper's model).
+  ScalarFunctionPtr thermodynamic_factor;
   double diffusivity_activation_j_mol = 0.0;
   double conductivity_activation_j_mol = 0.0;
 };

@@ -4,6 +4,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "dfn/multi_dual.hpp"
+#include "dfn/sparsity_tracer.hpp"
 #include "io/input_error.hpp"
 
 namespace bms {
@@ -13,12 +15,15 @@ using fw::Dual;
 
 // Keeps trial states that the Newton iteration may visit away from the singular edges of the
 // kinetics (sqrt of a negative concentration, 1/x in the OCP fits).
+// The sparsity tracer keeps its argument's dependences whatever the value (structural pattern).
 template <typename T>
 T clamp_above(const T& x, double lo) {
+  if constexpr (std::is_same_v<T, SparsityTracer>) return x.with_value(std::max(x.v, lo));
   return fw::value_of(x) < lo ? T(lo) : x;
 }
 template <typename T>
 T clamp_between(const T& x, double lo, double hi) {
+  if constexpr (std::is_same_v<T, SparsityTracer>) return x.with_value(std::min(std::max(x.v, lo), hi));
   if (fw::value_of(x) < lo) return T(lo);
   if (fw::value_of(x) > hi) return T(hi);
   return x;
@@ -28,6 +33,12 @@ template <typename T>
 T apply(const ScalarFunction& f, const T& x) {
   if constexpr (std::is_same_v<T, double>) {
     return f.value(x);
+  } else if constexpr (std::is_same_v<T, SparsityTracer>) {
+    return x.with_value(f.value(x.v));
+  } else if constexpr (std::is_same_v<T, JacobianDual>) {
+    double v = 0.0, d = 0.0;
+    f.value_and_derivative(x.v, v, d);
+    return T::chain(x, v, d);
   } else {
     double v = 0.0, d = 0.0;
     f.value_and_derivative(x.v, v, d);
@@ -52,15 +63,17 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
   if (mesh.n_neg < 2 || mesh.n_sep < 1 || mesh.n_pos < 2 || mesh.n_r < 3)
     throw std::invalid_argument("DfnMesh: need at least 2 cells per electrode, 1 in the separator, 3 radial");
   const auto bad = [](const std::string& what) { throw InputError("effect " + what); };
-  if (!(std::isfinite(effects.contact_resistance_ohm) && effects.contact_resistance_ohm >= 0.0))
-    bad("contact_resistance: must be a finite value >= 0 ohm");
+  // Physical ranges, generous: a cell's contact resistance is milliohms (1 ohm drops 2.5 V at
+  // 2.5 A); an 18650's loss to ambient is 0.01-1 W/K.
+  if (!(effects.contact_resistance_ohm >= 0.0 && effects.contact_resistance_ohm <= 1.0))
+    bad("contact_resistance: must be in [0, 1] ohm (a cell's is milliohms)");
   if (!(std::isfinite(effects.hysteresis_v) && effects.hysteresis_v >= 0.0 && effects.hysteresis_v <= 0.5))
     bad("hysteresis: must be in [0, 0.5] V (half the gap between the branches)");
   if (!(std::isfinite(effects.hysteresis_rate_per_soc) && effects.hysteresis_rate_per_soc > 0.0))
     bad("hysteresis rate: must be > 0 per unit of state of charge");
   if (!(std::abs(effects.hysteresis_initial_branch) <= 1.0)) bad("hysteresis initial branch: must be in [-1, 1]");
-  if (!(std::isfinite(effects.thermal_h_w_per_k) && effects.thermal_h_w_per_k >= 0.0))
-    bad("thermal: heat-transfer coefficient must be a finite value >= 0 W/K");
+  if (!(effects.thermal_h_w_per_k >= 0.0 && effects.thermal_h_w_per_k <= 1e3))
+    bad("thermal: heat-transfer coefficient must be in [0, 1000] W/K");
   for (const double sigma : {effects.particle_size_sigma, effects.particle_size_negative_sigma})
     if (!(std::isfinite(sigma) && sigma >= 0.0 && sigma <= 1.5))
       bad("particle_size: log-space standard deviation of the particle radius must be in [0, 1.5]");
@@ -307,7 +320,7 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
   const bool want_heat = thermal || heat != nullptr;
   const T temp = thermal ? y[idx_temp_] : T(temperature_k_);
   const T f_rt = temp_dep ? T(kFaraday_c_mol / kGas_j_mol_k) / temp : T(f_rt_);
-  const T nu = temp_dep ? T(2.0 * (1.0 - tplus)) / f_rt : T(2.0 * (1.0 - tplus) / f_rt_);  // V, TDF = 1
+  const T nu = temp_dep ? T(2.0 * (1.0 - tplus)) / f_rt : T(2.0 * (1.0 - tplus) / f_rt_);  // V, without the TDF
   const T half_f = temp_dep ? T(0.5) * f_rt : T(0.5 * f_rt_);
   const T minus_alpha_f_side =
       temp_dep ? T(-cell_.side.transfer_coefficient) * f_rt : T(-cell_.side.transfer_coefficient * f_rt_);
@@ -339,20 +352,34 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
   T ce_k = clamp_above(y[idx_ce(0)], 1e-3);
   T d_k = d_eff(ce_k, 0);
   T kap_k = kappa_eff(ce_k, 0);
-  T psi_k = y[idx_phie(0)] - nu * log(ce_k);
+  // Ideal solution (no thermodynamic factor): i_e = -kappa grad(phi_e - nu ln c_e), written
+  // with the potential psi = phi_e - nu ln c_e. With a factor TDF(c_e) the diffusion term is
+  // nu TDF grad ln c_e, TDF taken on each face as the mean of its two cells (exact for a
+  // constant factor).
+  const ScalarFunction* tdf = el.thermodynamic_factor.get();
+  T lnc_k = log(ce_k);
+  T tdf_k = tdf ? apply(*tdf, ce_k) : T(1.0);
+  T psi_k = y[idx_phie(0)] - nu * lnc_k;
   for (int k = 0; k < nx_; ++k) {
     T flux_right = T(0.0), ie_right = T(0.0);
-    T ce_n{}, d_n{}, kap_n{}, psi_n{};
+    T ce_n{}, d_n{}, kap_n{}, psi_n{}, lnc_n{}, tdf_n{};
     if (k + 1 < nx_) {
       ce_n = clamp_above(y[idx_ce(k + 1)], 1e-3);
       d_n = d_eff(ce_n, k + 1);
       kap_n = kappa_eff(ce_n, k + 1);
-      psi_n = y[idx_phie(k + 1)] - nu * log(ce_n);
+      lnc_n = log(ce_n);
+      psi_n = y[idx_phie(k + 1)] - nu * lnc_n;
       // Series resistance of the two half cells: exact at region interfaces.
       const T rd = dx_[k] / (2.0 * d_k) + dx_[k + 1] / (2.0 * d_n);
       const T rk = dx_[k] / (2.0 * kap_k) + dx_[k + 1] / (2.0 * kap_n);
       flux_right = (y[idx_ce(k + 1)] - y[idx_ce(k)]) / rd;
-      ie_right = -(psi_n - psi_k) / rk;
+      if (tdf) {
+        tdf_n = apply(*tdf, ce_n);
+        const T diffusion_v = nu * (0.5 * (tdf_k + tdf_n)) * (lnc_n - lnc_k);
+        ie_right = -((y[idx_phie(k + 1)] - y[idx_phie(k)]) - diffusion_v) / rk;
+      } else {
+        ie_right = -(psi_n - psi_k) / rk;
+      }
       // Ohmic heat of the ionic current, -i_e grad(phi_e), including the diffusion potential.
       if (want_heat) add_heat(k, ie_right * (y[idx_phie(k)] - y[idx_phie(k + 1)]), q_joule);
     }
@@ -368,7 +395,7 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
     flux_left = flux_right;
     ie_left = ie_right;
     if (k + 1 < nx_) {
-      ce_k = ce_n; d_k = d_n; kap_k = kap_n; psi_k = psi_n;
+      ce_k = ce_n; d_k = d_n; kap_k = kap_n; psi_k = psi_n; lnc_k = lnc_n; tdf_k = tdf_n;
     }
   }
 
@@ -594,5 +621,7 @@ double DfnModel::lithium_loss_mol(double r_film, double r_film_start) const {
 
 template void DfnModel::eval_g<double>(double, const double*, double*, HeatRates*) const;
 template void DfnModel::eval_g<fw::Dual<double>>(double, const fw::Dual<double>*, fw::Dual<double>*, HeatRates*) const;
+template void DfnModel::eval_g<JacobianDual>(double, const JacobianDual*, JacobianDual*, HeatRates*) const;
+template void DfnModel::eval_g<SparsityTracer>(double, const SparsityTracer*, SparsityTracer*, HeatRates*) const;
 
 }  // namespace bms

@@ -7,6 +7,7 @@
 #include <sunmatrix/sunmatrix_sparse.h>
 
 #include <algorithm>
+#include <chrono>
 #include <map>
 #include <mutex>
 #include <tuple>
@@ -16,6 +17,9 @@
 #include <random>
 #include <string>
 
+#include "dfn/fast_serial_ops.hpp"
+#include "dfn/multi_dual.hpp"
+#include "dfn/sparsity_tracer.hpp"
 #include "io/input_error.hpp"
 
 namespace bms {
@@ -27,16 +31,24 @@ struct DfnSolver::Impl {
   void* ida = nullptr;
   N_Vector y = nullptr, yp = nullptr, atol = nullptr, id = nullptr, tmp = nullptr;
   double tn = 0.0;  // time of IDA's internal solution (>= the caller's time)
+  // Crawl detection: IDA's step count and time at the start of the current window.
+  long window_steps0 = 0;
+  double window_t0 = 0.0;
   bool root_pending = false;  // a stop condition was found after the time last asked for
   double root_t = 0.0;
   int roots[4] = {0, 0, 0, 0};  // IDAGetRootInfo of the pending root
   SUNMatrix jac = nullptr;
   SUNLinearSolver ls = nullptr;
+  struct Structure {
+    std::vector<sunindextype> colptr, rowind;
+    std::vector<int> color;
+    int ncolors = 0;
+  };
   // Compressed-column pattern of dF/dy + cj dF/dy', and the colour of every column.
   std::vector<sunindextype> colptr, rowind;
   std::vector<int> color;
   int ncolors = 0;
-  std::vector<Dual<double>> yd, gd;
+  std::vector<JacobianDual> yd, gd;
   std::vector<std::pair<int, double>> film_row;
   DfnSolver* owner = nullptr;
   const StopConditions* stop = nullptr;
@@ -91,14 +103,20 @@ int jacobian_fn(realtype t, realtype cj, N_Vector y, N_Vector, N_Vector, SUNMatr
   sunindextype* ri = SUNSparseMatrix_IndexValues(jac);
   std::copy(impl->colptr.begin(), impl->colptr.end(), cp);
   std::copy(impl->rowind.begin(), impl->rowind.end(), ri);
-  for (int c = 0; c < impl->ncolors; ++c) {
-    for (int i = 0; i < n; ++i) impl->yd[i] = Dual<double>{yv[i], impl->color[i] == c ? 1.0 : 0.0};
+  // kJacobianLanes colours per residual evaluation.
+  for (int c0 = 0; c0 < impl->ncolors; c0 += kJacobianLanes) {
+    for (int i = 0; i < n; ++i) {
+      impl->yd[i] = JacobianDual(yv[i]);
+      const int lane = impl->color[i] - c0;
+      if (lane >= 0 && lane < kJacobianLanes) impl->yd[i].d[lane] = 1.0;
+    }
     m.eval_g(t, impl->yd.data(), impl->gd.data());
     for (int col = 0; col < n; ++col) {
-      if (impl->color[col] != c) continue;
+      const int lane = impl->color[col] - c0;
+      if (lane < 0 || lane >= kJacobianLanes) continue;
       for (auto k = impl->colptr[col]; k < impl->colptr[col + 1]; ++k) {
         const auto row = impl->rowind[k];
-        data[k] = -impl->gd[row].d + (row == col ? cj * mass[row] : 0.0);
+        data[k] = -impl->gd[row].d[lane] + (row == col ? cj * mass[row] : 0.0);
       }
     }
   }
@@ -139,6 +157,16 @@ int root_fn(realtype, N_Vector y, N_Vector, realtype* gout, void* user) {
     gout[3] = 1.0;
   }
   return 0;
+}
+
+// IDA re-initialises its linear solver at every IDAReInit (each change of control and each
+// restart), and KLU's initialisation throws away its symbolic analysis (ordering) and pivots,
+// so the next setup analyses and factors from scratch. The matrix pattern never changes: keep
+// both and let the setup refactor; it still factors afresh when the refactored matrix is
+// ill-conditioned (SUNLinSolSetup_KLU's reciprocal condition check).
+int klu_initialize_once(SUNLinearSolver ls) {
+  if (SUNLinSol_KLUGetNumeric(ls) == nullptr) return SUNLinSolInitialize_KLU(ls);
+  return SUNLS_SUCCESS;
 }
 
 // IDA's own error text, kept for the exception instead of IDA printing it to stderr: a caller
@@ -202,9 +230,30 @@ std::string describe(const SurfaceLimit& s) {
 namespace bms {
 namespace {
 
-// Structural pattern of dg/dy: union over a few random states near y0 and both control kinds,
-// found column by column with dual numbers (once per solver).
-std::vector<std::vector<int>> detect_pattern_uncached(DfnModel& m, const std::vector<double>& y0) {
+// Couplings every pattern carries, and the diagonal (IDA adds cj M on it), sorted.
+void add_fixed_couplings(const DfnModel& m, std::vector<std::vector<int>>& cols) {
+  const int n = m.size();
+  for (int col = 0; col < n; ++col) cols[col].push_back(col);
+  // The film row is always structurally coupled to every anode potential and reaction current.
+  for (int e = 0; e < m.mesh().n_neg; ++e)
+    for (int col : {m.idx_phis(e), m.idx_phie(e), m.idx_j(e)}) cols[col].push_back(m.film_row());
+  // Temperature reaches every row through F/RT and the Arrhenius factors; a cell with a zero
+  // activation energy or no entropic data would hide some of them from the probe, and the
+  // pattern is shared between cells, so the column is taken as dense.
+  if (m.idx_temperature() >= 0)
+    for (int row = 0; row < n; ++row) cols[m.idx_temperature()].push_back(row);
+  for (auto& c : cols) {
+    std::sort(c.begin(), c.end());
+    c.erase(std::unique(c.begin(), c.end()), c.end());
+  }
+}
+
+}  // namespace
+
+// Numerical pattern of dg/dy: union over a few random states near y0 and both control kinds,
+// found column by column with dual numbers. O(n^2): kept as the reference of the structural
+// pattern's test.
+std::vector<std::vector<int>> probed_jacobian_pattern(DfnModel& m, const std::vector<double>& y0) {
   const int n = m.size();
   std::vector<std::vector<int>> cols(n);
   std::vector<Dual<double>> yd(n), gd(n);
@@ -240,39 +289,82 @@ std::vector<std::vector<int>> detect_pattern_uncached(DfnModel& m, const std::ve
   }
   (void)saved_frozen;
   m.set_control(saved);
-  // The film row is always structurally coupled to every anode potential and reaction current.
-  for (int e = 0; e < m.mesh().n_neg; ++e)
-    for (int col : {m.idx_phis(e), m.idx_phie(e), m.idx_j(e)}) cols[col].push_back(m.film_row());
-  // Temperature reaches every row through F/RT and the Arrhenius factors; a cell with a zero
-  // activation energy or no entropic data would hide some of them from the probe, and the
-  // pattern is shared between cells, so the column is taken as dense.
-  if (m.idx_temperature() >= 0)
-    for (int row = 0; row < n; ++row) cols[m.idx_temperature()].push_back(row);
-  for (auto& c : cols) {
-    std::sort(c.begin(), c.end());
-    c.erase(std::unique(c.begin(), c.end()), c.end());
-  }
+  add_fixed_couplings(m, cols);
   return cols;
 }
 
+
+// Structural pattern of dg/dy: one residual evaluation per control kind with sparsity tracers.
+std::vector<std::vector<int>> structural_jacobian_pattern(DfnModel& m, const std::vector<double>& y0) {
+  const int n = m.size();
+  std::vector<std::vector<int>> cols(n);
+  std::vector<SparsityTracer> yt(n), gt(n);
+  const Control saved = m.control();
+  for (const ControlKind kind : {ControlKind::current, ControlKind::voltage}) {
+    Control c;
+    c.kind = kind;
+    c.value = kind == ControlKind::current ? 1.0 : 3.3;
+    m.set_control(c);
+    for (int i = 0; i < n; ++i) yt[i] = SparsityTracer(y0[i], {i});
+    m.eval_g(0.0, yt.data(), gt.data());
+    for (int row = 0; row < n; ++row)
+      for (int col : gt[row].deps) cols[col].push_back(row);
+  }
+  m.set_control(saved);
+  add_fixed_couplings(m, cols);
+  return cols;
+}
+
+namespace {
+
+// Compressed columns of the pattern and a greedy distance-2 colouring of its columns, ignoring
+// the dense film row (its entries are computed analytically).
+DfnSolver::Impl::Structure build_structure(const DfnModel& m, const std::vector<std::vector<int>>& cols) {
+  const int n = m.size();
+  DfnSolver::Impl::Structure st;
+  st.colptr.assign(n + 1, 0);
+  for (int c = 0; c < n; ++c) {
+    st.colptr[c + 1] = st.colptr[c] + static_cast<sunindextype>(cols[c].size());
+    for (int r : cols[c]) st.rowind.push_back(r);
+  }
+  std::vector<std::vector<int>> rows(n);
+  for (int c = 0; c < n; ++c)
+    for (int r : cols[c])
+      if (r != m.film_row()) rows[r].push_back(c);
+  st.color.assign(n, -1);
+  std::vector<int> forbidden(n + 1, -1);
+  for (int c = 0; c < n; ++c) {
+    for (int r : cols[c]) {
+      if (r == m.film_row()) continue;
+      for (int other : rows[r])
+        if (st.color[other] >= 0) forbidden[st.color[other]] = c;
+    }
+    int k = 0;
+    while (forbidden[k] == c) ++k;
+    st.color[c] = k;
+    st.ncolors = std::max(st.ncolors, k + 1);
+  }
+  return st;
+}
+
 // The pattern depends only on the mesh and on which terms are present, not on the cell's
-// values: computed once per process for each such structure (a solver built many times, as
-// in studies and benchmarks, pays for it once).
-std::vector<std::vector<int>> detect_pattern(DfnModel& m, const std::vector<double>& y0) {
+// values: pattern and colouring are built once per process for each such structure (a solver
+// built many times, as in studies and benchmarks, pays for them once).
+const DfnSolver::Impl::Structure& jacobian_structure(DfnModel& m, const std::vector<double>& y0) {
   static std::mutex mutex;
-  static std::map<std::tuple<int, int, int, int, bool, bool, bool, bool, int, int>, std::vector<std::vector<int>>> cache;
+  using Key = std::tuple<int, int, int, int, bool, bool, bool, bool, int, int>;
+  static std::map<Key, std::unique_ptr<const DfnSolver::Impl::Structure>> cache;
   const auto& mesh = m.mesh();
-  const auto key = std::make_tuple(mesh.n_neg, mesh.n_sep, mesh.n_pos, mesh.n_r, m.side_reaction_enabled(),
-                                   m.idx_hysteresis() >= 0, m.idx_temperature() >= 0, m.temperature_dependent(),
-                                   m.size(), m.n_populations(0));  // tells the particle populations apart
+  const Key key = std::make_tuple(mesh.n_neg, mesh.n_sep, mesh.n_pos, mesh.n_r, m.side_reaction_enabled(),
+                                  m.idx_hysteresis() >= 0, m.idx_temperature() >= 0, m.temperature_dependent(),
+                                  m.size(), m.n_populations(0));  // tells the particle populations apart
   {
     std::lock_guard<std::mutex> lock(mutex);
-    if (auto it = cache.find(key); it != cache.end()) return it->second;
+    if (auto it = cache.find(key); it != cache.end()) return *it->second;
   }
-  auto cols = detect_pattern_uncached(m, y0);
+  auto st = std::make_unique<const DfnSolver::Impl::Structure>(build_structure(m, structural_jacobian_pattern(m, y0)));
   std::lock_guard<std::mutex> lock(mutex);
-  cache.emplace(key, cols);
-  return cols;
+  return *cache.emplace(key, std::move(st)).first->second;  // a concurrent first build keeps the earlier one
 }
 
 }  // namespace
@@ -296,32 +388,11 @@ void DfnSolver::start(double t0, const std::vector<double>& y0) {
   y_ = y0;
   yp_.assign(n, 0.0);
 
-  const auto cols = detect_pattern(model_, y0);
-  im.colptr.assign(n + 1, 0);
-  im.rowind.clear();
-  for (int c = 0; c < n; ++c) {
-    im.colptr[c + 1] = im.colptr[c] + static_cast<sunindextype>(cols[c].size());
-    for (int r : cols[c]) im.rowind.push_back(r);
-  }
-  // Greedy distance-2 colouring, ignoring the dense film row (handled analytically).
-  std::vector<std::vector<int>> rows(n);
-  for (int c = 0; c < n; ++c)
-    for (int r : cols[c])
-      if (r != model_.film_row()) rows[r].push_back(c);
-  im.color.assign(n, -1);
-  std::vector<int> forbidden(n + 1, -1);
-  im.ncolors = 0;
-  for (int c = 0; c < n; ++c) {
-    for (int r : cols[c]) {
-      if (r == model_.film_row()) continue;
-      for (int other : rows[r])
-        if (im.color[other] >= 0) forbidden[im.color[other]] = c;
-    }
-    int k = 0;
-    while (forbidden[k] == c) ++k;
-    im.color[c] = k;
-    im.ncolors = std::max(im.ncolors, k + 1);
-  }
+  const Impl::Structure& st = jacobian_structure(model_, y0);
+  im.colptr = st.colptr;
+  im.rowind = st.rowind;
+  im.color = st.color;
+  im.ncolors = st.ncolors;
   stats_.colors = im.ncolors;
   stats_.nonzeros = static_cast<long>(im.rowind.size());
   im.yd.resize(n);
@@ -332,6 +403,7 @@ void DfnSolver::start(double t0, const std::vector<double>& y0) {
   im.atol = N_VNew_Serial(n, im.ctx);
   im.id = N_VNew_Serial(n, im.ctx);
   im.tmp = N_VNew_Serial(n, im.ctx);
+  for (N_Vector v : {im.y, im.yp, im.atol, im.id, im.tmp}) use_fast_serial_ops(v);
   for (int i = 0; i < n; ++i) {
     NV_Ith_S(im.y, i) = y_[i];
     NV_Ith_S(im.yp, i) = 0.0;
@@ -347,12 +419,17 @@ void DfnSolver::start(double t0, const std::vector<double>& y0) {
   check(IDASetId(im.ida, im.id), "IDASetId");
   check(IDASetMaxNumSteps(im.ida, settings_.max_steps), "IDASetMaxNumSteps");
   // Large current steps (0 to 2C at full charge) need more Newton work to become consistent.
-  check(IDASetMaxNumItersIC(im.ida, 50), "IDASetMaxNumItersIC");
+  // IDACalcIC's Newton keeps one Jacobian for up to this many iterations: from the rest state
+  // (where the kinetics' slope is least) to 1C it converged linearly in about 36 iterations;
+  // a fresh Jacobian after 10 converges in about 12 and stays within 20 Jacobians x 10.
+  check(IDASetMaxNumItersIC(im.ida, 10), "IDASetMaxNumItersIC");
   check(IDASetMaxNumJacsIC(im.ida, 20), "IDASetMaxNumJacsIC");
   check(IDASetMaxNumStepsIC(im.ida, 20), "IDASetMaxNumStepsIC");
   im.jac = SUNSparseMatrix(n, n, static_cast<sunindextype>(im.rowind.size()), CSC_MAT, im.ctx);
+  if (im.jac) use_fast_sparse_zero(im.jac);
   im.ls = SUNLinSol_KLU(im.y, im.jac, im.ctx);
   if (!im.jac || !im.ls) throw RuntimeFailure("cannot create the KLU sparse solver");
+  im.ls->ops->initialize = klu_initialize_once;
   check(IDASetLinearSolver(im.ida, im.ls, im.jac), "IDASetLinearSolver");
   check(IDASetJacFn(im.ida, jacobian_fn), "IDASetJacFn");
   check(IDARootInit(im.ida, 4, root_fn), "IDARootInit");
@@ -371,6 +448,8 @@ void DfnSolver::consistent_init() {
   stats_base_ = stats_;
   im.tn = t_;
   im.root_pending = false;
+  im.window_steps0 = 0;
+  im.window_t0 = t_;
   check(IDAReInit(im.ida, t_, im.y, im.yp), "IDAReInit");
   last_ida_message.clear();
   int flag = IDACalcIC(im.ida, IDA_YA_YDP_INIT, t_ + 1e-3);
@@ -500,7 +579,13 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
   const int n = model_.size();
   int restarts = 0;
   bool small_first_step = false;
+  const auto wall0 = std::chrono::steady_clock::now();
+  long steps_here = 0;
   while (!im.root_pending && im.tn < tout) {
+    if (++steps_here > settings_.max_steps || (steps_here % 64 == 0 && wall_limit_passed(wall0))) {
+      if (exact) IDASetStopTime(im.ida, 1e300);
+      throw RuntimeFailure(limit_message(tout, steps_here > settings_.max_steps));
+    }
     realtype tret = im.tn;
     const int flag = IDASolve(im.ida, tout, &tret, im.y, im.yp, IDA_ONE_STEP);
     if (flag < 0) {
@@ -555,6 +640,7 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
     }
     im.tn = tret;
     if (flag == IDA_TSTOP_RETURN) im.tn = tout;
+    check_crawl(exact);
   }
   if (im.root_pending && im.root_t <= tout) {
     if (exact) IDASetStopTime(im.ida, 1e300);
@@ -579,6 +665,47 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
   t_ = tout;
   update_stats();
   return Result::reached;
+}
+
+bool DfnSolver::wall_limit_passed(std::chrono::steady_clock::time_point since) const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count() > settings_.max_wall_s;
+}
+
+std::string DfnSolver::limit_message(double tout, bool by_steps) const {
+  const Impl& im = *impl_;
+  realtype h_last = 0.0;
+  IDAGetLastStep(im.ida, &h_last);
+  char buf[512];
+  if (by_steps)
+    std::snprintf(buf, sizeof buf, "solver step limit: %ld internal steps from t = %.6g s did not reach %.6g s (now at %.9g s, last step %.3g s)",
+                  settings_.max_steps, t_, tout, im.tn, h_last);
+  else
+    std::snprintf(buf, sizeof buf, "solver wall-clock limit: %.0f s spent from t = %.6g s towards %.6g s (now at %.9g s, last step %.3g s)",
+                  settings_.max_wall_s, t_, tout, im.tn, h_last);
+  return std::string(buf) + kLimitAdvice;
+}
+
+void DfnSolver::check_crawl(bool exact) {
+  Impl& im = *impl_;
+  long nst = 0;
+  IDAGetNumSteps(im.ida, &nst);
+  if (nst - im.window_steps0 < settings_.crawl_window_steps) return;
+  const double advanced_s = im.tn - im.window_t0;
+  if (advanced_s < settings_.crawl_min_advance_s) {
+    realtype h_last = 0.0;
+    IDAGetLastStep(im.ida, &h_last);
+    long conv_fails = 0;
+    IDAGetNumNonlinSolvConvFails(im.ida, &conv_fails);
+    if (exact) IDASetStopTime(im.ida, 1e300);
+    char buf[512];
+    std::snprintf(buf, sizeof buf,
+                  "solver is crawling: %ld steps from t = %.9g s advanced the model by only %.3g s (last step %.3g s, "
+                  "%ld Newton convergence failures since the last restart)",
+                  nst - im.window_steps0, im.window_t0, advanced_s, h_last, conv_fails);
+    throw RuntimeFailure(std::string(buf) + kLimitAdvice);
+  }
+  im.window_steps0 = nst;
+  im.window_t0 = im.tn;
 }
 
 void DfnSolver::update_stats() {

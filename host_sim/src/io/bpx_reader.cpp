@@ -45,7 +45,6 @@ struct Range {
 };
 
 constexpr Range kPositive{0.0, kInf, true, true};
-constexpr Range kNonNegative{0.0, kInf, false, true};
 constexpr Range kOpenFraction{0.0, 1.0, true, true};
 constexpr Range kTransportEfficiency{0.0, 1.0, true, false};
 constexpr Range kStoichiometry{0.0, 1.0, false, false};
@@ -54,6 +53,31 @@ constexpr Range kVoltage{0.0, 10.0, true, false};
 constexpr Range kOcp{-10.0, 10.0, false, false};
 constexpr Range kAnyValue{-kInf, kInf, true, true};
 constexpr Range kTemperature{173.15, 473.15, false, false};  // kelvin; catches degC typed as K
+constexpr Range kSeparatorPorosity{0.0, 1.0, true, false};  // a free-standing electrolyte gap: 1
+
+// Physical ranges: generous (one to several decades beyond any published lithium-ion cell) but
+// finite, so that a typing error (a unit prefix, an exponent's sign) is an input error naming
+// the field and not a model the solver cannot integrate (a solid diffusivity of 1e10 m2/s
+// made it crawl at 1e-8 s steps). Published values for comparison in the comments.
+constexpr Range kThickness{1e-7, 5e-3, false, false};           // m; electrodes 10-300 um, separators 5-50 um
+constexpr Range kParticleRadius{1e-9, 1e-3, false, false};      // m; 20 nm - 30 um
+constexpr Range kSolidDiffusivity{1e-25, 1e-8, false, false};   // m2/s; 1e-19 - 1e-12
+constexpr Range kElectrolyteDiffusivity{1e-14, 1e-7, false, false};  // m2/s; 1e-11 - 5e-9
+constexpr Range kElectrolyteConductivity{1e-6, 100.0, false, false};  // S/m; 0.01 - 2 at c_e0
+constexpr Range kSolidConductivity{1e-6, 1e8, false, false};    // S/m (effective); 0.01 (LFP) - 6e7 (copper)
+constexpr Range kMaxConcentration{100.0, 1e6, false, false};    // mol/m3; 1e4 - 1e5
+constexpr Range kElectrolyteConcentration{1.0, 1e4, false, false};  // mol/m3; 500 - 2000
+constexpr Range kRateConstant{1e-15, 1.0, false, false};        // mol/(m2 s), normalised; 1e-8 - 1e-4
+constexpr Range kElectrodeArea{1e-6, 1e3, false, false};        // m2 per pair
+constexpr Range kCapacity{1e-6, 1e5, false, false};             // A h
+constexpr Range kActivation{0.0, 5e5, false, false};            // J/mol; 1e4 - 1e5
+constexpr Range kEntropic{-1e-2, 1e-2, false, false};           // V/K; |dU/dT| < 1e-3
+constexpr Range kSpecificHeat{1.0, 1e5, false, false};          // J/(kg K); 800 - 1500
+constexpr Range kDensity{1.0, 1e5, false, false};               // kg/m3; 1500 - 3000
+constexpr Range kVolume{1e-9, 10.0, false, false};              // m3
+constexpr Range kExternalArea{1e-6, 100.0, false, false};       // m2
+constexpr Range kAreaPerVolume{1.0, 1e10, false, false};         // 1/m; 1e5 - 1e7
+constexpr Range kThermodynamicFactor{0.05, 20.0, false, false};  // -; 1 - 3 in carbonate electrolytes
 
 // One JSON object of the file, with its dotted path for messages.
 class Section {
@@ -172,9 +196,9 @@ void check_version(const Section& header) {
 ElectrodeParameters read_electrode(const Section& s, double c_e0, bool negative) {
   if (s.find("Particle") != nullptr) s.fail("Particle", "(blended electrode) is not supported");
   ElectrodeParameters e;
-  e.thickness_m = s.number("Thickness [m]", kPositive);
-  e.particle_radius_m = s.number("Particle radius [m]", kPositive);
-  const double area_per_volume = s.number("Surface area per unit volume [m-1]", kPositive);
+  e.thickness_m = s.number("Thickness [m]", kThickness);
+  e.particle_radius_m = s.number("Particle radius [m]", kParticleRadius);
+  const double area_per_volume = s.number("Surface area per unit volume [m-1]", kAreaPerVolume);
   e.porosity = s.number("Porosity", kOpenFraction);
   e.transport_efficiency = s.number("Transport efficiency", kTransportEfficiency);
   // Spherical particles: a = 3 eps_s / R.
@@ -186,12 +210,12 @@ ElectrodeParameters read_electrode(const Section& s, double c_e0, bool negative)
                     "exceeds the whole volume",
                     area_per_volume, e.solid_fraction, e.porosity));
   }
-  e.max_concentration_mol_m3 = s.number("Maximum concentration [mol.m-3]", kPositive);
-  e.conductivity_eff_s_m = s.number("Conductivity [S.m-1]", kPositive);
+  e.max_concentration_mol_m3 = s.number("Maximum concentration [mol.m-3]", kMaxConcentration);
+  e.conductivity_eff_s_m = s.number("Conductivity [S.m-1]", kSolidConductivity);
 
   // BPX: j0 = F k sqrt((c_e/c_e0) (c_s/c_max) (1 - c_s/c_max)), folded into the struct's
   // i0 = i0_coefficient sqrt(c_e c_s (c_max - c_s)).
-  const double k_norm = s.number("Reaction rate constant [mol.m-2.s-1]", kPositive);
+  const double k_norm = s.number("Reaction rate constant [mol.m-2.s-1]", kRateConstant);
   e.i0_coefficient = kFaraday * k_norm / (std::sqrt(c_e0) * e.max_concentration_mol_m3);
 
   e.stoich_min = s.number("Minimum stoichiometry", kStoichiometry);
@@ -205,15 +229,15 @@ ElectrodeParameters read_electrode(const Section& s, double c_e0, bool negative)
   e.stoich_init = negative ? e.stoich_max : e.stoich_min;
 
   e.diffusivity_activation_j_mol =
-      s.number_or("Diffusivity activation energy [J.mol-1]", kNonNegative, 0.0);
+      s.number_or("Diffusivity activation energy [J.mol-1]", kActivation, 0.0);
   e.rate_activation_j_mol =
-      s.number_or("Reaction rate constant activation energy [J.mol-1]", kNonNegative, 0.0);
+      s.number_or("Reaction rate constant activation energy [J.mol-1]", kActivation, 0.0);
 
   // Our particle model has a constant diffusivity: a stoichiometry-dependent one is taken at
   // mid-range, x = 0.5.
   constexpr double kDiffusivityStoichiometry = 0.5;
   const ScalarFunctionPtr diffusivity = s.function("Diffusivity [m2.s-1]");
-  s.check_function("Diffusivity [m2.s-1]", *diffusivity, kDiffusivityStoichiometry, kPositive);
+  s.check_function("Diffusivity [m2.s-1]", *diffusivity, kDiffusivityStoichiometry, kSolidDiffusivity);
   e.solid_diffusivity_m2_s = diffusivity->value(kDiffusivityStoichiometry);
 
   e.ocp_v = s.function("OCP [V]");
@@ -221,7 +245,7 @@ ElectrodeParameters read_electrode(const Section& s, double c_e0, bool negative)
   for (const double x : {e.stoich_min, 0.5 * (e.stoich_min + e.stoich_max), e.stoich_max}) {
     s.check_function("OCP [V]", *e.ocp_v, x, kOcp);
     if (e.entropic_v_k) {
-      s.check_function("Entropic change coefficient [V.K-1]", *e.entropic_v_k, x, kAnyValue);
+      s.check_function("Entropic change coefficient [V.K-1]", *e.entropic_v_k, x, kEntropic);
     }
   }
   return e;
@@ -263,9 +287,9 @@ CellParameters read_bpx_text(std::string_view text, std::string_view name) {
   p.name = std::filesystem::path(file).stem().string();
   p.source = file;
 
-  const double area = cell.number("Electrode area [m2]", kPositive);
+  const double area = cell.number("Electrode area [m2]", kElectrodeArea);
   const std::string pairs_key = "Number of electrode pairs connected in parallel to make a cell";
-  const double pairs = cell.number(pairs_key, {1.0, kInf, false, true});
+  const double pairs = cell.number(pairs_key, {1.0, 1e4, false, false});
   if (pairs != std::floor(pairs)) {
     cell.fail(pairs_key, fmt::format("= {} must be a whole number", pairs));
   }
@@ -277,7 +301,7 @@ CellParameters read_bpx_text(std::string_view text, std::string_view name) {
               fmt::format("= {} must be below 'Upper voltage cut-off [V]' = {}", p.lower_voltage_v,
                           p.upper_voltage_v));
   }
-  p.nominal_capacity_ah = cell.number("Nominal cell capacity [A.h]", kPositive);
+  p.nominal_capacity_ah = cell.number("Nominal cell capacity [A.h]", kCapacity);
 
   ThermalParameters& th = p.thermal;
   th.ambient_temperature_k = cell.number("Ambient temperature [K]", kTemperature);
@@ -286,34 +310,42 @@ CellParameters read_bpx_text(std::string_view text, std::string_view name) {
   th.reference_temperature_k =
       cell.number_or("Reference temperature [K]", kTemperature, kDefaultReferenceTemperatureK);
   // Optional in BPX; 0 tells the thermal model they are unknown.
-  th.specific_heat_j_kg_k = cell.number_or("Specific heat capacity [J.K-1.kg-1]", kPositive, 0.0);
-  th.density_kg_m3 = cell.number_or("Density [kg.m-3]", kPositive, 0.0);
-  th.volume_m3 = cell.number_or("Volume [m3]", kPositive, 0.0);
-  th.external_area_m2 = cell.number_or("External surface area [m2]", kPositive, 0.0);
+  th.specific_heat_j_kg_k = cell.number_or("Specific heat capacity [J.K-1.kg-1]", kSpecificHeat, 0.0);
+  th.density_kg_m3 = cell.number_or("Density [kg.m-3]", kDensity, 0.0);
+  th.volume_m3 = cell.number_or("Volume [m3]", kVolume, 0.0);
+  th.external_area_m2 = cell.number_or("External surface area [m2]", kExternalArea, 0.0);
 
   ElectrolyteParameters& el = p.electrolyte;
   el.initial_concentration_mol_m3 =
-      electrolyte.number("Initial concentration [mol.m-3]", kPositive);
+      electrolyte.number("Initial concentration [mol.m-3]", kElectrolyteConcentration);
   p.initial_electrolyte_mol_m3 = el.initial_concentration_mol_m3;
   el.transference_number = electrolyte.number("Cation transference number", kTransference);
   el.diffusivity_m2_s = electrolyte.function("Diffusivity [m2.s-1]");
   el.conductivity_s_m = electrolyte.function("Conductivity [S.m-1]");
   electrolyte.check_function("Diffusivity [m2.s-1]", *el.diffusivity_m2_s,
-                             el.initial_concentration_mol_m3, kPositive);
+                             el.initial_concentration_mol_m3, kElectrolyteDiffusivity);
   electrolyte.check_function("Conductivity [S.m-1]", *el.conductivity_s_m,
-                             el.initial_concentration_mol_m3, kPositive);
+                             el.initial_concentration_mol_m3, kElectrolyteConductivity);
+  // PyBaMM's "Thermodynamic factor" (1 + dln f/dln c), a BPX extension: optional, 1 when absent.
+  // Checked across the concentrations a cell visits (c_e0 / 4 to 2.5 c_e0 at high rates).
+  el.thermodynamic_factor = electrolyte.function_or_null("Thermodynamic factor");
+  if (el.thermodynamic_factor) {
+    for (const double f : {0.25, 1.0, 2.5})
+      electrolyte.check_function("Thermodynamic factor", *el.thermodynamic_factor,
+                                 f * el.initial_concentration_mol_m3, kThermodynamicFactor);
+  }
   el.diffusivity_activation_j_mol =
-      electrolyte.number_or("Diffusivity activation energy [J.mol-1]", kNonNegative, 0.0);
+      electrolyte.number_or("Diffusivity activation energy [J.mol-1]", kActivation, 0.0);
   el.conductivity_activation_j_mol =
-      electrolyte.number_or("Conductivity activation energy [J.mol-1]", kNonNegative, 0.0);
+      electrolyte.number_or("Conductivity activation energy [J.mol-1]", kActivation, 0.0);
 
   p.negative =
       read_electrode(params.section("Negative electrode"), el.initial_concentration_mol_m3, true);
   p.positive =
       read_electrode(params.section("Positive electrode"), el.initial_concentration_mol_m3, false);
 
-  p.separator.thickness_m = separator.number("Thickness [m]", kPositive);
-  p.separator.porosity = separator.number("Porosity", kOpenFraction);
+  p.separator.thickness_m = separator.number("Thickness [m]", kThickness);
+  p.separator.porosity = separator.number("Porosity", kSeparatorPorosity);
   p.separator.transport_efficiency = separator.number("Transport efficiency", kTransportEfficiency);
 
   p.side.enabled = false;  // BPX has no side reaction
