@@ -133,17 +133,31 @@ class ReducedCell {
   }
 
   const State& state() const { return s_; }
+  static bool within(Scalar v, Scalar lo, Scalar hi) { return std::isfinite(v) && v >= lo && v <= hi; }
+  // Accepts only a physically possible state (a saved image may be corrupt yet CRC-valid,
+  // e.g. written by a faulty build): concentrations within [0, their maximum], electrolyte
+  // within 0..kMaxElectrolyteFactor times its initial value, lithium lost within 0..all the
+  // lithium both electrodes can hold, current and side current within generous bounds.
   bool restore(const State& s) {
-    bool ok = std::isfinite(s.li_loss_mol) && std::isfinite(s.charge_c) && std::isfinite(s.current_a) &&
-              std::isfinite(s.j_side_a_m2) && std::isfinite(s.inventory_dir_neg_per_mol) &&
-              std::isfinite(s.inventory_dir_pos_per_mol);
-    for (int i = 0; ok && i < kNrN; ++i) ok = std::isfinite(s.cs_neg_mol_m3[i]);
-    for (int i = 0; ok && i < kNrP; ++i) ok = std::isfinite(s.cs_pos_mol_m3[i]);
-    for (int k = 0; ok && k < kNx; ++k) ok = std::isfinite(s.ce_mol_m3[k]);
+    bool ok = within(s.li_loss_mol, Scalar(0), inventory_of(Scalar(1), Scalar(1))) &&
+              within(s.charge_c, -Scalar(kMaxChargeThroughput_c), Scalar(kMaxChargeThroughput_c)) &&
+              within(s.current_a, -Scalar(kMaxCurrent_a), Scalar(kMaxCurrent_a)) &&
+              within(s.j_side_a_m2, -Scalar(kMaxSideCurrent_a_m2), Scalar(kMaxSideCurrent_a_m2)) &&
+              std::isfinite(s.inventory_dir_neg_per_mol) && std::isfinite(s.inventory_dir_pos_per_mol);
+    for (int i = 0; ok && i < kNrN; ++i) ok = within(s.cs_neg_mol_m3[i], Scalar(0), Scalar(Cell::kNeg.max_concentration_mol_m3));
+    for (int i = 0; ok && i < kNrP; ++i) ok = within(s.cs_pos_mol_m3[i], Scalar(0), Scalar(Cell::kPos.max_concentration_mol_m3));
+    const Scalar ce_max = Scalar(kMaxElectrolyteFactor * Cell::kElectrolyteInitMolM3);
+    for (int k = 0; ok && k < kNx; ++k) ok = within(s.ce_mol_m3[k], Scalar(0), ce_max);
     if (!ok) return false;
     s_ = s;
     return true;
   }
+  // Bounds of restore(): far outside any cell this model describes, inside what the
+  // arithmetic of one tick keeps finite.
+  static constexpr double kMaxChargeThroughput_c = 1e12;  // about 3e5 full cycles of a 1 Ah cell
+  static constexpr double kMaxCurrent_a = 1e4;
+  static constexpr double kMaxSideCurrent_a_m2 = 1e3;
+  static constexpr double kMaxElectrolyteFactor = 10.0;
 
   // One tick driven by current [A], positive = discharge.
   ModelTickResult<Scalar> step_current(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s) {
