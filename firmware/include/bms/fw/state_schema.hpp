@@ -103,7 +103,7 @@ constexpr bool covers(const Field (&fields)[N], std::size_t struct_size, std::si
 // NOLINTEND(cppcoreguidelines-macro-usage)
 
 template <class S, int N>
-constexpr std::uint32_t state_schema(Type<Rls<S, N>>) {
+constexpr std::uint32_t state_schema(Type<Rls<S, N>> /*tag*/) {
   using St = typename Rls<S, N>::State;
   constexpr Field f[] = {BMS_SCHEMA_FIELD(St, theta), BMS_SCHEMA_FIELD(St, p)};
   static_assert(covers(f, sizeof(St), alignof(St)), "Rls::State changed: update its schema table");
@@ -111,7 +111,7 @@ constexpr std::uint32_t state_schema(Type<Rls<S, N>>) {
 }
 
 template <class S>
-constexpr std::uint32_t state_schema(Type<FilmGrowthIdentifier<S>>) {
+constexpr std::uint32_t state_schema(Type<FilmGrowthIdentifier<S>> /*tag*/) {
   using St = typename FilmGrowthIdentifier<S>::State;
   constexpr Field f[] = {BMS_SCHEMA_NESTED(St, rls, typename FilmGrowthIdentifier<S>::RlsType),
                          BMS_SCHEMA_FIELD(St, growth_ohm_m2), BMS_SCHEMA_FIELD(St, growth_at_charge_ohm_m2)};
@@ -120,7 +120,7 @@ constexpr std::uint32_t state_schema(Type<FilmGrowthIdentifier<S>>) {
 }
 
 template <class S>
-constexpr std::uint32_t state_schema(Type<ModeDetector<S>>) {
+constexpr std::uint32_t state_schema(Type<ModeDetector<S>> /*tag*/) {
   using St = typename ModeDetector<S>::State;
   constexpr Field f[] = {BMS_SCHEMA_FIELD(St, mode), BMS_SCHEMA_FIELD(St, candidate),
                          BMS_SCHEMA_FIELD(St, candidate_ticks), BMS_SCHEMA_FIELD(St, reserved),
@@ -130,7 +130,7 @@ constexpr std::uint32_t state_schema(Type<ModeDetector<S>>) {
 }
 
 template <class S, int Nc, int D>
-constexpr std::uint32_t state_schema(Type<RcsiEstimator<S, Nc, D>>) {
+constexpr std::uint32_t state_schema(Type<RcsiEstimator<S, Nc, D>> /*tag*/) {
   using E = RcsiEstimator<S, Nc, D>;
   using St = typename E::State;
   constexpr Field f[] = {BMS_SCHEMA_FIELD(St, layout_tag),         BMS_SCHEMA_FIELD(St, flags),
@@ -144,7 +144,7 @@ constexpr std::uint32_t state_schema(Type<RcsiEstimator<S, Nc, D>>) {
 }
 
 template <class S>
-constexpr std::uint32_t state_schema(Type<ResyncWindow<S>>) {
+constexpr std::uint32_t state_schema(Type<ResyncWindow<S>> /*tag*/) {
   using St = typename ResyncWindow<S>::State;
   constexpr Field f[] = {BMS_SCHEMA_FIELD(St, samples), BMS_SCHEMA_FIELD(St, length), BMS_SCHEMA_FIELD(St, v0_v),
                          BMS_SCHEMA_FIELD(St, i0_a),    BMS_SCHEMA_FIELD(St, sum_x),  BMS_SCHEMA_FIELD(St, sum_xx),
@@ -155,7 +155,7 @@ constexpr std::uint32_t state_schema(Type<ResyncWindow<S>>) {
 }
 
 template <class S, class Cell, class Mesh>
-constexpr std::uint32_t state_schema(Type<ReducedCell<S, Cell, Mesh>>) {
+constexpr std::uint32_t state_schema(Type<ReducedCell<S, Cell, Mesh>> /*tag*/) {
   using St = typename ReducedCell<S, Cell, Mesh>::State;
   constexpr Field f[] = {BMS_SCHEMA_FIELD(St, cs_neg_mol_m3),
                          BMS_SCHEMA_FIELD(St, cs_pos_mol_m3),
@@ -171,7 +171,7 @@ constexpr std::uint32_t state_schema(Type<ReducedCell<S, Cell, Mesh>>) {
 }
 
 template <class Inner, unsigned Effects>
-constexpr std::uint32_t state_schema(Type<EffectsModel<Inner, Effects>>) {
+constexpr std::uint32_t state_schema(Type<EffectsModel<Inner, Effects>> /*tag*/) {
   using St = typename EffectsModel<Inner, Effects>::State;
   constexpr Field f[] = {BMS_SCHEMA_NESTED(St, inner, Inner), BMS_SCHEMA_FIELD(St, hysteresis_v),
                          BMS_SCHEMA_FIELD(St, current_a)};
@@ -180,7 +180,7 @@ constexpr std::uint32_t state_schema(Type<EffectsModel<Inner, Effects>>) {
 }
 
 template <class S, class M, int Nc, int D>
-constexpr std::uint32_t state_schema(Type<BmsCore<S, M, Nc, D>>) {
+constexpr std::uint32_t state_schema(Type<BmsCore<S, M, Nc, D>> /*tag*/) {
   using C = BmsCore<S, M, Nc, D>;
   using St = typename C::State;
   constexpr Field f[] = {BMS_SCHEMA_NESTED(St, identifier, FilmGrowthIdentifier<S>),
