@@ -44,7 +44,7 @@ class BmsApplication {
     return fw::schema::hash("BmsApplication.Persisted", f, sizeof(P));
   }();
   using Store = fw::nvm::RecordStore<Persisted, kPersistedTag, NonVolatileMemory>;
-  // Longest gap fed to the core as missed ticks (10 minutes); a longer one is a new start.
+  // Longest gap fed to the core as missed ticks (10 minutes); a longer one is a fresh start.
   static constexpr std::uint32_t kMaxMissedTicks = 3000u;
   // Real time: how many ticks a measurement's Seq may run ahead of the firmware's count of
   // ticks since the last one (the host's and the firmware's 0.2 s clocks jitter).
