@@ -307,6 +307,13 @@ TEST(BmsApplication, RealTimeWindowDropsReplaysAndFollowsARestartedHost) {
   // A tick without a frame, then two in one tick (clock jitter): both inside the window.
   EXPECT_FALSE(tick_with({}).present);
   EXPECT_TRUE(tick_with({measurement(106 & 0xF, 106, 3.006), measurement(107 & 0xF, 107, 3.007)}).present);
+  // The firmware was late by 5 ticks (a stalled process; the timer skips them) and the host's
+  // frames of those ticks were lost: its next Seq is 6 ahead, and the window counts the
+  // skipped ticks (the alive counter's step, 6, is within its own limit of 7).
+  ticks.overrun(5);
+  const auto late = tick_with({measurement((108 + 5) & 0xF, 108 + 5, 3.113)});
+  EXPECT_TRUE(late.present);
+  EXPECT_EQ(app.missed_ticks_total(), 5u);
   // The host restarts at Seq 0 (counters from 0): followed after three frames.
   int first_present = -1;
   for (std::uint16_t s = 0; s < 8; ++s) {
@@ -367,7 +374,7 @@ TEST(NvmRestore, EveryScalarFieldIsRangeChecked) {
     void (*apply)(Core::State&);
   };
   const Bad cases[] = {
-      {"model.cs_neg", [](Core::State& x) { x.model.cs_neg_mol_m3[0] = -1.0; }},
+      {"model.cs_neg", [](Core::State& x) { x.model.cs_neg_mol_m3[0] = -1e9; }},
       {"model.cs_pos", [](Core::State& x) { x.model.cs_pos_mol_m3[0] = 1e9; }},
       {"model.ce", [](Core::State& x) { x.model.ce_mol_m3[0] = 1e7; }},
       {"model.charge_c", [](Core::State& x) { x.model.charge_c = 1e300; }},

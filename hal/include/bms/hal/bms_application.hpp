@@ -136,6 +136,7 @@ class BmsApplication {
     core_.ticks_missed(missed);
     missed_total_ += missed;
     budget_.tick(missed + 1u);
+    ticks_since_sample_ = saturating_add(ticks_since_sample_, missed + 1u);
     last_tick_ = tick;
     have_tick_ = true;
     tick_after_restart_ = false;
@@ -160,6 +161,8 @@ class BmsApplication {
   std::uint32_t last_tick() const { return last_tick_; }
 
  private:
+  static std::uint32_t saturating_add(std::uint32_t a, std::uint32_t b) { return a + b < a ? 0xFFFFFFFFu : a + b; }
+
   std::uint32_t missed_ticks(std::uint32_t tick) const {
     if (!have_tick_) return 0u;
     std::uint32_t ahead = tick - last_tick_;
@@ -188,6 +191,7 @@ class BmsApplication {
       if (r != fw::can::RxResult::accepted || m.msg != fw::can::Msg::measurement) continue;
       in = {m.measurement.voltage_v, m.measurement.current_a, true};
       seq_ = m.measurement.seq;
+      ticks_since_sample_ = 0u;
       if (!o_.lockstep) {
         rt_seq_.observe(seq_, fw::can::kSeqHalfRange);
         open_seq_window();
@@ -212,7 +216,9 @@ class BmsApplication {
       receiver_.clear_seq_window();
       return;
     }
-    std::uint32_t span = receiver_.ticks_without_measurement() + 1u + kRealtimeSeqSlack;
+    // Ticks since the last sample, the late ones (missed) included: the host kept sending.
+    std::uint32_t span = saturating_add(ticks_since_sample_, kRealtimeSeqSlack);
+    if (span < 1u) span = 1u;
     if (span > fw::can::kSeqHalfRange) span = fw::can::kSeqHalfRange;
     receiver_.set_seq_window(static_cast<std::uint16_t>(rt_seq_.last() + 1u), static_cast<std::uint16_t>(span));
   }
@@ -222,7 +228,7 @@ class BmsApplication {
   void schedule_commit(bool cc_charge, std::uint32_t ticks) {
     if (o_.persist_at_charge_end && was_cc_charge_ && !cc_charge) save_pending_ = true;
     was_cc_charge_ = cc_charge;
-    since_persist_ = since_persist_ + ticks < since_persist_ ? 0xFFFFFFFFu : since_persist_ + ticks;
+    since_persist_ = saturating_add(since_persist_, ticks);
     if (o_.persist_every_ticks != 0u && since_persist_ >= o_.persist_every_ticks) save_pending_ = true;
     if (save_pending_ && budget_.credit_ticks() >= budget_.interval_ticks()) persist();
   }
@@ -297,6 +303,7 @@ class BmsApplication {
   typename Core::Output last_{};
   std::uint16_t seq_ = 0;
   std::uint32_t since_persist_ = 0;
+  std::uint32_t ticks_since_sample_ = 0;
   std::uint32_t dropped_seen_ = 0;
   std::uint8_t fault_bits_ = 0;
   bool save_pending_ = false;
