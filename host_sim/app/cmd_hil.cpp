@@ -239,13 +239,9 @@ int run_hil(HilCli& c) {
   if (c.bus == "uml") exec_in_uml();
   if (c.realtime && !c.fault.empty()) throw InputError("--fault: lock-step only (drop it or --realtime)");
   const hil::FaultSpec spec = hil::parse_fault_spec(c.fault);
-  // Checked before the long work: the output folder and the bus. Every file is written under
-  // DIR.partial and moved into DIR only when the run succeeded (hil/staged_output.hpp).
+  // Checked before the long work: the output folder. Every file is written under DIR.partial
+  // and moved into DIR only when the run succeeded (hil/staged_output.hpp).
   hil::StagedOutput out(c.out);
-  hal::lnx::SocketCanBus bus;
-  if (bus.open(c.bus.c_str()) != hal::Status::ok)
-    throw RuntimeFailure("cannot open CAN interface " + c.bus + ": " + bus.last_error() +
-                         " (on a machine without kernel CAN use --bus uml)");
   if (!c.sim.quiet) std::fprintf(stderr, "hil: simulating the truth (%d cycles)...\n", c.sim.cycles);
   SimulateRun run = run_simulation(c.sim, {});
   // What goes on the bus: the measured values at the bus resolution (10 uV, 0.1 mA). The
@@ -265,7 +261,11 @@ int run_hil(HilCli& c) {
   if (c.max_ticks > 0 && c.max_ticks < n) n = c.max_ticks;
   std::vector<fw::Mode> modes;
   for (std::size_t k = 0; k < n; ++k) modes.push_back(run.result.samples[k].mode);
-  const hil::FaultPlan plan(spec, modes, c.sim.dt_s);
+  const hil::FaultPlan plan(spec, modes, c.sim.dt_s);  // bad windows: exit 2 before the bus is tried
+  hal::lnx::SocketCanBus bus;
+  if (bus.open(c.bus.c_str()) != hal::Status::ok)
+    throw RuntimeFailure("cannot open CAN interface " + c.bus + ": " + bus.last_error() +
+                         " (on a machine without kernel CAN use --bus uml)");
   const std::filesystem::path dir(c.out);
   write_truth_csv(out.path("truth.csv"), run.result, run.measured);
 
