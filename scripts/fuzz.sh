@@ -21,7 +21,7 @@ seed="${BMS_FUZZ_SEED:-1}"
 jobs="${BMS_JOBS:-$(nproc 2>/dev/null || echo 2)}"
 build="$root/build/fuzz"
 
-all_targets=(can_receiver nvm_record expression bpx csv candump)
+all_targets=(can_receiver nvm_record lockstep_app nvm_payload expression bpx csv candump)
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=("${all_targets[@]}")
 
@@ -31,6 +31,8 @@ max_len() {
   case "$1" in
     can_receiver) echo 1200 ;;
     nvm_record) echo 1100 ;;
+    lockstep_app) echo 2200 ;;
+    nvm_payload) echo 405 ;;
     expression) echo 1024 ;;
     bpx) echo 8192 ;;
     *) echo 4096 ;;

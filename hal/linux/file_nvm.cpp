@@ -48,7 +48,13 @@ Status FileNvm::open(const char* path, std::size_t size_bytes, std::size_t page_
   if (path == nullptr || path[0] == '\0') return fail(Status::invalid_argument, "empty path", 0);
   if (page_size == 0 || size_bytes == 0 || size_bytes % page_size != 0)
     return fail(Status::invalid_argument, "size must be a positive multiple of the page size", 0);
-  const int fd = ::open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  page_size_ = page_size;
+  int fd = ::open(path, O_RDWR | O_CLOEXEC);
+  if (fd < 0 && errno == ENOENT) {
+    const Status c = create_erased(path, size_bytes);
+    if (c != Status::ok) return c;
+    fd = ::open(path, O_RDWR | O_CLOEXEC);
+  }
   if (fd < 0) return fail(errno == ENOENT ? Status::not_found : Status::io_error, "open failed", errno);
   struct stat st {};
   if (::fstat(fd, &st) < 0) {
@@ -70,6 +76,41 @@ Status FileNvm::open(const char* path, std::size_t size_bytes, std::size_t page_
     char what[96];
     (void)std::snprintf(what, sizeof what, "has %lld bytes, expected %zu", static_cast<long long>(st.st_size), size_bytes);
     return fail(Status::invalid_argument, what, 0);
+  }
+  return Status::ok;
+}
+
+// Fills PATH.creating with erased bytes, syncs it and renames it to PATH: the rename is the
+// commit, so no reader ever sees a partly filled file under PATH.
+Status FileNvm::create_erased(const char* path, std::size_t size_bytes) {
+  char tmp[sizeof path_ + 16];
+  (void)std::snprintf(tmp, sizeof tmp, "%s.creating", path);
+  const int fd = ::open(tmp, O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return fail(errno == ENOENT ? Status::not_found : Status::io_error, "cannot create", errno);
+  fd_ = fd;
+  size_ = size_bytes;
+  Status s = erase(0, size_bytes);
+  fd_ = -1;
+  if (::close(fd) != 0 && s == Status::ok) s = fail(Status::io_error, "close failed", errno);
+  if (s == Status::ok && ::rename(tmp, path) != 0) s = fail(Status::io_error, "rename failed", errno);
+  if (s != Status::ok) {
+    (void)::unlink(tmp);
+    return s;
+  }
+  // The directory entry itself must be durable too.
+  char dir[sizeof path_];
+  (void)std::snprintf(dir, sizeof dir, "%s", path);
+  char* slash = std::strrchr(dir, '/');
+  if (slash == nullptr) {
+    dir[0] = '.';
+    dir[1] = '\0';
+  } else {
+    slash[slash == dir ? 1 : 0] = '\0';
+  }
+  const int dfd = ::open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dfd >= 0) {
+    (void)::fsync(dfd);
+    (void)::close(dfd);
   }
   return Status::ok;
 }

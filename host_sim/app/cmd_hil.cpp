@@ -28,6 +28,7 @@
 #include "estimation/estimate_run.hpp"
 #include "hil/fault_plan.hpp"
 #include "hil/firmware_process.hpp"
+#include "hil/staged_output.hpp"
 #include "io/atomic_file.hpp"
 #include "io/candump_log.hpp"
 #include "io/input_error.hpp"
@@ -238,6 +239,9 @@ int run_hil(HilCli& c) {
   if (c.bus == "uml") exec_in_uml();
   if (c.realtime && !c.fault.empty()) throw InputError("--fault: lock-step only (drop it or --realtime)");
   const hil::FaultSpec spec = hil::parse_fault_spec(c.fault);
+  // Checked before the long work: the output folder. Every file is written under DIR.partial
+  // and moved into DIR only when the run succeeded (hil/staged_output.hpp).
+  hil::StagedOutput out(c.out);
   if (!c.sim.quiet) std::fprintf(stderr, "hil: simulating the truth (%d cycles)...\n", c.sim.cycles);
   SimulateRun run = run_simulation(c.sim, {});
   // What goes on the bus: the measured values at the bus resolution (10 uV, 0.1 mA). The
@@ -257,20 +261,20 @@ int run_hil(HilCli& c) {
   if (c.max_ticks > 0 && c.max_ticks < n) n = c.max_ticks;
   std::vector<fw::Mode> modes;
   for (std::size_t k = 0; k < n; ++k) modes.push_back(run.result.samples[k].mode);
-  const hil::FaultPlan plan(spec, modes, c.sim.dt_s);
-  const std::filesystem::path dir(c.out);
-  std::filesystem::create_directories(dir);
-  write_truth_csv(dir / "truth.csv", run.result, run.measured);
-
+  const hil::FaultPlan plan(spec, modes, c.sim.dt_s);  // bad windows: exit 2 before the bus is tried
   hal::lnx::SocketCanBus bus;
   if (bus.open(c.bus.c_str()) != hal::Status::ok)
     throw RuntimeFailure("cannot open CAN interface " + c.bus + ": " + bus.last_error() +
                          " (on a machine without kernel CAN use --bus uml)");
-  const std::filesystem::path nvm = dir / "firmware.nvm";
-  std::filesystem::remove(nvm);
+  const std::filesystem::path dir(c.out);
+  write_truth_csv(out.path("truth.csv"), run.result, run.measured);
+
+  const std::filesystem::path nvm = out.path("firmware.nvm");
+  // The firmware's NVM here is a file, not flash: no write budget, so that --persist-every-s
+  // is what the kill/restart test exercises.
   std::vector<std::string> fw_args = {"--can", c.bus, c.realtime ? "--realtime" : "--lockstep", "--nvm",
                                             nvm.string(), "--h", fmt::format("{}", c.h), "--persist-every-s",
-                                            fmt::format("{}", c.persist_every_s)};
+                                            fmt::format("{}", c.persist_every_s), "--flash-endurance-cycles", "1e12"};
   if (c.beyond_paper) {
     fw_args.emplace_back("--beyond-paper");
   } else {
@@ -279,7 +283,7 @@ int run_hil(HilCli& c) {
   hil::FirmwareProcess fw(c.firmware.empty() ? hil::default_firmware_path() : std::filesystem::path(c.firmware),
                           fw_args);
 
-  CandumpWriter log(dir / "can.log");
+  CandumpWriter log(out.path("can.log"));
   const double t_epoch = 1700000000.0;  // fixed: lock-step logs are identical run to run
   FaultyTransmitter tx;
   can::Receiver rx(can::Node::host);
@@ -418,7 +422,7 @@ int run_hil(HilCli& c) {
   res.theta = res.theta_rows.back();
   res.cycles = score_cycles(res.rows, true, modes);
   res.growth_err_pct = growth_error_pct(res.rows);
-  write_estimates_csv(dir / "estimates.csv", res);
+  write_estimates_csv(out.path("estimates.csv"), res);
   EstimateOptions eo;
   eo.h_v_per_ohm_m2 = c.h;
   eo.settings = c.beyond_paper ? "beyond-paper" : c.settings;
@@ -450,7 +454,11 @@ int run_hil(HilCli& c) {
                                            {"dropped_counter", rx_totals.drop_counter},
                                            {"ignored_ids", rx_totals.ignored_ids},
                                            {"lost_frames", rx_totals.lost_frames}};
-  write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
+  if (fw_exit != 0)
+    throw RuntimeFailure(fmt::format("the firmware process exited with code {} (see its message above); nothing written to {}",
+                                     fw_exit, dir.string()));
+  write_file_atomically(out.path("summary.json"), summary.dump(2) + "\n");
+  out.commit("summary.json");
   if (!c.sim.quiet) {
     std::fprintf(stderr, "hil: %zu ticks in %.2f s wall (%.0f x real time), firmware exit %d -> %s\n", n, res.wall_s,
                  sim_s / res.wall_s, fw_exit, dir.c_str());
@@ -458,7 +466,7 @@ int run_hil(HilCli& c) {
       std::fprintf(stderr, "hil: cycle %d: film-resistance error in CC charge: median %.3f %%, end %.3f %%\n",
                    cs.cycle, cs.r_film_err_median_pct, cs.r_film_err_end_pct);
   }
-  return fw_exit == 0 ? 0 : 1;
+  return 0;
 }
 
 }  // namespace

@@ -10,8 +10,8 @@ usage: hil_check.py DBC HIL_DIR OFFLINE_DIR [SECOND_HIL_DIR] [--replay REPLAY_DI
    must give the same film resistance on the bus's 1e-10 ohm m2 grid in every tick
    (bit for bit at the bus resolution).
 3. With SECOND_HIL_DIR: the two lock-step logs must be byte-identical (determinism).
-4. With --replay (tests/cli/hil_replay.sh: canplayer replayed HIL_DIR/can.log's host frames
-   into a fresh firmware, candump recorded its answers): the firmware's frames of the replay
+4. With --replay (tests/cli/hil_replay.sh: HIL_DIR/can.log's host frames replayed into a
+   fresh firmware, each tick's only after the firmware answered the previous one): the firmware's frames of the replay
    must equal the original run's frame for frame, identifier and all 8 data bytes (so the
    estimates, theta, residual, status and alive counters are bit-identical on the bus).
 Prints one line per check; exit 0 when all pass, 1 otherwise.
@@ -89,7 +89,7 @@ def main():
         first_diff = next((i for i, (a, b) in enumerate(zip(orig, again)) if a != b), None)
         same = len(orig) == len(again) and first_diff is None
         ok &= same
-        print(f"{'PASS' if same else 'FAIL'} canplayer replay into a fresh firmware: {len(again)} of {len(orig)} "
+        print(f"{'PASS' if same else 'FAIL'} acknowledgement-paced replay into a fresh firmware: {len(again)} of {len(orig)} "
               f"firmware frames recorded, first difference at frame {first_diff}")
     return 0 if ok else 1
 

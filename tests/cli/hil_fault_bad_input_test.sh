@@ -40,6 +40,8 @@ if [ -n "$fw" ]; then
   fw_check --persist-every-s -1
   fw_check --persist-every-s abc
   fw_check --rcvbuf-bytes 10
+  fw_check --flash-endurance-cycles 5
+  fw_check --flash-lifetime-years nan
   fw_check --h 0
 fi
 exit $fail

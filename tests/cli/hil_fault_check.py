@@ -8,7 +8,8 @@ Fault run (bmssim hil --fault ..., every fault kind in one lock-step cycle):
    protocol's receiver rules (firmware/can/bms.dbc comment), re-implemented here, give for
    the host frames in can.log: ignored ids, wrong length, bad CRC, bad alive counter, and
    frames inferred lost from counter gaps. The kill window's frames reached no firmware and
-   the restarted firmware starts its counters afresh.
+   the restarted firmware starts its counters afresh. The frames are taken batch by batch as
+   the lock-step firmware sees them (up to each tick trigger), with the tick's sequence window.
 2. Against the injection: ignored ids = unknown-id frames, length drops = short frames, CRC
    drops = corrupted frames, counter drops >= duplicates + reorders + frozen-counter frames.
 3. Windows of missing or rejected measurements (burst, stale, range, nan): the estimate is
@@ -41,11 +42,73 @@ def crc8(can_id, data):
     return c ^ 0xFF
 
 
+class Triggers:
+    """The lock-step trigger rule (LockstepTicks and SeqTracker, firmware/include/bms/fw/
+    can_protocol.hpp and can_sequence.hpp): which host frame makes the firmware run a tick,
+    and the Seq the tick's measurement must carry (-1: none, a tick run on a corrupted frame)."""
+    MAX_STEP, RESYNC, HALF = 50, 3, 0x7FF
+
+    def __init__(self):
+        self.have = self.seq_have = self.last_unconfirmed = False
+        self.last_seq = self.run = self.cand = self.unconfirmed = self.last_tick = self.anchor = 0
+
+    def observe(self, seq):
+        if not self.seq_have:
+            self.seq_have, self.last_seq, self.run = True, seq, 0
+            return "first", 0
+        ahead = (seq - self.last_seq) & 0xFFF
+        if 1 <= ahead <= min(self.MAX_STEP, self.HALF):
+            self.last_seq, self.run = seq, 0
+            return "in", ahead
+        self.run = self.run + 1 if self.run > 0 and seq == (self.cand + 1) & 0xFFF else 1
+        self.cand = seq
+        if self.run < self.RESYNC:
+            return "rejected", 0
+        self.last_seq, self.run = seq, 0
+        return ("jump", ahead) if 1 <= ahead <= self.HALF else ("restart", 1)
+
+    def classify(self, can_id, data):
+        if can_id == 0x110 and len(data) == 8:
+            if data[0] != crc8(can_id, data):
+                if not self.have or self.unconfirmed >= 1:
+                    return None
+                self.unconfirmed += 1
+                self.last_unconfirmed = True
+                self.last_tick += 1
+                return -1
+            seq = first = seq_of(data)
+        elif can_id == 0x100 and len(data) == 8 and data[0] == crc8(can_id, data) and (data[1] >> 6) & 1:
+            first = int.from_bytes(data[4:8], "little")
+            seq = first & 0xFFF
+        else:
+            return None
+        verdict, step = self.observe(seq)
+        if verdict == "first":
+            self.anchor = first
+        elif verdict in ("in", "jump"):
+            self.anchor += step
+        elif verdict == "restart":
+            self.anchor = self.last_tick + 1
+        else:
+            return None
+        if self.have and self.anchor <= self.last_tick:
+            return None
+        self.have, self.unconfirmed, self.last_unconfirmed, self.last_tick = True, 0, False, self.anchor
+        return seq
+
+
+def seq_of(data):
+    return ((data[1] >> 4) | (data[2] << 4)) & 0xFFF
+
+
 def protocol_counters(log, kill_windows):
-    """The receiver rules of the DBC comment applied to the host's frames in can.log."""
+    """The receiver rules of the DBC comment applied to the host's frames in can.log, batch by
+    batch as the firmware sees them: a batch ends with a tick trigger (Triggers), and the
+    batch's measurement must carry the trigger's Seq (else a sequence drop, which BMS_RxStats
+    counts in DropCounter, before the alive counter is looked at)."""
     dlc = {0x100: 8, 0x110: 8, 0x111: 4}
     n = dict(ignored_ids=0, dropped_length=0, dropped_crc=0, dropped_counter=0, lost_frames=0)
-    last = {}
+    last, triggers, batch = {}, Triggers(), []
     for line in open(log):
         stamp, _, frame = line.split()
         can_id, hexdata = frame.split("#")
@@ -54,28 +117,40 @@ def protocol_counters(log, kill_windows):
             continue  # the firmware's own frames
         tick = round((float(stamp[1:-1]) - EPOCH) / TICK_S)
         if any(a <= tick < b for a, b in kill_windows):
-            last = {}  # nobody listening; the restarted firmware starts afresh
+            last, triggers, batch = {}, Triggers(), []  # nobody listening; the restarted firmware starts afresh
             continue
-        if can_id not in dlc:
-            n["ignored_ids"] += 1
-        elif len(data) != dlc[can_id]:
-            n["dropped_length"] += 1
-        elif data[0] != crc8(can_id, data):
-            n["dropped_crc"] += 1
-        else:
-            c = data[1] & 0x0F
-            if can_id in last:
-                step = (c - last[can_id]) & 0x0F
-                if step == 0:
-                    n["dropped_counter"] += 1
-                    continue
-                if step > 7:
-                    last[can_id] = c
-                    n["dropped_counter"] += 1
-                    continue
-                n["lost_frames"] += step - 1
-            last[can_id] = c
+        batch.append((can_id, data))
+        window = triggers.classify(can_id, data)
+        if window is None:
+            continue
+        for can_id, data in batch:
+            receive(n, last, dlc, can_id, data, window)
+        batch = []
     return n
+
+
+def receive(n, last, dlc, can_id, data, window):
+    if can_id not in dlc:
+        n["ignored_ids"] += 1
+    elif len(data) != dlc[can_id]:
+        n["dropped_length"] += 1
+    elif data[0] != crc8(can_id, data):
+        n["dropped_crc"] += 1
+    elif can_id == 0x110 and seq_of(data) != window:
+        n["dropped_counter"] += 1
+    else:
+        c = data[1] & 0x0F
+        if can_id in last:
+            step = (c - last[can_id]) & 0x0F
+            if step == 0:
+                n["dropped_counter"] += 1
+                return
+            if step > 7:
+                last[can_id] = c
+                n["dropped_counter"] += 1
+                return
+            n["lost_frames"] += step - 1
+        last[can_id] = c
 
 
 def report(ok, text):

@@ -5,6 +5,8 @@
 #include <fcntl.h>
 #include <net/if.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <csignal>
 #include <unistd.h>
 
 #include <algorithm>
@@ -167,6 +169,46 @@ TEST(FileNvm, CreatesErasedFilePersistsWritesAndRefusesOtherSizes) {
   EXPECT_EQ(nvm.open((dir.path() + "/no/such/dir/nvm.bin").c_str(), 1024, 512), Status::not_found);
   std::uint8_t x = 0;
   EXPECT_EQ(nvm.read(0, &x, 1), Status::not_open);
+}
+
+// A process killed while it creates the NVM file must not stop every later start (issue 21:
+// the file was filled in place, so a kill left a short file that open() then refused). The
+// child creates a 4 MiB file over and over; it is SIGKILLed at 40 moments spread over the
+// creation; after each kill the file is either absent or whole, and opening it works.
+TEST(FileNvm, AProcessKilledWhileCreatingTheFileLeavesNoBrokenFile) {
+  TempDir dir;
+  ASSERT_FALSE(dir.path().empty());
+  const std::string path = dir.path() + "/nvm.bin";
+  constexpr std::size_t kSize = 4u << 20;
+  int partial_seen = 0, opened = 0;
+  for (int k = 0; k < 40; ++k) {
+    ::unlink(path.c_str());
+    const pid_t pid = ::fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      for (;;) {
+        lnx::FileNvm nvm;
+        if (nvm.open(path.c_str(), kSize, 4096) != Status::ok) ::_exit(3);
+        nvm.close();
+        ::unlink(path.c_str());
+      }
+    }
+    ::usleep(static_cast<useconds_t>(200 + 150 * k));
+    ::kill(pid, SIGKILL);
+    int st = 0;
+    ::waitpid(pid, &st, 0);
+    ASSERT_TRUE(WIFSIGNALED(st)) << "the child failed to create the file (exit " << WEXITSTATUS(st) << ")";
+    struct stat sb {};
+    if (::stat(path.c_str(), &sb) == 0 && static_cast<std::size_t>(sb.st_size) != kSize) ++partial_seen;
+    lnx::FileNvm nvm;
+    ASSERT_EQ(nvm.open(path.c_str(), kSize, 4096), Status::ok) << "after kill " << k << ": " << nvm.last_error();
+    ++opened;
+    std::uint8_t b[4];
+    ASSERT_EQ(nvm.read(kSize - 4, b, 4), Status::ok);
+    for (auto x : b) EXPECT_EQ(x, 0xFF);
+  }
+  EXPECT_EQ(partial_seen, 0);
+  EXPECT_EQ(opened, 40);
 }
 
 // ---------------------------------------------------------------- time

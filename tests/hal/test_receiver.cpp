@@ -252,3 +252,144 @@ TEST(LockstepTicks, ControlTickTriggerSetsTheFullNumber) {
   f.data[0] ^= 1;  // bad CRC: a control frame cannot be trusted to trigger
   EXPECT_FALSE(lt.classify(f, tick));
 }
+
+// ---------------------------------------------------------------- sequence window (issue 21)
+
+TEST(Receiver, SeqWindowDropsAStaleFrameBeforeItsCounterCanPushTheGenuineOneOut) {
+  // Tick 11's genuine frame has counter 2 (tick 10's had 1). An old CRC-valid frame (Seq 5)
+  // whose counter is 3 ahead arrives first: without the window it was accepted and the
+  // genuine one then dropped as a backward counter step.
+  for (bool window : {false, true}) {
+    can::Receiver rx;
+    can::RxMessage msg;
+    ASSERT_EQ(rx.accept(measurement(1, 10, 3.30), msg), can::RxResult::accepted);
+    if (window) rx.set_seq_window(11, 1);
+    const can::RxResult old = rx.accept(measurement(4, 5, 3.10), msg);
+    const can::RxResult genuine = rx.accept(measurement(2, 11, 3.31), msg);
+    if (!window) {
+      EXPECT_EQ(old, can::RxResult::accepted) << "the attack the window closes";
+      EXPECT_EQ(genuine, can::RxResult::dropped_counter);
+      continue;
+    }
+    EXPECT_EQ(old, can::RxResult::dropped_seq);
+    EXPECT_EQ(rx.last_rejected_seq(), 5u);
+    ASSERT_EQ(genuine, can::RxResult::accepted);
+    EXPECT_EQ(msg.measurement.seq, 11u);
+    EXPECT_NEAR(msg.measurement.voltage_v, 3.31, 1e-5);
+    EXPECT_EQ(rx.counters().dropped_seq, 1u);
+    EXPECT_EQ(rx.counters().dropped_counter, 0u);
+    EXPECT_EQ(rx.rx_stats().drop_counter, 1) << "DropCounter carries sequence drops too";
+  }
+}
+
+TEST(Receiver, SeqWindowWrapsAndAnEmptyWindowLetsNoMeasurementPass) {
+  can::Receiver rx;
+  can::RxMessage msg;
+  rx.set_seq_window(4094, 4);  // 4094, 4095, 0, 1
+  EXPECT_EQ(rx.accept(measurement(0, 4095), msg), can::RxResult::accepted);
+  EXPECT_EQ(rx.accept(measurement(1, 1), msg), can::RxResult::accepted);
+  EXPECT_EQ(rx.accept(measurement(2, 2), msg), can::RxResult::dropped_seq);
+  rx.set_seq_window(0, 0);
+  EXPECT_EQ(rx.accept(measurement(2, 0), msg), can::RxResult::dropped_seq);
+  // Other messages are not subject to it.
+  can::Temperature t;
+  CanFrame f{};
+  can::encode(t, 0, f);
+  EXPECT_EQ(rx.accept(f, msg), can::RxResult::accepted);
+  rx.clear_seq_window();
+  EXPECT_EQ(rx.accept(measurement(2, 3000), msg), can::RxResult::accepted);
+}
+
+TEST(SeqTracker, AdoptsWithinTheWindowAndResyncsOnThreeConsecutiveFrames) {
+  using V = can::SeqTracker::Verdict;
+  can::SeqTracker t;
+  EXPECT_EQ(t.observe(1000, 50), V::first);
+  EXPECT_EQ(t.observe(1001, 50), V::in_window);
+  EXPECT_EQ(t.observe(1051, 50), V::in_window);
+  EXPECT_EQ(t.step(), 50u);
+  EXPECT_EQ(t.observe(1102, 50), V::rejected) << "51 ahead: one frame may not claim it";
+  EXPECT_EQ(t.observe(1051, 50), V::rejected) << "a repeat";
+  // A host restarting at 0: frames 0, 1, 2 -> adopted at the third, as one step.
+  EXPECT_EQ(t.observe(0, 50), V::rejected);
+  EXPECT_EQ(t.observe(1, 50), V::rejected);
+  EXPECT_EQ(t.observe(2, 50), V::restart);
+  EXPECT_EQ(t.step(), 1u);
+  EXPECT_EQ(t.last(), 2u);
+  EXPECT_EQ(t.observe(3, 50), V::in_window);
+  // A long gap (300 ticks): confirmed by three consecutive frames, then a known jump.
+  EXPECT_EQ(t.observe(303, 50), V::rejected);
+  EXPECT_EQ(t.observe(304, 50), V::rejected);
+  EXPECT_EQ(t.observe(305, 50), V::jump);
+  EXPECT_EQ(t.step(), 302u);
+  // Non-consecutive rejected frames never resync.
+  for (int s : {100, 200, 101, 300, 102, 103})
+    EXPECT_EQ(t.observe(static_cast<std::uint16_t>(s), 50), V::rejected) << s;
+  EXPECT_EQ(t.last(), 305u);
+  EXPECT_EQ(t.resyncs(), 2u);
+}
+
+TEST(LockstepTicks, OneFrameCannotClaimMoreThanTheStepLimit) {
+  // The issue: one HOST_Control frame with Tick = last + 266 faked 265 missed ticks.
+  can::LockstepTicks lt;
+  std::uint32_t tick = 0;
+  can::Transmitter tx;
+  auto control = [&](std::uint32_t t) {
+    can::Control c;
+    c.tick_trigger = true;
+    c.tick = t;
+    CanFrame f{};
+    tx.encode(c, f);
+    return f;
+  };
+  ASSERT_TRUE(lt.classify(measurement(0, 100), tick));
+  EXPECT_FALSE(lt.classify(control(100 + 266), tick));
+  EXPECT_EQ(lt.last_tick(), 100u);
+  EXPECT_TRUE(lt.classify(control(100 + can::LockstepTicks::kMaxTickStep), tick));
+  EXPECT_EQ(tick, 150u);
+  EXPECT_FALSE(lt.classify(measurement(1, static_cast<std::uint16_t>(150 + 51)), tick));
+  EXPECT_TRUE(lt.classify(measurement(1, 151), tick));
+  EXPECT_EQ(tick, 151u);
+}
+
+TEST(LockstepTicks, CorruptedCopiesRunAtMostOneTickAndDoNotStallTheGoodFrames) {
+  // The issue: 40 corrupted copies of one frame ran 40 extra ticks, then the next 39 good
+  // frames (Seq behind the run-away tick) triggered nothing.
+  can::LockstepTicks lt;
+  std::uint32_t tick = 0;
+  ASSERT_TRUE(lt.classify(measurement(0, 10), tick));
+  CanFrame bad = measurement(1, 11);
+  bad.data[5] ^= 0x40;
+  int extra = 0;
+  for (int k = 0; k < 40; ++k) extra += lt.classify(bad, tick) ? 1 : 0;
+  EXPECT_EQ(extra, 1);
+  EXPECT_EQ(tick, 11u);
+  std::uint16_t seq = 0;
+  EXPECT_FALSE(lt.tick_seq(seq)) << "no measurement belongs to a tick run on a corrupted frame";
+  // The genuine frame of tick 11 already ran (without its sample); 12.. trigger at once.
+  EXPECT_FALSE(lt.classify(measurement(1, 11), tick));
+  for (std::uint16_t s = 12; s < 52; ++s) {
+    ASSERT_TRUE(lt.classify(measurement(static_cast<std::uint8_t>(s & 0xF), s), tick)) << s;
+    EXPECT_EQ(tick, s);
+    ASSERT_TRUE(lt.tick_seq(seq));
+    EXPECT_EQ(seq, s);
+  }
+  EXPECT_EQ(lt.unconfirmed_refused(), 39u);
+}
+
+TEST(LockstepTicks, ARestartedHostIsFollowedAfterThreeFrames) {
+  // The issue: a host restarting Seq at 0 got no tick for up to 2047 ticks.
+  can::LockstepTicks lt;
+  std::uint32_t tick = 0;
+  for (std::uint16_t s = 1000; s < 1010; ++s) ASSERT_TRUE(lt.classify(measurement(0, s), tick));
+  EXPECT_EQ(tick, 1009u);
+  EXPECT_FALSE(lt.classify(measurement(0, 0), tick));
+  EXPECT_FALSE(lt.classify(measurement(1, 1), tick));
+  ASSERT_TRUE(lt.classify(measurement(2, 2), tick));
+  EXPECT_EQ(tick, 1010u) << "the restart is one step: the gap is unknown";
+  std::uint16_t seq = 0;
+  ASSERT_TRUE(lt.tick_seq(seq));
+  EXPECT_EQ(seq, 2u);
+  ASSERT_TRUE(lt.classify(measurement(3, 3), tick));
+  EXPECT_EQ(tick, 1011u);
+  EXPECT_EQ(lt.resyncs(), 1u);
+}

@@ -2,13 +2,16 @@
 // file as non-volatile memory). Same application and core as the board image.
 //
 //   bms-firmware --can vcan0 --lockstep|--realtime [--nvm FILE] [--h H] [--h-from-model]
-//                [--persist-every-s S] [--rcvbuf-bytes N]
+//                [--persist-every-s S] [--flash-endurance-cycles N] [--flash-lifetime-years Y]
+//                [--rcvbuf-bytes N]
 //
 // Lock-step: the host's HOST_Measurement frames trigger the ticks (deterministic, as fast
 // as the host sends). Real time: a 0.2 s timerfd drives the ticks. SIGTERM or SIGINT: the
-// state is saved to the NVM file and the process exits 0. The state is also committed at
-// the end of every constant-current charge (the estimate just learned) and every S seconds
-// of ticks, so a process killed without warning restarts from at most S seconds back.
+// state is saved to the NVM file (within the write budget) and the process exits 0. The
+// state is also committed at the end of every constant-current charge (the estimate just
+// learned) and every S seconds of ticks, each within the flash write budget
+// (firmware/include/bms/fw/nvm_budget.hpp: by default 10 000 cycles over 10 years, one
+// commit per 4.4 h on average, 4 back to back).
 // A failing bus (interface down) is not fatal: the error is logged and counted, and the
 // firmware keeps waiting for frames, as a BMS on a vehicle bus must.
 #include <sys/socket.h>
@@ -68,7 +71,8 @@ void usage(FILE* to) {
   std::fprintf(to,
                "usage: bms-firmware --can IFACE (--lockstep | --realtime) [--nvm FILE] [--h H] [--h-from-model]\n"
                "                    [--settings best|paper] [--beyond-paper]\n"
-               "                    [--persist-every-s S] [--rcvbuf-bytes N]\n"
+               "                    [--persist-every-s S] [--flash-endurance-cycles N] [--flash-lifetime-years Y]\n"
+               "                    [--rcvbuf-bytes N]\n"
                "  --can IFACE          SocketCAN interface (e.g. vcan0)\n"
                "  --lockstep           ticks triggered by the host's HOST_Measurement frames (deterministic)\n"
                "  --realtime           ticks from a 0.2 s timer\n"
@@ -80,8 +84,11 @@ void usage(FILE* to) {
                "  --beyond-paper       session 5's profile (as bmssim estimate --beyond-paper): H from the model,\n"
                "                       state re-synchronisation, 600 s warm-up, bias calibration at the nominal\n"
                "                       initial film, charge-averaged estimate propagated by the nominal growth law\n"
-               "  --persist-every-s S  commit the state every S s of ticks (default 60; 0: only at the end\n"
-               "                       of each CC charge and at exit)\n"
+               "  --persist-every-s S  commit the state every S s of ticks (default: the budget's interval;\n"
+               "                       0: only at the end of each CC charge and at exit), within the budget\n"
+               "  --flash-endurance-cycles N  program/erase cycles the NVM is rated for (default 10000); with\n"
+               "                       --flash-lifetime-years Y (default 10) this sets the write budget: on\n"
+               "                       average one commit per Y years / (2 N), at most 4 back to back\n"
                "  --rcvbuf-bytes N     socket receive buffer (default 8388608: a replay sent faster than\n"
                "                       the ticks run queues in the kernel instead of being dropped)\n"
                "On exit the receive counters are printed on stderr as one line of key=value.\n"
@@ -108,7 +115,8 @@ int main(int argc, char** argv) {
   std::string iface, nvm_path;
   bool lockstep = false, realtime = false, h_from_model = false, beyond_paper = false;
   std::string settings = "best";
-  double h = 0.01, persist_every_s = 60.0, rcvbuf_bytes = 8388608.0;
+  double h = 0.01, persist_every_s = -1.0, rcvbuf_bytes = 8388608.0;
+  double endurance_cycles = 10000.0, lifetime_years = 10.0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&](const char* name) -> std::string {
@@ -141,6 +149,18 @@ int main(int argc, char** argv) {
       const std::string v = value("--persist-every-s");
       if (!parse_number(v, persist_every_s) || persist_every_s < 0.0 || persist_every_s > 86400.0) {
         std::fprintf(stderr, "bms-firmware: --persist-every-s must be 0..86400 (got '%s')\n", v.c_str());
+        return 2;
+      }
+    } else if (a == "--flash-endurance-cycles") {
+      const std::string v = value("--flash-endurance-cycles");
+      if (!parse_number(v, endurance_cycles) || endurance_cycles < 100.0 || endurance_cycles > 1e12) {
+        std::fprintf(stderr, "bms-firmware: --flash-endurance-cycles must be 100..1e12 (got '%s')\n", v.c_str());
+        return 2;
+      }
+    } else if (a == "--flash-lifetime-years") {
+      const std::string v = value("--flash-lifetime-years");
+      if (!parse_number(v, lifetime_years) || lifetime_years < 0.01 || lifetime_years > 100.0) {
+        std::fprintf(stderr, "bms-firmware: --flash-lifetime-years must be 0.01..100 (got '%s')\n", v.c_str());
         return 2;
       }
     } else if (a == "--rcvbuf-bytes") {
@@ -222,29 +242,26 @@ int main(int argc, char** argv) {
   using App = bms::hal::BmsApplication<Core>;
   App::Options ao;
   ao.lockstep = lockstep;
+  ao.lockstep_ticks = &ticks_classifier;
   ao.tick_timeout_ms = 200;
-  const double tick_s = cfg.dt_s;
-  ao.persist_every_ticks = static_cast<std::uint32_t>(std::lround(persist_every_s / tick_s));
+  ao.budget.endurance_cycles = endurance_cycles;
+  ao.budget.lifetime_s = lifetime_years * 365.25 * 86400.0;
+  ao.budget.tick_s = cfg.dt_s;
+  const std::uint32_t budget_ticks = bms::fw::nvm::WriteBudget::interval_for(ao.budget);
+  ao.persist_every_ticks = persist_every_s < 0.0 ? budget_ticks
+                                                 : static_cast<std::uint32_t>(std::lround(persist_every_s / cfg.dt_s));
+  std::fprintf(stderr, "bms-firmware: NVM write budget: one commit per %.0f s on average (%.0f cycles, %.1f years)\n",
+               budget_ticks * cfg.dt_s, endurance_cycles, lifetime_years);
   static App app(core, *bus, *ticks, log, *nvm, ao);
   app.restore_from_nvm();
   // The host waits for this line before its first frame (a frame sent before the socket
   // is bound would be lost).
   std::printf("bms-firmware: ready\n");
   std::fflush(stdout);
-  unsigned long bus_errors = 0, commits = 0, commit_failures = 0;
-  bool was_cc_charge = false;
+  unsigned long bus_errors = 0;
   while (g_stop == 0) {
     const bms::hal::Status s = app.step();
-    if (s == bms::hal::Status::ok) {
-      // The end of a CC charge is when the estimate changed: commit it then, not a minute later.
-      const bool cc_charge = app.last_output().mode == bms::fw::Mode::cc_charge;
-      if (was_cc_charge && !cc_charge) {
-        ++commits;
-        if (!app.persist()) ++commit_failures;
-      }
-      was_cc_charge = cc_charge;
-      continue;
-    }
+    if (s == bms::hal::Status::ok) continue;
     if (s == bms::hal::Status::timeout) continue;
     if (g_stop != 0) break;  // a signal interrupted the wait
     if (s != bms::hal::Status::io_error) {
@@ -261,8 +278,10 @@ int main(int argc, char** argv) {
   const auto& rc = app.receiver().counters();
   std::fprintf(stderr,
                "bms-firmware: counters accepted=%u ignored_id=%u dropped_length=%u dropped_crc=%u dropped_counter=%u "
-               "lost_frames=%u stale_events=%u bus_errors=%lu cc_end_commits=%lu commit_failures=%lu\n",
-               rc.accepted, rc.ignored_id, rc.dropped_length, rc.dropped_crc, rc.dropped_counter, rc.lost_frames,
-               rc.stale_events, bus_errors, commits, commit_failures);
+               "dropped_seq=%u lost_frames=%u stale_events=%u bus_errors=%lu nvm_commits=%u nvm_failures=%u "
+               "nvm_refused_by_budget=%u\n",
+               rc.accepted, rc.ignored_id, rc.dropped_length, rc.dropped_crc, rc.dropped_counter, rc.dropped_seq,
+               rc.lost_frames, rc.stale_events, bus_errors, app.nvm_counters().commits, app.nvm_counters().failures,
+               app.nvm_counters().refused_by_budget);
   return 0;
 }

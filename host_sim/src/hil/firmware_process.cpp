@@ -2,7 +2,7 @@
 
 #include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -32,24 +32,32 @@ FirmwareProcess::FirmwareProcess(std::filesystem::path exe, std::vector<std::str
 
 FirmwareProcess::~FirmwareProcess() { stop(); }
 
+// fork + exec rather than posix_spawn: the child must ask the kernel for SIGTERM when its
+// parent dies (PR_SET_PDEATHSIG), so that a host killed without warning (SIGKILL, a crash)
+// leaves no firmware behind; SIGTERM lets the firmware commit its state and exit.
 void FirmwareProcess::start() {
   if (pid_ > 0) return;
   int fds[2];
   if (pipe(fds) != 0) throw RuntimeFailure("pipe failed");
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_adddup2(&fa, fds[1], STDOUT_FILENO);
-  posix_spawn_file_actions_addclose(&fa, fds[0]);
   std::string exe_s = exe_.string();
   std::vector<std::string> copy = args_;
   std::vector<char*> argv;
   argv.push_back(exe_s.data());
   for (auto& a : copy) argv.push_back(a.data());
   argv.push_back(nullptr);
-  const int rc = posix_spawn(&pid_, exe_s.c_str(), &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
+  const pid_t parent = getpid();
+  pid_ = fork();
+  if (pid_ == 0) {
+    // Only async-signal-safe calls between fork and exec.
+    if (prctl(PR_SET_PDEATHSIG, SIGTERM) != 0 || getppid() != parent) _exit(127);
+    dup2(fds[1], STDOUT_FILENO);
+    close(fds[0]);
+    close(fds[1]);
+    execve(exe_s.c_str(), argv.data(), environ);
+    _exit(127);
+  }
   close(fds[1]);
-  if (rc != 0) {
+  if (pid_ < 0) {
     close(fds[0]);
     pid_ = -1;
     throw RuntimeFailure("cannot start " + exe_s);

@@ -416,13 +416,33 @@ class BmsCore {
     return s;
   }
 
+  // Range of every scalar field of an image (finite alone let 1e308 through, and every output
+  // then became infinite): sums within their sample count times the largest value a sample
+  // can have, the film within the estimator's admissible range, the inventory deviation
+  // within the identifier's limit, currents within generous physical bounds.
+  bool fields_in_range(const State& s) const {
+    auto within = [](Scalar v, Scalar lo, Scalar hi) { return std::isfinite(v) && v >= lo && v <= hi; };
+    const Scalar r_lo = config_.estimator.r_film_min_ohm_m2;
+    const Scalar r_hi = config_.estimator.r_film_max_ohm_m2;
+    const Scalar r_span = r_hi - r_lo;
+    const Scalar nu_max = config_.identifier.inventory_limit;
+    const auto bias_n = static_cast<Scalar>(s.bias_samples);
+    const auto avg_n = static_cast<Scalar>(s.avg_samples);
+    return within(s.bias_v, -Scalar(kMaxBias_v), Scalar(kMaxBias_v)) &&
+           within(s.bias_sum_v, -Scalar(kMaxBias_v) * bias_n, Scalar(kMaxBias_v) * bias_n) &&
+           within(s.avg_sum_ohm_m2, r_lo * avg_n - r_span, r_hi * avg_n + r_span) &&
+           within(s.r_held_ohm_m2, r_lo - r_span, r_hi + r_span) && within(s.growth_ohm_m2, -r_span, r_span) &&
+           within(s.last_current_a, -Scalar(kMaxCurrent_a), Scalar(kMaxCurrent_a)) &&
+           within(s.last_j_side_a_m3, -Scalar(kMaxSideCurrent_a_m3), Scalar(kMaxSideCurrent_a_m3)) &&
+           within(s.inventory_deviation_model, -nu_max, nu_max);
+  }
+  static constexpr double kMaxBias_v = 1.0;
+  static constexpr double kMaxCurrent_a = 1e4;
+  static constexpr double kMaxSideCurrent_a_m3 = 1e9;
+
   // All or nothing: a rejected image changes nothing but the sticky kRestoreRejected bit.
   bool restore(const State& s) {
-    const bool header_ok = s.layout_tag == kLayoutTag && (s.flags & ~63u) == 0u && std::isfinite(s.bias_sum_v) &&
-                           std::isfinite(s.bias_v) && std::isfinite(s.avg_sum_ohm_m2) &&
-                           std::isfinite(s.r_held_ohm_m2) && std::isfinite(s.growth_ohm_m2) &&
-                           std::isfinite(s.last_current_a) &&
-                           std::isfinite(s.last_j_side_a_m3) && std::isfinite(s.inventory_deviation_model);
+    const bool header_ok = s.layout_tag == kLayoutTag && (s.flags & ~63u) == 0u && fields_in_range(s);
     Detector d = detector_;
     FilmGrowthIdentifier<Scalar> id = identifier_;
     Estimator e = estimator_;

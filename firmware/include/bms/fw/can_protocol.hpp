@@ -25,6 +25,7 @@
 #include <cstring>
 
 #include "bms/fw/can_crc.hpp"
+#include "bms/fw/can_sequence.hpp"
 
 #include "bms/fw/operating_mode.hpp"
 
@@ -197,6 +198,7 @@ inline constexpr std::uint8_t kLockstep = 1u << 2;        ///< ticks driven by t
 inline constexpr std::uint8_t kMeasStale = 1u << 3;       ///< no valid measurement for more than 2 ticks
 inline constexpr std::uint8_t kEstimateValid = 1u << 4;   ///< BMS_Estimate1.RFilm is meaningful
 inline constexpr std::uint8_t kNvmRestored = 1u << 5;     ///< state restored from NVM at start-up
+inline constexpr std::uint8_t kNvmRolledBack = 1u << 6;   ///< ... from the older slot (the newer was unreadable)
 }  // namespace status_bit
 
 /// BMS_Status.FaultBits
@@ -206,7 +208,7 @@ inline constexpr std::uint8_t kRxDropped = 1u << 1;      ///< a frame was droppe
 inline constexpr std::uint8_t kVoltageRange = 1u << 2;   ///< measured voltage outside the cell's limits
 inline constexpr std::uint8_t kCurrentRange = 1u << 3;   ///< measured current outside the cell's limits
 inline constexpr std::uint8_t kEstimator = 1u << 4;      ///< estimator produced a non-finite/out-of-range value
-inline constexpr std::uint8_t kNvm = 1u << 5;            ///< NVM read/write failed
+inline constexpr std::uint8_t kNvm = 1u << 5;            ///< NVM read/write failed or rolled back; clears at the next good commit
 inline constexpr std::uint8_t kTickOverrun = 1u << 6;    ///< a tick was missed (real-time mode)
 inline constexpr std::uint8_t kInternal = 1u << 7;       ///< any other internal error
 }  // namespace fault_bit
@@ -270,7 +272,6 @@ struct BmsRxStats {
 
 inline constexpr double kMahPerAh = 1000.0;
 inline constexpr double kUvPerV = 1e6;
-inline constexpr std::uint16_t kSeqMask = 0x0FFF;
 inline constexpr std::uint8_t kCounterMask = 0x0F;
 
 // ---------------------------------------------------------------------------------------
@@ -570,6 +571,7 @@ enum class RxResult : std::uint8_t {
   dropped_length,   ///< known id with the wrong data length
   dropped_crc,      ///< CRC mismatch
   dropped_counter,  ///< alive counter repeated (frozen) or jumped backwards / too far
+  dropped_seq,      ///< HOST_Measurement whose Seq lies outside the tick's window (stale, replayed, early)
 };
 
 constexpr const char* rx_result_name(RxResult r) {
@@ -579,6 +581,7 @@ constexpr const char* rx_result_name(RxResult r) {
     case RxResult::dropped_length: return "dropped_length";
     case RxResult::dropped_crc: return "dropped_crc";
     case RxResult::dropped_counter: return "dropped_counter";
+    case RxResult::dropped_seq: return "dropped_seq";
   }
   return "unknown";
 }
@@ -589,10 +592,11 @@ struct RxCounters {
   std::uint32_t dropped_length = 0;
   std::uint32_t dropped_crc = 0;
   std::uint32_t dropped_counter = 0;
+  std::uint32_t dropped_seq = 0;   ///< measurements outside the sequence window (set_seq_window)
   std::uint32_t lost_frames = 0;   ///< frames inferred missing from accepted counter gaps
   std::uint32_t stale_events = 0;  ///< times the watched message became stale
 
-  constexpr std::uint32_t dropped_total() const { return dropped_length + dropped_crc + dropped_counter; }
+  constexpr std::uint32_t dropped_total() const { return dropped_length + dropped_crc + dropped_counter + dropped_seq; }
 };
 
 /// The message decoded by Receiver::accept; only the member named by `msg` is set.
@@ -642,6 +646,11 @@ class Receiver {
     if (data[0] != frame_crc(can_id, data, len)) {
       ++counters_.dropped_crc;
       return RxResult::dropped_crc;
+    }
+    if (static_cast<Msg>(idx) == Msg::measurement && !seq_in_window(data)) {
+      ++counters_.dropped_seq;
+      last_rejected_seq_ = static_cast<std::uint16_t>(get_uint(data, sig::kSeq));
+      return RxResult::dropped_seq;
     }
     const std::uint8_t c = frame_counter(data);
     CounterState& st = counter_state_[idx];
@@ -709,15 +718,30 @@ class Receiver {
     BmsRxStats s;
     s.drop_length = static_cast<std::uint8_t>(counters_.dropped_length & 0xFFu);
     s.drop_crc = static_cast<std::uint8_t>(counters_.dropped_crc & 0xFFu);
-    s.drop_counter = static_cast<std::uint8_t>(counters_.dropped_counter & 0xFFu);
+    // DropCounter: alive-counter and sequence-window drops (both say "not this tick's frame").
+    s.drop_counter = static_cast<std::uint8_t>((counters_.dropped_counter + counters_.dropped_seq) & 0xFFu);
     s.ignored_ids = static_cast<std::uint8_t>(counters_.ignored_id & 0xFFu);
     s.lost_frames = static_cast<std::uint8_t>(counters_.lost_frames & 0xFFu);
     s.ticks_without_meas = static_cast<std::uint8_t>(missing_ticks_ > 255u ? 255u : missing_ticks_);
     return s;
   }
 
-  /// Forget counters, alive-counter history and staleness.
+  /// Forget counters, alive-counter history, staleness and the sequence window.
   void reset() { *this = Receiver(self_); }
+
+  /// Sequence window of HOST_Measurement, set by the application before it drains a tick's
+  /// frames: only Seq = first, first + 1, ..., first + count - 1 (mod 4096) passes; count 0
+  /// lets none pass. The check comes before the alive counter's, so an old or replayed frame
+  /// with a plausible counter is dropped (dropped_seq) without pushing the genuine frame out.
+  void set_seq_window(std::uint16_t first, std::uint16_t count) {
+    window_on_ = true;
+    window_first_ = static_cast<std::uint16_t>(first & kSeqMask);
+    window_count_ = count;
+  }
+  /// Every Seq passes (the default; the host side).
+  void clear_seq_window() { window_on_ = false; }
+  /// Seq of the last measurement dropped by the window (for the resynchronisation rule).
+  std::uint16_t last_rejected_seq() const { return last_rejected_seq_; }
 
  private:
   struct CounterState {
@@ -728,56 +752,117 @@ class Receiver {
   Msg watched_;
   CounterState counter_state_[kMessageCount]{};
   RxCounters counters_{};
+  bool seq_in_window(const std::uint8_t* data) const {
+    if (!window_on_) return true;
+    const auto seq = static_cast<std::uint32_t>(get_uint(data, sig::kSeq));
+    return ((seq - window_first_) & kSeqMask) < window_count_;
+  }
+
   bool watched_seen_ = false;
   std::uint32_t missing_ticks_ = 0;
+  bool window_on_ = false;
+  std::uint16_t window_first_ = 0;
+  std::uint16_t window_count_ = 0;
+  std::uint16_t last_rejected_seq_ = 0;
 };
 
 // ---------------------------------------------------------------------------------------
 // Lock-step ticks
 
-/// Recognises the frames that trigger a tick in lock-step mode, for bms::hal::LockstepBus:
-/// - HOST_Measurement with the right length: tick = its Seq unwrapped to 32 bits against
-///   the previous tick (the next tick whose low 12 bits equal Seq). With a bad CRC it
-///   still triggers (tick = previous + 1): the host did send the tick, and the Receiver
-///   then drops and counts the frame, so the tick runs with the measurement missing.
-///   A good frame whose Seq repeats the previous tick's, or lies behind it (a duplicated or
-///   reordered frame), triggers nothing: the host sent no further tick, and running one would
-///   step the model twice for one 0.2 s of cell time.
-/// - HOST_Control with a good CRC and TickTrigger = 1: tick = its 32-bit Tick.
+/// Recognises the frames that trigger a tick in lock-step mode, for bms::hal::LockstepBus.
+/// Both trigger kinds carry the host's sequence number, followed by SeqTracker
+/// (can_sequence.hpp) with a window of kMaxTickStep:
+/// - HOST_Measurement, right length, good CRC: Seq (tick number mod 4096).
+/// - HOST_Control, right length, good CRC, TickTrigger = 1: Tick mod 4096 (its full 32
+///   bits only for the very first trigger, when there is nothing to compare with).
+/// An adopted number triggers tick = the previous adopted tick + its distance (lost trigger
+/// frames are missed ticks, at most kMaxTickStep - 1 per frame). A repeat or a number behind
+/// (a duplicated, reordered or replayed frame) triggers nothing: running a tick for it would
+/// step the model twice for one 0.2 s of cell time. A restarted host is followed after
+/// SeqTracker::kResyncFrames consecutive frames; its first tick is the next one (no gap).
+/// A HOST_Measurement with the right length but a bad CRC still triggers the next tick
+/// (the host did send a tick; the Receiver then drops the frame, and the tick runs with the
+/// measurement missing), but at most kMaxUnconfirmedTicks in a row: a burst of corrupted
+/// copies cannot run the clock ahead of the genuine frames.
 /// Use with LockstepBus through a captureless lambda:
 ///   [](const hal::CanFrame& f, uint32_t& t, void* c) {
 ///     return static_cast<can::LockstepTicks*>(c)->classify(f, t); }
 class LockstepTicks {
  public:
+  /// Largest tick step one trigger frame may claim (10 s of 0.2 s ticks).
+  static constexpr std::uint32_t kMaxTickStep = 50;
+  /// Ticks a corrupted trigger may run before a frame with a good CRC must come.
+  static constexpr std::uint32_t kMaxUnconfirmedTicks = 1;
+
   template <class FrameT>
   bool classify(const FrameT& frame, std::uint32_t& tick) {
     if (frame.id == id::kMeasurement && frame.len == layout(Msg::measurement).dlc) {
-      if (!frame_crc_ok(frame)) {
-        tick = have_ ? last_ + 1u : 0u;
-      } else {
-        const auto seq = static_cast<std::uint32_t>(get_uint(frame.data, sig::kSeq));
-        const std::uint32_t ahead = (seq - (last_ & kSeqMask)) & kSeqMask;
-        if (have_ && (ahead == 0u || ahead > kSeqMask / 2u)) return false;
-        tick = have_ ? last_ + ahead : seq;
-      }
-      have_ = true;
-      last_ = tick;
-      return true;
+      if (!frame_crc_ok(frame)) return on_corrupted(tick);
+      const auto seq = static_cast<std::uint32_t>(get_uint(frame.data, sig::kSeq));
+      return on_sequence(seq, seq, tick);
     }
     if (frame.id == id::kControl && frame.len == layout(Msg::control).dlc && frame_crc_ok(frame) &&
         get_uint(frame.data, sig::kCtlTickTrigger) != 0u) {
-      tick = static_cast<std::uint32_t>(get_uint(frame.data, sig::kCtlTick));
-      have_ = true;
-      last_ = tick;
-      return true;
+      const auto full = static_cast<std::uint32_t>(get_uint(frame.data, sig::kCtlTick));
+      return on_sequence(full & kSeqMask, full, tick);
     }
     return false;
   }
-  std::uint32_t last_tick() const { return last_; }
+
+  std::uint32_t last_tick() const { return last_tick_; }
+  /// The Seq a measurement of the last triggered tick must carry; false when that tick was
+  /// triggered by a corrupted frame (no measurement belongs to it).
+  bool tick_seq(std::uint16_t& seq) const {
+    seq = seq_.last();
+    return have_ && !last_unconfirmed_;
+  }
+  /// Good trigger frames that triggered nothing (repeats, late, too far ahead, already run).
+  std::uint32_t rejected() const { return rejected_; }
+  /// Corrupted trigger frames beyond kMaxUnconfirmedTicks (triggered nothing).
+  std::uint32_t unconfirmed_refused() const { return unconfirmed_refused_; }
+  std::uint32_t resyncs() const { return seq_.resyncs(); }
 
  private:
+  bool on_corrupted(std::uint32_t& tick) {
+    if (!have_ || unconfirmed_ >= kMaxUnconfirmedTicks) {
+      ++unconfirmed_refused_;
+      return false;
+    }
+    ++unconfirmed_;
+    last_unconfirmed_ = true;
+    tick = ++last_tick_;
+    return true;
+  }
+
+  bool on_sequence(std::uint32_t seq, std::uint32_t first_tick, std::uint32_t& tick) {
+    switch (seq_.observe(static_cast<std::uint16_t>(seq), kMaxTickStep)) {
+      case SeqTracker::Verdict::first: anchor_tick_ = first_tick; break;
+      case SeqTracker::Verdict::in_window:
+      case SeqTracker::Verdict::jump: anchor_tick_ += seq_.step(); break;
+      case SeqTracker::Verdict::restart: anchor_tick_ = last_tick_ + 1u; break;
+      case SeqTracker::Verdict::rejected: ++rejected_; return false;
+    }
+    // A tick already run on a corrupted trigger is not run again.
+    if (have_ && static_cast<std::int32_t>(anchor_tick_ - last_tick_) <= 0) {
+      ++rejected_;
+      return false;
+    }
+    have_ = true;
+    unconfirmed_ = 0;
+    last_unconfirmed_ = false;
+    last_tick_ = anchor_tick_;
+    tick = last_tick_;
+    return true;
+  }
+
+  SeqTracker seq_;
   bool have_ = false;
-  std::uint32_t last_ = 0;
+  bool last_unconfirmed_ = false;
+  std::uint32_t unconfirmed_ = 0;
+  std::uint32_t last_tick_ = 0;
+  std::uint32_t anchor_tick_ = 0;  // the tick of the last adopted sequence number
+  std::uint32_t rejected_ = 0;
+  std::uint32_t unconfirmed_refused_ = 0;
 };
 
 }  // namespace bms::fw::can

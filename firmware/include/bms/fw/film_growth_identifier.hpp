@@ -131,8 +131,11 @@ class FilmGrowthIdentifier {
   State save() const { return State{rls_.save(), growth_, growth_at_charge_}; }
   bool restore(const State& s) {
     RlsType candidate = rls_;
-    if (!std::isfinite(s.growth_ohm_m2) || !std::isfinite(s.growth_at_charge_ohm_m2) || !candidate.restore(s.rls))
-      return false;
+    // G is a film resistance: beyond the admissible film range it cannot be (a finite 1e308
+    // would make every later estimate infinite).
+    const Scalar g_max = config_.r_film_max_ohm_m2 - config_.r_film_min_ohm_m2;
+    auto within = [g_max](Scalar g) { return std::isfinite(g) && g >= -g_max && g <= g_max; };
+    if (!within(s.growth_ohm_m2) || !within(s.growth_at_charge_ohm_m2) || !candidate.restore(s.rls)) return false;
     rls_ = candidate;
     growth_ = s.growth_ohm_m2;
     growth_at_charge_ = s.growth_at_charge_ohm_m2;

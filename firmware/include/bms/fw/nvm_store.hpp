@@ -12,14 +12,14 @@
 //        0     4  magic            kRecordMagic ("BMSN")
 //        4     2  format version   kRecordFormatVersion (this layout)
 //        6     2  reserved         0
-//        8     4  layout tag       the payload type's tag (e.g. RcsiEstimator::kLayoutTag):
+//        8     4  layout tag       the payload type's tag, a schema hash (state_schema.hpp):
 //                                  a record of another payload type or version is refused
 //       12     4  sequence number  +1 per commit, modulo 2^32 (wraparound-safe comparison)
 //       16     4  payload length   bytes
 //       20     n  payload          the payload's object representation (memcpy)
 //     20+n     4  CRC-32           IEEE 802.3 over bytes [0, 20+n)
 // The payload is copied byte for byte: a record is read back by the same firmware image
-// on the same CPU; the layout tag encodes the scalar size and the payload's version.
+// on the same CPU; the layout tag names the payload's fields, types and order.
 //
 // Slots: slot i occupies [base + i*stride, base + i*stride + record length), stride = the
 // record length rounded up to whole pages, so each slot is erased on its own (flash needs
@@ -247,6 +247,7 @@ class RecordStore {
 
   /// Read both slots and copy the newest valid payload into `out` (unchanged unless ok).
   StoreStatus load(Payload& out) {
+    fell_back_ = false;
     const StoreStatus s = scan();
     if (s != StoreStatus::ok) return s;
     // The winning slot was validated by scan(); read it again so that no second buffer
@@ -259,8 +260,15 @@ class RecordStore {
       return StoreStatus::io_error;
     }
     std::memcpy(&out, view.payload, kPayloadBytes);
+    const RecordCheck other = check_[1 - newest_slot_];
+    fell_back_ = other != RecordCheck::valid && other != RecordCheck::erased;
     return StoreStatus::ok;
   }
+
+  /// After a successful load(): the other slot held something unreadable (a torn or corrupt
+  /// record, or a foreign one), so the record loaded may be older than the last commit
+  /// attempted: a rollback the application must report.
+  bool fell_back() const { return fell_back_; }
 
   /// Commit `payload` to the slot not holding the newest valid record. ok: the record is
   /// durable and verified; otherwise the previously committed record is still the newest.
@@ -342,6 +350,7 @@ class RecordStore {
   std::size_t stride_ = 0;
   bool config_ok_ = false;
   bool scanned_ = false;
+  bool fell_back_ = false;
   bool has_newest_ = false;
   int newest_slot_ = 0;
   std::uint32_t newest_seq_ = 0;

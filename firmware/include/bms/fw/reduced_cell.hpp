@@ -133,17 +133,38 @@ class ReducedCell {
   }
 
   const State& state() const { return s_; }
+  static bool within(Scalar v, Scalar lo, Scalar hi) { return std::isfinite(v) && v >= lo && v <= hi; }
+  // Accepts only a plausible state (a saved image may be corrupt yet CRC-valid, e.g. written by
+  // a faulty build; finite alone let a lithium loss of 1e308 through). The bounds are not the
+  // physical limits: under implausible inputs (tests/firmware/test_tick_property.cpp) the
+  // model's own steps take a shell a little below 0 or above its maximum, and every state the
+  // model reaches must restore. So: concentrations within one maximum beyond [0, max],
+  // electrolyte within kMaxElectrolyteFactor times its initial value either way, lithium lost
+  // within all the lithium both electrodes can hold either way, current and side current
+  // within generous bounds; far outside any of them the arithmetic of a tick breaks down.
   bool restore(const State& s) {
-    bool ok = std::isfinite(s.li_loss_mol) && std::isfinite(s.charge_c) && std::isfinite(s.current_a) &&
-              std::isfinite(s.j_side_a_m2) && std::isfinite(s.inventory_dir_neg_per_mol) &&
-              std::isfinite(s.inventory_dir_pos_per_mol);
-    for (int i = 0; ok && i < kNrN; ++i) ok = std::isfinite(s.cs_neg_mol_m3[i]);
-    for (int i = 0; ok && i < kNrP; ++i) ok = std::isfinite(s.cs_pos_mol_m3[i]);
-    for (int k = 0; ok && k < kNx; ++k) ok = std::isfinite(s.ce_mol_m3[k]);
+    const Scalar li_max = inventory_of(Scalar(1), Scalar(1));
+    bool ok = within(s.li_loss_mol, -li_max, li_max) &&
+              within(s.charge_c, -Scalar(kMaxChargeThroughput_c), Scalar(kMaxChargeThroughput_c)) &&
+              within(s.current_a, -Scalar(kMaxCurrent_a), Scalar(kMaxCurrent_a)) &&
+              within(s.j_side_a_m2, -Scalar(kMaxSideCurrent_a_m2), Scalar(kMaxSideCurrent_a_m2)) &&
+              std::isfinite(s.inventory_dir_neg_per_mol) && std::isfinite(s.inventory_dir_pos_per_mol);
+    const Scalar neg_max = Scalar(Cell::kNeg.max_concentration_mol_m3);
+    const Scalar pos_max = Scalar(Cell::kPos.max_concentration_mol_m3);
+    for (int i = 0; ok && i < kNrN; ++i) ok = within(s.cs_neg_mol_m3[i], -neg_max, Scalar(2) * neg_max);
+    for (int i = 0; ok && i < kNrP; ++i) ok = within(s.cs_pos_mol_m3[i], -pos_max, Scalar(2) * pos_max);
+    const Scalar ce_max = Scalar(kMaxElectrolyteFactor * Cell::kElectrolyteInitMolM3);
+    for (int k = 0; ok && k < kNx; ++k) ok = within(s.ce_mol_m3[k], -ce_max, ce_max);
     if (!ok) return false;
     s_ = s;
     return true;
   }
+  // Bounds of restore(): far outside any state this model reaches, inside what the arithmetic
+  // of one tick keeps finite.
+  static constexpr double kMaxChargeThroughput_c = 1e12;  // about 3e5 full cycles of a 1 Ah cell
+  static constexpr double kMaxCurrent_a = 1e4;
+  static constexpr double kMaxSideCurrent_a_m2 = 1e3;
+  static constexpr double kMaxElectrolyteFactor = 10.0;
 
   // One tick driven by current [A], positive = discharge.
   ModelTickResult<Scalar> step_current(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s) {

@@ -1,5 +1,7 @@
 // NVM emulated by a file of fixed size: pread for reads, pwrite + fsync for writes and
-// erases (a write is durable when it returns ok). A new file is created erased (0xFF).
+// erases (a write is durable when it returns ok). A missing file is created erased (0xFF)
+// atomically: filled under the name PATH.creating, synced, then renamed to PATH, so a
+// process killed while creating it leaves either no file or a whole erased one.
 #pragma once
 
 #include <cstddef>
@@ -16,9 +18,10 @@ class FileNvm final : public NonVolatileMemory {
   FileNvm(const FileNvm&) = delete;
   FileNvm& operator=(const FileNvm&) = delete;
 
-  /// Open or create `path`. A new or empty file is filled with kNvmErasedByte up to
-  /// size_bytes; an existing file of another size is refused (invalid_argument), as is
-  /// a size that is not a positive multiple of page_size.
+  /// Open or create `path`. A missing file is created filled with kNvmErasedByte up to
+  /// size_bytes (atomically, see above); an empty one (left by an older build killed while
+  /// creating it) is filled the same way; an existing file of another size is refused
+  /// (invalid_argument), as is a size that is not a positive multiple of page_size.
   Status open(const char* path, std::size_t size_bytes, std::size_t page_size);
   void close();
   bool is_open() const { return fd_ >= 0; }
@@ -33,6 +36,7 @@ class FileNvm final : public NonVolatileMemory {
  private:
   Status fail(Status s, const char* what, int err);
   Status pwrite_all(std::size_t offset, const void* src, std::size_t len);
+  Status create_erased(const char* path, std::size_t size_bytes);
   int fd_ = -1;
   std::size_t size_ = 0;
   std::size_t page_size_ = 1;
