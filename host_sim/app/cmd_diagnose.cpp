@@ -1,5 +1,6 @@
 // bmssim diagnose: residual of the truth model against measured data, candidate effects
 // fitted and scored on held-out data, before/after report (contract: diagnose).
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -42,6 +43,11 @@ std::vector<diagnosis::Effect> parse_candidates(const std::string& list) {
   std::stringstream ss(list);
   std::string name;
   while (std::getline(ss, name, ',')) {
+    if (name == "all" || name == "listed") {
+      for (Effect k : parse_candidates(name))
+        if (std::find(out.begin(), out.end(), k) == out.end()) out.push_back(k);
+      continue;
+    }
     Effect e = Effect::none;
     if (!diagnosis::parse_effect(name, e) || e == Effect::none) {
       std::string known;

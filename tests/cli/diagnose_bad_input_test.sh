@@ -87,7 +87,7 @@ fi
 awk 'BEGIN {
   srand(7); print "Time (s),Current (A),Voltage (V)"; t = 0
   for (k = 0; k < 30; k++) printf "%d,0,3.3\n", t++
-  while (t < 1200) {
+  while (t < 900) {
     vmax = 8 + 17 * rand(); acc = 0.8 + 0.7 * rand(); v = 0
     while (v < vmax) { v += acc; if (v > vmax) v = vmax; printf "%d,%.4f,3.3\n", t++, -(0.9 * v * acc + 0.5) }
     n = 10 + int(40 * rand()); for (k = 0; k < n; k++) printf "%d,%.4f,3.3\n", t++, -(0.025 * v * v + 0.8)

@@ -55,7 +55,8 @@ SearchSpace search_space(Effect e, double max_abs_current_a, double dt_s) {
     case Effect::time_skew: return {-5.0 * dt_s, 5.0 * dt_s, 1e-3 * dt_s, false};
     case Effect::i0_positive:
     case Effect::i0_negative: return {-1.5, 1.5, 2e-3, true};
-    case Effect::initial_soc: return {-0.1, 0.1, 1e-4, false};
+    // Over-full starts put the stoichiometries past the cell window, where the solver crawls.
+    case Effect::initial_soc: return {-0.1, 0.01, 1e-4, false};
     default: break;
   }
   return {-1.3, 1.0, 2e-3, true};  // factors on the cell's parameters
