@@ -21,6 +21,8 @@ constexpr double kFailedRunMv = 1e6;
 constexpr std::size_t kCacheRuns = 256;
 // --initial-soc auto: a first rest voltage this close to the default state's is that state.
 constexpr double kStartsFullV = 5e-3;
+// ... or whose state lies within this share of the capacity of it.
+constexpr double kStartsFullShare = 0.05;
 // A first sample below this current counts as rest (an ADC's offset at zero current).
 constexpr double kRestShare = 0.02;
 constexpr double kRestCurrentA = 2e-3;
@@ -289,7 +291,16 @@ void set_initial_state(Record& r, const CellParameters& cell, const std::string&
     return;
   }
   std::string note;
-  r.initial_depth_ah = depth_from_rest_voltage(cell, r.voltage_v.front(), &note);
+  const double depth_ah = depth_from_rest_voltage(cell, r.voltage_v.front(), &note);
+  if (std::abs(depth_ah) < kStartsFullShare * capacity_ah) {
+    // On the steep ends of the open-circuit curve a cell just charged has not relaxed yet: its
+    // first voltage maps to a state a hair from full, and starting there costs more than it gives.
+    r.initial_state_note = fmt::format("first rest voltage {:.4f} V maps to {:.4f} Ah from the default state (under "
+                                       "{:g} % of the capacity): start full",
+                                       r.voltage_v.front(), depth_ah, 100 * kStartsFullShare);
+    return;
+  }
+  r.initial_depth_ah = depth_ah;
   r.initial_state_note = fmt::format(
       "first rest voltage {:.4f} V (the default state's is {:.4f} V): start {:.4f} Ah below it (state of charge {:.3f}){}",
       r.voltage_v.front(), v_full, r.initial_depth_ah, 1.0 - r.initial_depth_ah / capacity_ah,
