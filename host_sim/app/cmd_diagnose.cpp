@@ -1,5 +1,6 @@
 // bmssim diagnose: residual of the truth model against measured data, candidate effects
 // fitted and scored on held-out data, before/after report (contract: diagnose).
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -13,6 +14,7 @@
 #include "diagnosis/diagnose.hpp"
 #include "diagnosis/report.hpp"
 #include "io/input_error.hpp"
+#include "io/measured_profile.hpp"
 #include "sim/cell_catalog.hpp"
 
 namespace bms::app {
@@ -27,21 +29,32 @@ struct DiagnoseOptions {
   int points = 20, radial = 20, search_points = 8, search_radial = 8;
   double rtol = 1e-6;
   int blocks = 8;
+  int max_effects = 3;
+  std::string initial_soc = "auto";
+  std::string current_sign = "by-layout";
   bool quiet = false;
 };
 
 std::vector<diagnosis::Effect> parse_candidates(const std::string& list) {
   using diagnosis::Effect;
   if (list == "all") return {std::begin(diagnosis::kAllCandidates), std::end(diagnosis::kAllCandidates)};
+  if (list == "listed") return {std::begin(diagnosis::kListedCandidates), std::end(diagnosis::kListedCandidates)};
   std::vector<Effect> out;
   std::stringstream ss(list);
   std::string name;
   while (std::getline(ss, name, ',')) {
+    if (name == "all" || name == "listed") {
+      for (Effect k : parse_candidates(name))
+        if (std::find(out.begin(), out.end(), k) == out.end()) out.push_back(k);
+      continue;
+    }
     Effect e = Effect::none;
-    if (!diagnosis::parse_effect(name, e) || e == Effect::none)
-      throw InputError("--candidates: unknown effect '" + name +
-                       "'; use all or a comma-separated list of contact_resistance, hysteresis, current_offset, "
-                       "current_gain, thermal, particle_size");
+    if (!diagnosis::parse_effect(name, e) || e == Effect::none) {
+      std::string known;
+      for (Effect k : diagnosis::kAllCandidates) known += std::string(known.empty() ? "" : ", ") + diagnosis::effect_name(k);
+      throw InputError("--candidates: unknown effect '" + name + "'; use all, listed or a comma-separated list of " +
+                       known + ", particle_size");
+    }
     out.push_back(e);
   }
   if (out.empty()) throw InputError("--candidates: empty list");
@@ -58,6 +71,9 @@ std::string command_line(const DiagnoseOptions& o) {
     s += fmt::format(" --search-points {} --search-radial {}", o.search_points, o.search_radial);
   if (o.rtol != 1e-6) s += fmt::format(" --rtol {}", o.rtol);
   if (o.blocks != 8) s += fmt::format(" --blocks {}", o.blocks);
+  if (o.max_effects != 3) s += fmt::format(" --max-effects {}", o.max_effects);
+  if (o.initial_soc != "auto") s += " --initial-soc " + o.initial_soc;
+  if (o.current_sign != "by-layout") s += " --current-sign " + o.current_sign;
   return s + " --out " + o.out;
 }
 
@@ -66,19 +82,32 @@ std::string command_line(const DiagnoseOptions& o) {
 Runner add_diagnose(CLI::App& app) {
   auto* sub = app.add_subcommand(
       "diagnose",
-      "Run the truth model on measured current, characterise the voltage residual, fit each candidate effect "
-      "(contact_resistance, hysteresis, current_offset, current_gain, thermal) on part of the data, score it on "
-      "the rest, choose one or none, and write the before/after report");
+      "Run the truth model on measured current, characterise the voltage residual, fit candidate effects and "
+      "parameter re-fits on part of the data, score them on the rest, select up to three, and answer with the "
+      "effects that explain the residual, none (at the noise floor) or unexplained (with where the residual lives)");
   auto o = std::make_shared<DiagnoseOptions>();
   sub->add_option("--data", o->data,
-                  "Measured record: About:Energy 'Time [s],I[A],U[V]' or truth.csv (its current_meas_a and "
-                  "voltage_meas_v; temperature_k when present). Repeatable: the first trains, the others validate")
+                  "Measured record: About:Energy 'Time [s],I[A],U[V]', truth.csv (its current_meas_a and "
+                  "voltage_meas_v; temperature_k when present), or any CSV with time, current and voltage columns "
+                  "(picked by name). Repeatable: each record is scored with the parameters fitted on the others")
       ->required();
   sub->add_option("--cell", o->cell, "paper | aboutenergy | FILE.bpx.json")->required();
   sub->add_option("--out", o->out, "Output folder (summary.json, report.md, residual.csv, PNG plots)")->required();
   sub->add_option("--candidates", o->candidates,
-                  "all (contact_resistance, hysteresis, current_offset, current_gain, thermal), or a "
-                  "comma-separated list of those and particle_size (cathode particle-size spread, only when listed)")
+                  "all (the five listed effects, voltage_offset, voltage_gain, rc_branch, time_skew and the "
+                  "parameter re-fits diffusivity_positive/negative, conductivity, electrolyte_diffusivity, "
+                  "i0_positive/negative, initial_soc), listed (contact_resistance, hysteresis, current_offset, "
+                  "current_gain, thermal), or a comma-separated list (particle_size only when listed)")
+      ->capture_default_str();
+  sub->add_option("--max-effects", o->max_effects, "Forward selection: at most this many effects combined")
+      ->capture_default_str()->check(CLI::Range(1, 3));
+  sub->add_option("--initial-soc", o->initial_soc,
+                  "auto (from the first rest voltage when the record does not start in the cell's default state), "
+                  "full (the default state) or a state of charge in [0, 1]")
+      ->capture_default_str();
+  sub->add_option("--current-sign", o->current_sign,
+                  "discharge-positive | charge-positive (default: by the file's layout: truth.csv discharge-positive, "
+                  "other cycler files charge-positive)")
       ->capture_default_str();
   sub->add_option("--points", o->points, "Final mesh: finite volumes per region")->capture_default_str()->check(CLI::Range(2, 400));
   sub->add_option("--radial", o->radial, "Final mesh: finite volumes per particle")->capture_default_str()->check(CLI::Range(3, 400));
@@ -102,9 +131,16 @@ Runner add_diagnose(CLI::App& app) {
     settings.search_mesh = {o->search_points, o->search_points, o->search_points, o->search_radial};
     settings.rtol = o->rtol;
     settings.blocks = o->blocks;
+    settings.max_effects = o->max_effects;
+    CurrentSign sign = CurrentSign::by_layout;
+    if (o->current_sign != "by-layout" && !parse_current_sign(o->current_sign, sign))
+      throw InputError("--current-sign: '" + o->current_sign + "' is not discharge-positive or charge-positive");
     const CellParameters cell = load_cell(o->cell);
     std::vector<diagnosis::Record> records;
-    for (const auto& d : o->data) records.push_back(diagnosis::load_record(d));
+    for (const auto& d : o->data) {
+      records.push_back(diagnosis::load_record(d, sign));
+      diagnosis::set_initial_state(records.back(), cell, o->initial_soc);
+    }
     auto log = [q = o->quiet](const std::string& s) {
       if (!q) std::fprintf(stderr, "diagnose: %s\n", s.c_str());
     };
@@ -114,8 +150,11 @@ Runner add_diagnose(CLI::App& app) {
     const diagnosis::ReportContext ctx{command_line(*o), o->cell, settings};
     const auto plots = diagnosis::write_report(o->out, result, ctx);
     if (plots.empty()) std::fprintf(stderr, "diagnose: warning: no plots (see %s/report.md)\n", o->out.c_str());
-    std::fprintf(stderr, "diagnose: %s: RMSE %.3f -> %.3f mV (%s) -> %s\n", diagnosis::effect_name(result.selection.effect),
-                 result.rmse_before_mv, result.rmse_after_mv, result.selection.reason.c_str(), o->out.c_str());
+    std::fprintf(stderr, "diagnose: %s: held-out RMSE %.3f -> %.3f mV, all %.3f -> %.3f mV (%s) -> %s\n",
+                 diagnosis::effect_name(result.answer), result.heldout_before_mv,
+                 result.explained ? result.heldout_after_mv : result.heldout_before_mv, result.rmse_before_mv,
+                 result.explained ? result.rmse_after_mv : result.rmse_before_mv, result.reason.c_str(),
+                 o->out.c_str());
     return 0;
   };
 }

@@ -32,7 +32,7 @@ void require_accepted_samples(const EstimateResult& r, const std::string& data) 
                          "columns and units (V, A, discharge positive)");
 }
 struct EstimateCli {
-  std::string data, out, cell = "paper";
+  std::string data, out, cell = "paper", current_sign;
   EstimateOptions o;
   double ic_error_pct = 0.0;
   bool beyond = false;
@@ -47,7 +47,13 @@ Runner add_estimate(CLI::App& app) {
       "Run the firmware estimator (RCSI of the SEI film resistance) offline on a truth.csv: reads only the "
       "measured columns (current_meas_a, voltage_meas_v); the truth columns are used only to score.");
   auto c = std::make_shared<EstimateCli>();
-  sub->add_option("--data", c->data, "truth.csv written by 'bmssim simulate'")->required();
+  sub->add_option("--data", c->data,
+                  "truth.csv written by 'bmssim simulate', or a measured file (About:Energy 'Time [s],I[A],U[V]' or "
+                  "any CSV with time, current and voltage columns picked by name; no truth, so no errors)")
+      ->required();
+  sub->add_option("--current-sign", c->current_sign,
+                  "discharge-positive | charge-positive: the sign of a measured file's current (default: by its "
+                  "layout; cycler files charge-positive)");
   sub->add_option("--model", c->o.model,
                   "Main-system model: 'reduced' (the firmware's reduced-order DFN) or 'full' (the truth DFN without "
                   "film growth: the paper's setting)")
@@ -157,7 +163,10 @@ Runner add_estimate(CLI::App& app) {
       throw InputError("--r-film-init: must be a finite film resistance in [0, 1] ohm m2");
     const CellParameters cell = load_cell(c->cell);
     c->o.ic = perturbed_initial_conditions(cell, c->ic_error_pct);
-    const EstimateData data = read_estimate_data(c->data);
+    CurrentSign sign = CurrentSign::by_layout;
+    if (!c->current_sign.empty() && !parse_current_sign(c->current_sign, sign))
+      throw InputError("--current-sign: '" + c->current_sign + "' is not discharge-positive or charge-positive");
+    const EstimateData data = read_estimate_data(c->data, sign);
     const bool quiet = c->quiet;
     auto progress = [quiet](std::size_t row, std::size_t rows) {
       if (!quiet) std::fprintf(stderr, "estimate: %zu / %zu ticks\n", row, rows);
@@ -166,8 +175,20 @@ Runner add_estimate(CLI::App& app) {
     const EstimateResult r = run_estimate(data, cell, c->o, progress);
     require_accepted_samples(r, c->data);
     const std::filesystem::path dir = folder.staging();
-    write_estimates_csv(dir / "estimates.csv", r);
+    write_estimates_csv(dir / "estimates.csv", r, data.has_truth());
     nlohmann::json summary = estimate_summary_json(r, c->o);
+    summary["truth"] = data.has_truth();
+    if (!data.has_truth()) {
+      // A measured file: what the estimator learned, and no error (there is nothing to compare with).
+      summary["note"] = "no truth in the data: the estimates are reported without errors";
+      for (auto& cy : summary["cycles"]) {
+        cy["r_film_err_median_pct"] = nullptr;
+        cy["r_film_err_end_pct"] = nullptr;
+        cy["r_film_true_end_ohm_m2"] = nullptr;
+        cy["inventory_err_end_pct"] = nullptr;
+      }
+      summary["data_layout"] = data.layout_note;
+    }
     const auto& fx = c->o.model_effects;
     summary["options"]["model_effects"] =
         c->o.model_effects_on ? nlohmann::json{{"contact_resistance_ohm", fx.contact_resistance_ohm},
@@ -178,8 +199,11 @@ Runner add_estimate(CLI::App& app) {
     write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
     folder.commit();
     if (!quiet) {
+      if (!data.has_truth())
+        std::fprintf(stderr, "estimate: no truth in %s (%s): estimates without errors\n", c->data.c_str(),
+                     data.layout_note.c_str());
       for (const auto& cs : r.cycles)
-        std::fprintf(stderr,
+        if (data.has_truth()) std::fprintf(stderr,
                      "estimate: cycle %d: film-resistance error in CC charge: median %.3f %%, end %.3f %%; "
                      "inventory error at its end %.4f %%\n",
                      cs.cycle, cs.r_film_err_median_pct, cs.r_film_err_end_pct, cs.inventory_err_end_pct);

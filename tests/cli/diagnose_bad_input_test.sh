@@ -4,10 +4,12 @@
 # Usage: diagnose_bad_input_test.sh BMSSIM
 #
 # Bad input (too short, a gap, time going back, NaN, a missing column, an unknown
-# candidate): exit code exactly 2, one line on stderr naming the file (or option) and the
-# fault, and no summary.json in --out. Uninformative data (one constant current, with a
-# contact resistance injected): exit 0 and the answer `none` with a reason that says why,
-# never a guess between the effects that one current cannot separate.
+# candidate, a bad --initial-soc or --current-sign): exit code exactly 2, one line on stderr
+# naming the file (or option) and the fault, and no summary.json in --out. Uninformative data
+# (one constant current, with a contact resistance injected): exit 0 and not a name but
+# `unexplained` with a reason that says why, never a guess between the effects that one
+# current cannot separate. A UDDS-like drive cycle (1 s samples, peaks near 10 A, rests) of
+# the paper cell runs through `simulate --protocol csv:` and `diagnose`.
 set -u
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 [ "$#" -eq 1 ] && [ -x "$1" ] || { echo "usage: $0 BMSSIM" >&2; exit 2; }
@@ -48,12 +50,17 @@ make_csv col.csv 200
 cut -d, -f1,2 col.csv > col2.csv
 expect_bad missing_voltage 'col2\.csv.*U\[V\]' --data col2.csv
 
+printf 'Time [s],Voltage [V],Temp [degC]\n0,3.3,25\n1,3.3,25\n' > nocurrent.csv
+expect_bad missing_current 'nocurrent\.csv.*no current column' --data nocurrent.csv
+
 make_csv ok.csv 200
+expect_bad bad_initial_soc 'initial-soc.*1\.5' --data ok.csv --initial-soc 1.5
+expect_bad bad_current_sign 'current-sign.*upwards' --data ok.csv --current-sign upwards
 expect_bad unknown_candidate 'candidates.*resistence' --data ok.csv --candidates resistence
 expect_bad missing_file 'nosuch\.csv' --data nosuch.csv
 
 # One constant current with a real contact resistance in it: contact resistance and
-# hysteresis both explain it, so the only honest answer is none, saying why.
+# hysteresis both explain it, so the only honest answer names neither, saying why.
 awk 'BEGIN { print "Time [s],I[A],U[V]"; for (k = 0; k <= 600; k++) printf "%d,%s,3.3\n", k, (k == 0 ? "0" : "-2.5") }' > cc.csv
 if "$BMSSIM" simulate --cell paper --protocol csv:cc.csv --points 6 --radial 6 --effect contact_resistance=0.002 \
      --quiet --out sim_cc 2> err_sim; then
@@ -62,8 +69,8 @@ if "$BMSSIM" simulate --cell paper --protocol csv:cc.csv --points 6 --radial 6 -
   rc=$?
   if [ "$rc" -ne 0 ]; then
     fail constant_current "exit code $rc: $(head -n 3 err_cc)"
-  elif ! grep -q '"effect": "none"' diag_cc/summary.json; then
-    fail constant_current "answered $(grep '"effect"' diag_cc/summary.json | head -n 1) instead of none"
+  elif ! grep -q '"effect": "unexplained"' diag_cc/summary.json || ! grep -q '"explained": false' diag_cc/summary.json; then
+    fail constant_current "answered $(grep '"effect"' diag_cc/summary.json | head -n 1) instead of unexplained"
   elif ! grep -qi 'constant current' diag_cc/summary.json || ! grep -qi 'constant current' err_cc; then
     fail constant_current "the reason does not say 'constant current' (stderr: $(cat err_cc))"
   elif [ ! -s diag_cc/report.md ] || [ ! -s diag_cc/residual.csv ]; then
@@ -73,6 +80,31 @@ if "$BMSSIM" simulate --cell paper --protocol csv:cc.csv --points 6 --radial 6 -
   fi
 else
   fail constant_current "simulate failed: $(head -n 1 err_sim)"
+fi
+
+# A UDDS-like drive cycle: micro-trips (accelerate, cruise, brake with regeneration, stop),
+# 1 s samples, peaks near 10 A, in a cycler's own column names, charge-positive.
+awk 'BEGIN {
+  srand(7); print "Time (s),Current (A),Voltage (V)"; t = 0
+  for (k = 0; k < 30; k++) printf "%d,0,3.3\n", t++
+  while (t < 900) {
+    vmax = 8 + 17 * rand(); acc = 0.8 + 0.7 * rand(); v = 0
+    while (v < vmax) { v += acc; if (v > vmax) v = vmax; printf "%d,%.4f,3.3\n", t++, -(0.9 * v * acc + 0.5) }
+    n = 10 + int(40 * rand()); for (k = 0; k < n; k++) printf "%d,%.4f,3.3\n", t++, -(0.025 * v * v + 0.8)
+    while (v > 0) { d = 0.8 + 0.6 * rand(); v -= d; if (v < 0) v = 0; printf "%d,%.4f,3.3\n", t++, 0.6 * v * d }
+    n = 5 + int(30 * rand()); for (k = 0; k < n; k++) printf "%d,0,3.3\n", t++
+  } }' > udds.csv
+if "$BMSSIM" simulate --cell paper --protocol csv:udds.csv --points 8 --radial 8 --noise-v-mv 0.1 --quiet \
+     --out sim_udds 2> err_udds_sim; then
+  if "$BMSSIM" diagnose --data sim_udds/truth.csv --cell paper --candidates listed --points 8 --radial 8 \
+       --search-points 5 --search-radial 5 --quiet --out diag_udds 2> err_udds >/dev/null &&
+     grep -q '"effect"' diag_udds/summary.json; then
+    pass udds_drive_cycle
+  else
+    fail udds_drive_cycle "diagnose failed: $(tail -n 2 err_udds)"
+  fi
+else
+  fail udds_drive_cycle "simulate failed: $(tail -n 2 err_udds_sim)"
 fi
 
 echo "$PASSED passed, $FAILED failed"

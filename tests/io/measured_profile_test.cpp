@@ -87,6 +87,26 @@ TEST(MeasuredProfile, AboutEnergyTemperatureColumns) {
       "p.csv: line 3, column 4 ('temperature_k'): temperature 25 K outside 173.15..473.15 K");
 }
 
+TEST(MeasuredProfile, ColumnsPickedByNameWithUnitsAndSign) {
+  // A cycler export: other column order, extra columns, mA and minutes, charge-positive.
+  const MeasuredProfile p = parse_measured_profile(
+      "Step,Test_Time (min),Voltage(V),Current(mA),Temperature (degC)\n1,0,3.30,-1000,25\n1,0.5,3.29,-1000,25.5\n",
+      "c.csv", ProfileColumns::measured);
+  EXPECT_EQ(p.layout, "by column names");
+  EXPECT_EQ(p.t_s, (std::vector<double>{0.0, 30.0}));
+  EXPECT_EQ(p.current_a, (std::vector<double>{1.0, 1.0}));  // discharge-positive inside
+  EXPECT_EQ(p.voltage_v, (std::vector<double>{3.30, 3.29}));
+  EXPECT_NEAR(p.temperature_k[1], 298.65, 1e-12);
+  const MeasuredProfile q = parse_measured_profile("time,current,voltage\n0,1,3\n1,1,3\n", "d.csv",
+                                                   ProfileColumns::measured, CurrentSign::discharge_positive);
+  EXPECT_EQ(q.current_a, (std::vector<double>{1.0, 1.0}));
+  const MeasuredProfile ae = parse_measured_profile("Time [s],I[A],U[V]\n0,-1,3.3\n1,-1,3.2\n", "a.csv",
+                                                    ProfileColumns::measured, CurrentSign::discharge_positive);
+  EXPECT_EQ(ae.current_a, (std::vector<double>{-1.0, -1.0}));  // told otherwise: taken as given
+  EXPECT_NE(profile_error("time,current,I [A],voltage\n0,1,1,3\n1,1,1,3\n").find("several current columns"),
+            std::string::npos);
+}
+
 TEST(MeasuredProfile, BadFilesNameLineAndColumn) {
   const std::string ae = "Time [s],I[A],U[V]\n";
   EXPECT_EQ(profile_error(ae + "0,-1,3.3\n1,-1,3.2\n0.5,-1,3.1\n"),
@@ -106,9 +126,12 @@ TEST(MeasuredProfile, BadFilesNameLineAndColumn) {
             "p.csv: line 3, column 3 ('U[V]'): voltage 12.5 V outside 0..10 V");
   EXPECT_EQ(profile_error(ae + "0,-1,3.3\n1,-1,-0.1\n"),
             "p.csv: line 3, column 3 ('U[V]'): voltage -0.1 V outside 0..10 V");
-  EXPECT_NE(profile_error("time,current,voltage\n0,1,3\n1,1,3\n")
-                .find("p.csv: line 1: unrecognised header"),
-            std::string::npos);
+  EXPECT_EQ(profile_error("time,current\n0,1\n1,1\n"),
+            "p.csv: line 1: no voltage column (the header has: time, current); name it e.g. 'Voltage [V]'");
+  EXPECT_EQ(profile_error("Time [s],Voltage [V]\n0,3\n1,3\n"),
+            "p.csv: line 1: no current column (the header has: Time [s], Voltage [V]); name it e.g. 'Current [A]'");
+  EXPECT_EQ(profile_error("Current [A],Voltage [V]\n1,3\n1,3\n"),
+            "p.csv: line 1: no time column (the header has: Current [A], Voltage [V]); name it e.g. 'Time [s]'");
 
   std::string gap = ae;
   for (int t = 0; t < 20; ++t) gap += std::to_string(t) + ",-1,3.3\n";

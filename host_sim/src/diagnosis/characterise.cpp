@@ -81,6 +81,16 @@ Characterisation characterise(const Record& r, const std::vector<double>& res, c
     }
     emit(c.groups, "current", labels, acc);
   }
+  {  // by time since the last current step: fast, intermediate and slow dynamics
+    const std::vector<double> since = time_since_step_s(r);
+    const std::vector<std::string> labels{"< 10 s", "10-60 s", "60-600 s", "> 600 s"};
+    std::vector<Acc> acc(4);
+    for (std::size_t k = 0; k < n; ++k) {
+      const double s = since[k];
+      acc[s < 10 ? 0 : s < 60 ? 1 : s < 600 ? 2 : 3].add(res[k]);
+    }
+    emit(c.groups, "since_step", labels, acc);
+  }
   {  // by |dV/dt| of the measured voltage, quartiles
     std::vector<double> rate(n, 0.0);
     for (std::size_t k = 1; k < n; ++k)

@@ -9,7 +9,7 @@
 namespace bms::diagnosis {
 
 struct ResidualGroup {
-  std::string dimension;  // "mode", "soc", "current", "dvdt"
+  std::string dimension;  // "mode", "soc", "current", "since_step", "dvdt"
   std::string label;      // e.g. "cc_charge", "0.2-0.3", "-2.5..-1.2 A"
   std::size_t samples = 0;
   double mean_mv = 0.0, rms_mv = 0.0;

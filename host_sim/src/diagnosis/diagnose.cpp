@@ -2,9 +2,11 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
 
 #include "diagnosis/minimise.hpp"
 #include "io/input_error.hpp"
@@ -15,17 +17,26 @@ namespace {
 
 // Objective value of a parameter for which the solver fails: worse than any real fit.
 constexpr double kFailedRunMv = 1e6;
+// Cached model runs before the cache is emptied (each is one voltage per sample).
+constexpr std::size_t kCacheRuns = 256;
+// --initial-soc auto: a first rest voltage this close to the default state's is that state.
+constexpr double kStartsFullV = 5e-3;
+// ... or whose state lies within this share of the capacity of it.
+constexpr double kStartsFullShare = 0.05;
+// A first sample below this current counts as rest (an ADC's offset at zero current).
+constexpr double kRestShare = 0.02;
+constexpr double kRestCurrentA = 2e-3;
 
-// Where each candidate's parameter is searched. The ranges cover the sizes of models.md
-// section 5 several times over; the tolerance is 0.1 % of the range (0.5 % for the
-// logarithmic heat-transfer coefficient).
+// Where each knob is searched. The ranges cover the sizes of models.md section 5 several
+// times over; factors on the cell's parameters are searched in log10 over x0.05..x10.
 struct SearchSpace {
   double lo, hi, tol;
   bool log10;  // search in log10(value)
   double value(double x) const { return log10 ? std::pow(10.0, x) : x; }
+  double x_of(double v) const { return log10 ? std::log10(v) : v; }
 };
 
-SearchSpace search_space(Effect e, double max_abs_current_a) {
+SearchSpace search_space(Effect e, double max_abs_current_a, double dt_s) {
   switch (e) {
     case Effect::contact_resistance: return {0.0, 0.02, 2e-5, false};
     case Effect::hysteresis: return {0.0, 0.05, 5e-5, false};
@@ -38,15 +49,38 @@ SearchSpace search_space(Effect e, double max_abs_current_a) {
     // Log-space spread of the cathode radius; beyond 0.9 the largest of 3 populations is 5x R
     // (25x the diffusion time) and IDA finds no consistent start at 2C.
     case Effect::particle_size: return {0.0, 0.9, 1e-3, false};
-    case Effect::none: break;
+    case Effect::voltage_offset: return {-0.05, 0.05, 2e-5, false};
+    case Effect::voltage_gain: return {-0.03, 0.03, 1e-5, false};
+    case Effect::rc_branch: return {0.0, 0.05, 2e-5, false};
+    // From 10 s: faster relaxation is the contact resistance's and the DFN's own.
+    case Effect::rc_time_constant: return {1.0, 3.7, 2e-3, true};
+    case Effect::time_skew: return {-5.0 * dt_s, 5.0 * dt_s, 1e-3 * dt_s, false};
+    case Effect::i0_positive:
+    case Effect::i0_negative: return {-1.5, 1.5, 2e-3, true};
+    // Over-full starts put the stoichiometries past the cell window, where the solver crawls.
+    case Effect::initial_soc: return {-0.1, 0.01, 1e-4, false};
+    default: break;
   }
-  return {0.0, 1.0, 1e-3, false};
+  return {-1.3, 1.0, 2e-3, true};  // factors on the cell's parameters
 }
 
-double initial_soc(const CellParameters& cell) {
-  const auto& n = cell.negative;
-  const double span = n.stoich_max - n.stoich_min;
-  return span > 0 ? std::clamp((n.stoich_init - n.stoich_min) / span, 0.0, 1.0) : 1.0;
+// The value a knob has before it is fitted: no effect.
+double neutral_value(Effect e) {
+  if (e == Effect::rc_time_constant) return 100.0;
+  return truth_parameter_of(e)[0] != '\0' ? 1.0 : 0.0;
+}
+
+void set_knob(Hypothesis& h, Effect e, double v) {
+  for (auto& s : h)
+    if (s.effect == e) {
+      s.value = v;
+      return;
+    }
+  h.push_back({e, v});
+}
+
+bool has_knob(const Hypothesis& h, Effect e) {
+  return std::any_of(h.begin(), h.end(), [e](const EffectSetting& s) { return s.effect == e; });
 }
 
 // Pooled sums of squares over several cases.
@@ -64,13 +98,160 @@ struct Pool {
   double rms() const { return n ? std::sqrt(sum2 / static_cast<double>(n)) : 0.0; }
 };
 
-std::vector<double> corrected(const std::vector<double>& v, const std::vector<double>& delta) {
-  std::vector<double> out(v.size());
-  for (std::size_t k = 0; k < v.size(); ++k) out[k] = v[k] + (std::isfinite(delta[k]) ? delta[k] : 0.0);
+// Per case: which samples train (or validate) in this fold; empty = the case is not used.
+struct Fold {
+  std::vector<std::vector<char>> train, validate;
+};
+
+// Runs the model (cached by the knobs that need a run) and applies the post knobs. Search
+// runs carry the plain model's final-minus-search difference, so a fit sees the effect, not
+// the mesh.
+class Evaluator {
+ public:
+  Evaluator(const std::vector<CaseResult>& cases, ModelSetup search, ModelSetup final_setup)
+      : cases_(cases), search_(std::move(search)), final_(std::move(final_setup)), delta_(cases.size()) {}
+
+  std::vector<double> voltage(std::size_t c, const Hypothesis& h, bool final_mesh) {
+    const std::vector<double>& raw = run(c, h, final_mesh);
+    std::vector<double> v = raw;
+    if (!final_mesh && !delta_[c].empty())
+      for (std::size_t k = 0; k < v.size(); ++k) v[k] += std::isfinite(delta_[c][k]) ? delta_[c][k] : 0.0;
+    const Record& r = *cases_[c].record;
+    return apply_post(h, r.t_s, r.current_a, v);
+  }
+  std::vector<double> residual(std::size_t c, const Hypothesis& h, bool final_mesh) {
+    return residual_mv(voltage(c, h, final_mesh), *cases_[c].record);
+  }
+  const std::vector<double>& run(std::size_t c, const Hypothesis& h, bool final_mesh) {
+    Hypothesis knobs;
+    const std::string key = key_of(c, h, final_mesh, knobs);
+    auto it = cache_.find(key);
+    if (it != cache_.end()) return it->second;
+    if (cache_.size() >= kCacheRuns) cache_.clear();
+    ++runs_;
+    auto v = run_model(setup(final_mesh), *cases_[c].record, knobs).voltage_v;
+    return cache_.emplace(key, std::move(v)).first->second;
+  }
+  void put(std::size_t c, const Hypothesis& h, bool final_mesh, std::vector<double> v) {
+    Hypothesis knobs;
+    cache_[key_of(c, h, final_mesh, knobs)] = std::move(v);
+  }
+  const ModelSetup& setup(bool final_mesh) const { return final_mesh ? final_ : search_; }
+  void set_delta(std::size_t c, std::vector<double> d) { delta_[c] = std::move(d); }
+  int runs() const { return runs_; }
+
+ private:
+  // The knobs that need a run, in a fixed order, and the cache key they make.
+  static std::string key_of(std::size_t c, const Hypothesis& h, bool final_mesh, Hypothesis& knobs) {
+    for (const auto& s : h)
+      if (knob_kind(s.effect) != KnobKind::post && s.value != neutral_value(s.effect)) knobs.push_back(s);
+    std::sort(knobs.begin(), knobs.end(), [](auto& a, auto& b) { return a.effect < b.effect; });
+    std::string key = fmt::format("{}/{}", c, final_mesh ? 'f' : 's');
+    for (const auto& s : knobs) key += fmt::format("/{}={:.17g}", static_cast<int>(s.effect), s.value);
+    return key;
+  }
+  const std::vector<CaseResult>& cases_;
+  ModelSetup search_, final_;
+  std::vector<std::vector<double>> delta_;
+  std::map<std::string, std::vector<double>> cache_;
+  int runs_ = 0;
+};
+
+struct Context {
+  const DiagnoseSettings& settings;
+  std::vector<CaseResult>& cases;
+  Evaluator& eval;
+  std::vector<Fold> folds;
+  Fold all;  // the fit reported as "after"
+  double imax = 0.0, dt_s = 1.0;
+  std::function<void(const std::string&)> say;
+};
+
+double train_rmse(Context& ctx, const Hypothesis& h, const Fold& fold) {
+  Pool p;
+  try {
+    for (std::size_t c = 0; c < ctx.cases.size(); ++c)
+      if (!fold.train[c].empty()) p.add(ctx.eval.residual(c, h, false), fold.train[c]);
+  } catch (const RuntimeFailure&) {
+    return kFailedRunMv;
+  }
+  return p.rms();
+}
+
+struct FitResult {
+  Hypothesis h;
+  double train_mv = 0.0;
+  int evaluations = 0;
+};
+
+// Coordinate search over `knobs` (others fixed): a grid over the whole range, golden section
+// around its best point; `narrow` searches only around the current value.
+FitResult fit_knobs(Context& ctx, Hypothesis h, const std::vector<Effect>& knobs, const Fold& fold, bool narrow) {
+  FitResult out;
+  for (Effect k : knobs)
+    if (!has_knob(h, k)) h.push_back({k, neutral_value(k)});
+  const bool post_only = std::all_of(knobs.begin(), knobs.end(), [](Effect k) { return knob_kind(k) == KnobKind::post; });
+  const int sweeps = knobs.size() > 1 && post_only ? 3 : 1;
+  for (int sweep = 0; sweep < sweeps; ++sweep) {
+    for (Effect k : knobs) {
+      const SearchSpace sp = search_space(k, ctx.imax, ctx.dt_s);
+      double lo = sp.lo, hi = sp.hi;
+      if (narrow || sweep > 0) {
+        const double x0 = std::clamp(sp.x_of(knob_value(h, k)), sp.lo, sp.hi), w = 0.15 * (sp.hi - sp.lo);
+        lo = std::max(sp.lo, x0 - w);
+        hi = std::min(sp.hi, x0 + w);
+      }
+      auto objective = [&](double x) {
+        Hypothesis t = h;
+        set_knob(t, k, sp.value(x));
+        return train_rmse(ctx, t, fold);
+      };
+      const auto m = minimise_bounded(objective, lo, hi, sp.tol, narrow || sweep > 0 ? 5 : 7);
+      set_knob(h, k, sp.value(m.x));
+      out.train_mv = m.f;
+      out.evaluations += m.evaluations;
+    }
+  }
+  out.h = std::move(h);
   return out;
 }
 
-bool any(const std::vector<char>& m) { return std::find(m.begin(), m.end(), 1) != m.end(); }
+struct Score {
+  double heldout_mv = 0.0, all_mv = 0.0, max_abs_mv = 0.0;
+  bool failed = false;
+};
+
+// Held-out RMSE of one hypothesis per fold, on the final mesh.
+Score score(Context& ctx, const std::vector<Hypothesis>& per_fold) {
+  Pool held, all;
+  Score s;
+  try {
+    for (std::size_t f = 0; f < ctx.folds.size(); ++f)
+      for (std::size_t c = 0; c < ctx.cases.size(); ++c) {
+        if (ctx.folds[f].validate[c].empty()) continue;
+        const auto r = ctx.eval.residual(c, per_fold[f], true);
+        held.add(r, ctx.folds[f].validate[c]);
+        all.add(r, {});
+      }
+  } catch (const RuntimeFailure&) {
+    s.failed = true;
+    s.heldout_mv = s.all_mv = kFailedRunMv;
+    return s;
+  }
+  s.heldout_mv = held.rms();
+  s.all_mv = all.rms();
+  s.max_abs_mv = all.max_abs;
+  return s;
+}
+
+std::vector<Effect> effects_in(const std::vector<Effect>& selected, Effect add) {
+  std::vector<Effect> out;
+  for (Effect e : selected)
+    for (Effect k : knobs_of(e)) out.push_back(k);
+  if (add != Effect::none)
+    for (Effect k : knobs_of(add)) out.push_back(k);
+  return out;
+}
 
 }  // namespace
 
@@ -84,186 +265,485 @@ void split_samples(std::size_t n, int blocks, std::vector<char>& train, std::vec
   }
 }
 
-DiagnosisResult diagnose(const CellParameters& cell, const std::vector<Record>& records,
-                         const DiagnoseSettings& settings, const LogFn& log) {
-  const auto wall0 = std::chrono::steady_clock::now();
-  auto say = [&](const std::string& s) {
-    if (log) log(s);
-  };
-  if (records.empty()) throw InputError("--data: no record given");
-  DiagnosisResult out;
-  const ModelSetup final_setup{cell, settings.final_mesh, settings.rtol};
-  const ModelSetup search_setup{cell, settings.search_mesh, settings.rtol};
-
+void set_initial_state(Record& r, const CellParameters& cell, const std::string& spec) {
+  const double capacity_ah = cell.nominal_capacity_ah > 0 ? cell.nominal_capacity_ah : 1.0;
+  if (spec == "full") return;
+  if (spec != "auto") {
+    char* end = nullptr;
+    const double soc = std::strtod(spec.c_str(), &end);
+    if (spec.empty() || *end != '\0' || !(soc >= 0.0 && soc <= 1.0))
+      throw InputError("--initial-soc: '" + spec + "' is not auto, full or a state of charge in [0, 1]");
+    r.initial_depth_ah = (1.0 - soc) * capacity_ah;
+    r.initial_state_note = fmt::format("start at state of charge {:g} (given)", soc);
+    return;
+  }
   double imax = 0.0;
+  for (double i : r.current_a) imax = std::max(imax, std::abs(i));
+  if (std::abs(r.current_a.front()) > kRestShare * imax + kRestCurrentA) {
+    r.initial_state_note = "the record starts under current: the cell's default (full) state";
+    return;
+  }
+  const auto ic = default_initial_conditions(cell);
+  const double v_full = cell.positive.ocp_v->value(ic.stoich_pos) - cell.negative.ocp_v->value(ic.stoich_neg);
+  if (std::abs(r.voltage_v.front() - v_full) <= kStartsFullV) {
+    r.initial_state_note = fmt::format("first rest voltage {:.4f} V is the default state's ({:.4f} V): start full",
+                                       r.voltage_v.front(), v_full);
+    return;
+  }
+  std::string note;
+  const double depth_ah = depth_from_rest_voltage(cell, r.voltage_v.front(), &note);
+  if (std::abs(depth_ah) < kStartsFullShare * capacity_ah) {
+    // On the steep ends of the open-circuit curve a cell just charged has not relaxed yet: its
+    // first voltage maps to a state a hair from full, and starting there costs more than it gives.
+    r.initial_state_note = fmt::format("first rest voltage {:.4f} V maps to {:.4f} Ah from the default state (under "
+                                       "{:g} % of the capacity): start full",
+                                       r.voltage_v.front(), depth_ah, 100 * kStartsFullShare);
+    return;
+  }
+  r.initial_depth_ah = depth_ah;
+  r.initial_state_note = fmt::format(
+      "first rest voltage {:.4f} V (the default state's is {:.4f} V): start {:.4f} Ah below it (state of charge {:.3f}){}",
+      r.voltage_v.front(), v_full, r.initial_depth_ah, 1.0 - r.initial_depth_ah / capacity_ah,
+      note.empty() ? "" : "; " + note);
+}
+
+namespace {
+
+std::string knob_list(const Hypothesis& h) {
+  std::string s;
+  for (const auto& k : h) s += fmt::format("{}{} = {}", s.empty() ? "" : ", ", parameter_name(k.effect), format_value(k.effect, k.value));
+  return s.empty() ? "-" : s;
+}
+
+std::string effect_list(const std::vector<Effect>& e) {
+  std::string s;
+  for (Effect x : e) s += (s.empty() ? "" : " + ") + std::string(effect_name(x));
+  return s.empty() ? "none" : s;
+}
+
+struct Setup {
+  double imax = 0.0, dt_s = 1.0;
   bool all_rest = true, all_constant = true;
+};
+
+// Cases, their roles and masks, state of charge and excitation.
+Setup build_cases(const CellParameters& cell, const std::vector<Record>& records, const DiagnoseSettings& settings,
+                  DiagnosisResult& out, const std::function<void(const std::string&)>& say) {
+  Setup st;
+  st.dt_s = HUGE_VAL;
+  const double capacity_ah = cell.nominal_capacity_ah > 0 ? cell.nominal_capacity_ah : 1.0;
   for (std::size_t c = 0; c < records.size(); ++c) {
     CaseResult cr;
-    cr.record = &records[c];
-    cr.excitation = analyse_excitation(records[c]);
-    imax = std::max(imax, cr.excitation.max_abs_current_a);
-    all_rest = all_rest && cr.excitation.no_current;
-    all_constant = all_constant && cr.excitation.constant_current_only;
-    const std::size_t n = records[c].t_s.size();
+    const Record& rec = records[c];
+    cr.record = &rec;
+    cr.excitation = analyse_excitation(rec);
+    st.imax = std::max(st.imax, cr.excitation.max_abs_current_a);
+    st.all_rest = st.all_rest && cr.excitation.no_current;
+    st.all_constant = st.all_constant && cr.excitation.constant_current_only;
+    const std::size_t n = rec.t_s.size();
+    std::vector<double> steps;
+    for (std::size_t k = 1; k < n; ++k) steps.push_back(rec.t_s[k] - rec.t_s[k - 1]);
+    std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
+    st.dt_s = std::min(st.dt_s, steps[steps.size() / 2]);
     if (records.size() == 1) {
       split_samples(n, settings.blocks, cr.train, cr.validate);
       cr.role = "train+validate";
     } else {
-      cr.train.assign(n, c == 0 ? 1 : 0);
-      cr.validate.assign(n, c == 0 ? 0 : 1);
-      cr.role = c == 0 ? "train" : "validate";
+      cr.train.assign(n, 1);
+      cr.validate.assign(n, 1);
+      cr.role = "left out";
     }
-    cr.soc = state_of_charge(records[c], initial_soc(cell), cell.nominal_capacity_ah > 0 ? cell.nominal_capacity_ah : 1.0);
-    say(fmt::format("{}: {} samples over {:.0f} s; {}", records[c].source, n, records[c].duration_s(),
-                    cr.excitation.describe()));
+    const double depth = std::isfinite(rec.initial_depth_ah) ? rec.initial_depth_ah : 0.0;
+    cr.soc = state_of_charge(rec, 1.0 - depth / capacity_ah, capacity_ah);
+    say(fmt::format("{}: {} samples over {:.0f} s; {}{}{}", rec.source, n, rec.duration_s(), cr.excitation.describe(),
+                    rec.layout_note.empty() ? "" : "; " + rec.layout_note,
+                    rec.initial_state_note.empty() ? "" : "; " + rec.initial_state_note));
     out.cases.push_back(std::move(cr));
   }
-  if (all_constant && records.size() > 1) {
+  if (st.all_constant && records.size() > 1) {
     // Several constant-current records separate the effects only if their currents differ.
     const double i0 = out.cases.front().excitation.typical_current_a;
     for (const auto& c : out.cases)
-      if (std::abs(c.excitation.typical_current_a - i0) > 0.02 * imax) all_constant = false;
+      if (std::abs(c.excitation.typical_current_a - i0) > 0.02 * st.imax) st.all_constant = false;
   }
-  if (all_constant)
+  if (st.all_constant)
     out.excitation_note =
-        "one constant current only: a contact resistance and hysteresis, or a current-sensor offset and gain, "
-        "leave the same residual and cannot be told apart";
+        "one constant current only: a contact resistance, hysteresis and a voltage offset, or a current-sensor "
+        "offset and gain, leave the same residual and cannot be told apart";
+  return st;
+}
 
-  // The plain model on the final mesh: "before".
-  Pool before_all, before_held;
-  for (auto& c : out.cases) {
-    say(fmt::format("{}: plain model, mesh {}/{}", c.record->source, settings.final_mesh.n_neg, settings.final_mesh.n_r));
-    c.before = run_model(final_setup, *c.record, {});
-    c.residual_before_mv = residual_mv(c.before.voltage_v, *c.record);
-    c.rmse_before_mv = rms(c.residual_before_mv);
-    c.max_abs_before_mv = max_abs(c.residual_before_mv);
-    c.char_before = characterise(*c.record, c.residual_before_mv, c.soc);
-    before_all.add(c.residual_before_mv, {});
-    before_held.add(c.residual_before_mv, c.validate);
-    say(fmt::format("{}: RMSE {:.3f} mV, max {:.3f} mV{}", c.record->source, c.rmse_before_mv, c.max_abs_before_mv,
-                    c.before.note.empty() ? "" : "; " + c.before.note));
+std::vector<Fold> make_folds(const std::vector<CaseResult>& cases, Fold& all) {
+  const std::size_t nc = cases.size();
+  std::vector<Fold> folds;
+  all.train.assign(nc, {});
+  all.validate.assign(nc, {});
+  if (nc == 1) {
+    folds.push_back({{cases[0].train}, {cases[0].validate}});
+    all = folds.front();
+    return folds;
   }
-  out.rmse_before_mv = before_all.rms();
-  out.max_abs_before_mv = before_all.max_abs;
-  out.heldout_before_mv = before_held.rms();
+  for (std::size_t r = 0; r < nc; ++r) {
+    Fold f;
+    f.train.assign(nc, {});
+    f.validate.assign(nc, {});
+    for (std::size_t c = 0; c < nc; ++c) (c == r ? f.validate : f.train)[c] = cases[c].train;
+    all.train[r] = cases[r].train;
+    folds.push_back(std::move(f));
+  }
+  return folds;
+}
 
+// The plain model on both meshes: "before", the mesh correction and the floor.
+void run_before(Context& ctx, DiagnosisResult& out) {
+  Pool all, held;
+  double floor2 = 0.0;
+  std::size_t samples = 0;
+  const auto& s = ctx.settings;
+  for (std::size_t c = 0; c < ctx.cases.size(); ++c) {
+    auto& cr = ctx.cases[c];
+    const Record& rec = *cr.record;
+    ctx.say(fmt::format("{}: plain model, mesh {}/{} and {}/{}", rec.source, s.final_mesh.n_neg, s.final_mesh.n_r,
+                        s.search_mesh.n_neg, s.search_mesh.n_r));
+    cr.before = run_model(ctx.eval.setup(true), rec, Hypothesis{});
+    ctx.eval.put(c, {}, true, cr.before.voltage_v);
+    const auto& coarse = ctx.eval.run(c, {}, false);
+    std::vector<double> delta(coarse.size());
+    for (std::size_t k = 0; k < delta.size(); ++k) delta[k] = cr.before.voltage_v[k] - coarse[k];
+    const double numerical = numerical_error_mv(cr.before.voltage_v, coarse, s.search_mesh.n_r, s.final_mesh.n_r);
+    ctx.eval.set_delta(c, std::move(delta));
+    cr.residual_before_mv = residual_mv(cr.before.voltage_v, rec);
+    cr.rmse_before_mv = rms(cr.residual_before_mv);
+    cr.max_abs_before_mv = max_abs(cr.residual_before_mv);
+    cr.heldout_before_mv = rms(cr.residual_before_mv, cr.validate);
+    cr.char_before = characterise(rec, cr.residual_before_mv, cr.soc);
+    cr.adequacy_before =
+        check_adequacy(rec, cr.residual_before_mv, cr.char_before, measurement_noise_mv(rec), numerical);
+    all.add(cr.residual_before_mv, {});
+    held.add(cr.residual_before_mv, cr.validate);
+    floor2 += std::pow(cr.adequacy_before.floor_mv, 2) * static_cast<double>(rec.t_s.size());
+    samples += rec.t_s.size();
+    ctx.say(fmt::format("{}: RMSE {:.3f} mV, max {:.3f} mV; {}", rec.source, cr.rmse_before_mv, cr.max_abs_before_mv,
+                        cr.adequacy_before.verdict));
+  }
+  out.rmse_before_mv = all.rms();
+  out.max_abs_before_mv = all.max_abs;
+  out.heldout_before_mv = held.rms();
+  out.floor_mv = std::sqrt(floor2 / static_cast<double>(std::max<std::size_t>(samples, 1)));
+  out.at_floor_before = out.heldout_before_mv <= kFloorFactor * out.floor_mv;
+}
+
+struct Candidate {
+  Effect effect;
+  std::vector<Hypothesis> per_fold;
+  Score score;
+  double train_mv = 0.0;
+  int evaluations = 0;
+};
+
+// The candidate added to `base` (one hypothesis per fold), fitted per fold and scored.
+Candidate try_candidate(Context& ctx, Effect e, const std::vector<Hypothesis>& base) {
+  Candidate c{e, {}, {}, 0.0, 0};
+  for (std::size_t f = 0; f < ctx.folds.size(); ++f) {
+    auto fit = fit_knobs(ctx, base[f], knobs_of(e), ctx.folds[f], false);
+    c.train_mv += fit.train_mv / static_cast<double>(ctx.folds.size());
+    c.evaluations += fit.evaluations;
+    c.per_fold.push_back(std::move(fit.h));
+  }
+  c.score = score(ctx, c.per_fold);
+  return c;
+}
+
+// Step 1: every candidate alone; the first effect is chosen by the selection rules (gain,
+// ties, constant-current twins).
+std::vector<Candidate> score_candidates(Context& ctx, DiagnosisResult& out, bool all_constant,
+                                        const std::vector<Effect>& list, std::vector<Candidate> tried) {
+  std::vector<CandidateScore> scores;
+  for (const auto& c : tried) scores.push_back({c.effect, true, 0.0, c.score.heldout_mv});
+  const std::vector<Hypothesis> empty(ctx.folds.size());
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const Effect e = list[i];
+    CandidateResult cand;
+    cand.effect = e;
+    cand.available = effect_available(e);
+    if (!cand.available) {
+      cand.note = "not in this build's truth model";
+      out.candidates.push_back(cand);
+      continue;
+    }
+    Candidate c = try_candidate(ctx, e, empty);
+    cand.fitted = c.per_fold.front();
+    cand.value = knob_value(cand.fitted, e);
+    cand.train_rmse_mv = c.train_mv;
+    cand.heldout_rmse_mv = c.score.heldout_mv;
+    cand.rmse_after_mv = c.score.all_mv;
+    cand.max_abs_after_mv = c.score.max_abs_mv;
+    cand.evaluations = c.evaluations;
+    if (c.score.failed) {
+      cand.available = false;
+      cand.note = "the model failed on the final mesh with the fitted value";
+    }
+    ctx.say(fmt::format("step 1, candidate {}/{} {}: {}: held-out RMSE {:.3f} mV (plain {:.3f}), {} runs so far",
+                        i + 1, list.size(), effect_name(e), knob_list(cand.fitted), cand.heldout_rmse_mv,
+                        out.heldout_before_mv, ctx.eval.runs()));
+    scores.push_back({e, cand.available, cand.value, cand.heldout_rmse_mv});
+    out.candidates.push_back(cand);
+    if (cand.available) tried.push_back(std::move(c));
+  }
+  SelectionRules rules = ctx.settings.rules;
+  rules.constant_current_only = all_constant;
+  rules.floor_mv = out.floor_mv;
+  out.selection = select_effect(out.heldout_before_mv, scores, rules);
+  SelectionStep step;
+  for (const auto& c : tried) step.scores.emplace_back(c.effect, c.score.heldout_mv);
+  step.chosen = out.selection.effect;
+  step.reason = out.selection.reason;
+  out.steps.push_back(step);
+  return tried;
+}
+
+// Steps 2..max_effects: each remaining candidate added to the effects so far; the best is kept
+// if it cuts the held-out RMSE by the complexity penalty, then all knobs are refined together.
+Candidate forward_selection(Context& ctx, DiagnosisResult& out, std::vector<Candidate> tried) {
+  Candidate current{Effect::none, std::vector<Hypothesis>(ctx.folds.size()), {}, 0.0, 0};
+  current.score.heldout_mv = out.heldout_before_mv;
+  out.effects.clear();
+  const auto& s = ctx.settings;
+  // A first effect too weak to be named alone may still open a combination that explains the
+  // residual; a tie or a twin may not (the combination would name a guess).
+  Effect first = out.selection.effect;
+  for (const auto& c : tried)
+    if (first == Effect::none && out.selection.identifiable && c.effect == out.selection.best &&
+        out.heldout_before_mv - c.score.heldout_mv >= std::max(s.further_gain * out.heldout_before_mv,
+                                                               s.rules.min_absolute_gain_mv))
+      first = c.effect;
+  if (first == Effect::none) return current;
+  std::sort(tried.begin(), tried.end(), [](auto& a, auto& b) { return a.score.heldout_mv < b.score.heldout_mv; });
+  for (auto& c : tried)
+    if (c.effect == first) current = c;
+  out.effects = {current.effect};
+  while (static_cast<int>(out.effects.size()) < s.max_effects &&
+         current.score.heldout_mv > kFloorFactor * out.floor_mv) {
+    SelectionStep step;
+    step.base = out.effects;
+    Candidate best{Effect::none, {}, {}, 0.0, 0};
+    best.score.heldout_mv = HUGE_VAL;
+    for (const auto& t : tried) {
+      if (std::find(out.effects.begin(), out.effects.end(), t.effect) != out.effects.end()) continue;
+      Candidate c = try_candidate(ctx, t.effect, current.per_fold);
+      step.scores.emplace_back(t.effect, c.score.heldout_mv);
+      ctx.say(fmt::format("step {}, {} + {}: held-out RMSE {:.3f} mV (now {:.3f}), {} runs so far", out.steps.size() + 1,
+                          effect_list(out.effects), effect_name(t.effect), c.score.heldout_mv, current.score.heldout_mv,
+                          ctx.eval.runs()));
+      if (c.score.heldout_mv < best.score.heldout_mv) best = std::move(c);
+    }
+    const double gain = current.score.heldout_mv - best.score.heldout_mv;
+    if (best.effect == Effect::none || gain < s.further_gain * current.score.heldout_mv ||
+        gain < s.rules.min_absolute_gain_mv) {
+      step.reason = best.effect == Effect::none
+                        ? "no candidate left"
+                        : fmt::format("best addition {} cuts the held-out RMSE by {:.3f} mV only (needs {:.0f} % of "
+                                      "{:.3f} mV and {:.2f} mV): stop",
+                                      effect_name(best.effect), gain, 100 * s.further_gain, current.score.heldout_mv,
+                                      s.rules.min_absolute_gain_mv);
+      out.steps.push_back(step);
+      break;
+    }
+    // Refine every knob together (narrow coordinate search) and keep it if it helps.
+    const auto knobs = effects_in(out.effects, best.effect);
+    Candidate refined = best;
+    refined.per_fold.clear();
+    for (std::size_t f = 0; f < ctx.folds.size(); ++f)
+      refined.per_fold.push_back(fit_knobs(ctx, best.per_fold[f], knobs, ctx.folds[f], true).h);
+    refined.score = score(ctx, refined.per_fold);
+    if (refined.score.heldout_mv < best.score.heldout_mv) best = std::move(refined);
+    step.chosen = best.effect;
+    step.reason = fmt::format("{} cuts the held-out RMSE from {:.3f} to {:.3f} mV", effect_name(best.effect),
+                              current.score.heldout_mv, best.score.heldout_mv);
+    out.steps.push_back(step);
+    out.effects.push_back(best.effect);
+    current = std::move(best);
+  }
+  return current;
+}
+
+// The chosen effects fitted on all the data (one record: its training blocks) give "after";
+// the held-out numbers per case come from the folds.
+void fit_all_and_after(Context& ctx, DiagnosisResult& out, const Candidate& best) {
+  Hypothesis h = best.per_fold.empty() ? Hypothesis{} : best.per_fold.front();
+  if (ctx.folds.size() > 1 && !out.effects.empty())
+    h = fit_knobs(ctx, h, effects_in(out.effects, Effect::none), ctx.all, true).h;
+  out.model = h;
+  out.heldout_after_mv = best.score.heldout_mv;
+  Pool all, held;
+  for (std::size_t c = 0; c < ctx.cases.size(); ++c) {
+    auto& cr = ctx.cases[c];
+    const Record& rec = *cr.record;
+    cr.after = cr.before;
+    cr.after.voltage_v = ctx.eval.voltage(c, h, true);
+    cr.residual_after_mv = residual_mv(cr.after.voltage_v, rec);
+    cr.rmse_after_mv = rms(cr.residual_after_mv);
+    cr.max_abs_after_mv = max_abs(cr.residual_after_mv);
+    cr.char_after = characterise(rec, cr.residual_after_mv, cr.soc);
+    cr.adequacy_after = check_adequacy(rec, cr.residual_after_mv, cr.char_after, cr.adequacy_before.noise_mv,
+                                       cr.adequacy_before.numerical_mv);
+    const std::size_t f = ctx.folds.size() > 1 ? c : 0;
+    const auto held_r = best.per_fold.empty() ? cr.residual_before_mv : ctx.eval.residual(c, best.per_fold[f], true);
+    cr.heldout_after_mv = rms(held_r, cr.validate);
+    all.add(cr.residual_after_mv, {});
+  }
+  out.rmse_after_mv = all.rms();
+  out.max_abs_after_mv = all.max_abs;
+}
+
+// Sensitivity of the model voltage to every candidate knob at the fitted model, and the
+// Fisher information of the selected ones: J^T J / sigma^2 with sigma = the floor.
+void identifiability(Context& ctx, DiagnosisResult& out) {
+  std::vector<Effect> knobs = effects_in(out.effects, Effect::none);
+  const std::size_t n_selected = knobs.size();
+  for (Effect e : ctx.settings.candidates)
+    for (Effect k : knobs_of(e))
+      if (effect_available(k) && std::find(knobs.begin(), knobs.end(), k) == knobs.end()) knobs.push_back(k);
+  std::vector<std::vector<double>> base(ctx.cases.size());
+  for (std::size_t c = 0; c < ctx.cases.size(); ++c) base[c] = ctx.eval.voltage(c, out.model, false);
+  std::vector<Eigen::VectorXd> columns;
+  for (Effect k : knobs) {
+    const SearchSpace sp = search_space(k, ctx.imax, ctx.dt_s);
+    Hypothesis h = out.model;
+    if (!has_knob(h, k)) h.push_back({k, neutral_value(k)});
+    if (k == Effect::rc_time_constant && knob_value(h, Effect::rc_branch) == 0.0) set_knob(h, Effect::rc_branch, 0.005);
+    const double x0 = std::clamp(sp.x_of(knob_value(h, k)), sp.lo, sp.hi);
+    const double dx = 0.01 * (sp.hi - sp.lo) * (x0 + 0.01 * (sp.hi - sp.lo) > sp.hi ? -1.0 : 1.0);
+    set_knob(h, k, sp.value(x0 + dx));
+    std::vector<double> col;
+    try {
+      for (std::size_t c = 0; c < ctx.cases.size(); ++c) {
+        const auto v = ctx.eval.voltage(c, h, false);
+        for (std::size_t i = 0; i < v.size(); ++i)
+          col.push_back(std::isfinite(v[i]) && std::isfinite(base[c][i]) ? 1e3 * (v[i] - base[c][i]) / dx : 0.0);
+      }
+    } catch (const RuntimeFailure&) {
+      continue;
+    }
+    KnobIdentifiability ki;
+    ki.knob = k;
+    ki.value = knob_value(out.model, k, neutral_value(k));
+    ki.selected = out.identifiability.size() < n_selected;
+    const Eigen::VectorXd j = Eigen::Map<Eigen::VectorXd>(col.data(), static_cast<Eigen::Index>(col.size()));
+    ki.sensitivity_mv = j.norm() / std::sqrt(static_cast<double>(std::max<Eigen::Index>(j.size(), 1)));
+    if (ki.selected) columns.push_back(j);
+    out.identifiability.push_back(ki);
+  }
+  if (columns.empty()) return;
+  const double sigma = std::max(out.floor_mv, 0.01);
+  Eigen::MatrixXd jm(columns.front().size(), static_cast<Eigen::Index>(columns.size()));
+  for (std::size_t k = 0; k < columns.size(); ++k) jm.col(static_cast<Eigen::Index>(k)) = columns[k];
+  const Eigen::MatrixXd fisher = jm.transpose() * jm / (sigma * sigma);
+  const Eigen::MatrixXd cov = fisher.completeOrthogonalDecomposition().pseudoInverse();
+  for (std::size_t k = 0; k < columns.size(); ++k) {
+    auto& ki = out.identifiability[k];
+    const auto i = static_cast<Eigen::Index>(k);
+    ki.std_error = std::sqrt(std::max(cov(i, i), 0.0));
+    const SearchSpace sp = search_space(ki.knob, ctx.imax, ctx.dt_s);
+    ki.relative_std_pct = sp.log10 ? 100.0 * (std::pow(10.0, ki.std_error) - 1.0)
+                                   : (ki.value != 0.0 ? 100.0 * ki.std_error / std::abs(ki.value) : HUGE_VAL);
+    for (std::size_t m = 0; m < columns.size(); ++m) {
+      const auto jdx = static_cast<Eigen::Index>(m);
+      if (m != k && cov(i, i) > 0 && cov(jdx, jdx) > 0)
+        ki.max_abs_correlation = std::max(ki.max_abs_correlation, std::abs(cov(i, jdx)) / std::sqrt(cov(i, i) * cov(jdx, jdx)));
+    }
+  }
+  std::sort(out.identifiability.begin() + static_cast<std::ptrdiff_t>(columns.size()), out.identifiability.end(),
+            [](const auto& a, const auto& b) { return a.sensitivity_mv > b.sensitivity_mv; });
+}
+
+// The answer: the effects if they explain the residual on held-out data, none when the
+// residual was at its floor anyway, unexplained otherwise (the best model reached is kept as a
+// partial result, never as the answer).
+void decide(DiagnosisResult& out, const DiagnoseSettings& s) {
+  const double share = out.heldout_before_mv > 0 ? out.heldout_after_mv / out.heldout_before_mv : 1.0;
+  out.explained = !out.effects.empty() && share <= s.explained_share;
+  if (out.explained) {
+    out.answer = out.effects.front();
+    out.reason = fmt::format("{} ({}) bring the held-out RMSE from {:.3f} to {:.3f} mV ({:.0f} %). {}",
+                             effect_list(out.effects), knob_list(out.model), out.heldout_before_mv,
+                             out.heldout_after_mv, 100 * share, out.selection.reason);
+    return;
+  }
+  out.best_partial = out.model;
+  out.best_partial_effects = out.effects;
+  out.best_partial_heldout_mv = out.heldout_after_mv;
+  std::string residual;
+  for (const auto& c : out.cases) residual += fmt::format(" [{}: {}]", c.record->source, c.adequacy_before.verdict);
+  if (out.at_floor_before) {
+    out.answer = Effect::none;
+    out.reason = fmt::format("the residual is at its floor: held-out RMSE {:.3f} mV <= {:g} x {:.3f} mV (voltage noise "
+                             "and the model's numerical error). {}",
+                             out.heldout_before_mv, kFloorFactor, out.floor_mv, out.selection.reason);
+  } else {
+    out.answer = Effect::unexplained;
+    out.reason = fmt::format(
+        "no candidate or combination of up to {} brings the held-out RMSE to {:.0f} % of {:.3f} mV (best reached: {}, "
+        "{:.3f} mV = {:.0f} %; {}). First step: {}. The residual:{}",
+        s.max_effects, 100 * s.explained_share, out.heldout_before_mv, effect_list(out.effects), out.heldout_after_mv,
+        100 * share, knob_list(out.model), out.selection.reason, residual);
+  }
+  out.effects.clear();
+  out.model.clear();
+}
+
+}  // namespace
+
+DiagnosisResult diagnose(const CellParameters& cell, const std::vector<Record>& records,
+                         const DiagnoseSettings& settings, const LogFn& log) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count(); };
+  auto say = [&](const std::string& s) {
+    if (log) log(fmt::format("[{:6.1f} s] {}", elapsed(), s));
+  };
+  if (records.empty()) throw InputError("--data: no record given");
+  DiagnosisResult out;
+  const Setup st = build_cases(cell, records, settings, out, say);
+  Evaluator eval(out.cases, ModelSetup{cell, settings.search_mesh, settings.rtol},
+                 ModelSetup{cell, settings.final_mesh, settings.rtol});
+  Context ctx{settings, out.cases, eval, {}, {}, st.imax, st.dt_s, say};
+  ctx.folds = make_folds(out.cases, ctx.all);
+  run_before(ctx, out);
   CandidateResult none;
-  none.effect = Effect::none;
   none.heldout_rmse_mv = out.heldout_before_mv;
   none.rmse_after_mv = out.rmse_before_mv;
   none.max_abs_after_mv = out.max_abs_before_mv;
-  {
-    Pool train;
-    for (const auto& c : out.cases) train.add(c.residual_before_mv, c.train);
-    none.train_rmse_mv = train.rms();
-  }
-  for (const auto& c : out.cases) none.voltage_v.push_back(c.before.voltage_v);
   out.candidates.push_back(none);
-
-  if (all_rest) {
+  if (st.all_rest) {
     out.selection.reason = "no current flows in the data: no effect can be identified";
+    Candidate plain{Effect::none, {}, {}, 0.0, 0};
+    plain.score.heldout_mv = out.heldout_before_mv;
+    fit_all_and_after(ctx, out, plain);
   } else {
-    // The search mesh's own error is taken out: delta = final - search for the plain model,
-    // added to every search-mesh run, so the fit sees the effect, not the mesh.
-    std::vector<std::vector<double>> delta(out.cases.size());
-    for (std::size_t c = 0; c < out.cases.size(); ++c) {
-      if (!any(out.cases[c].train)) continue;
-      const auto coarse = run_model(search_setup, *out.cases[c].record, {});
-      delta[c].resize(coarse.voltage_v.size());
-      for (std::size_t k = 0; k < delta[c].size(); ++k)
-        delta[c][k] = out.cases[c].before.voltage_v[k] - coarse.voltage_v[k];
+    // Tier 1: sensor, wiring and structural effects. Tier 2 adds the re-fits of the cell's
+    // own parameters (and its start state) only when tier 1 does not explain the residual: the
+    // more specific explanation first, and a re-fit can mimic a sensor or wiring fault.
+    std::vector<Effect> tier1, tier2;
+    for (Effect e : settings.candidates)
+      (knob_kind(e) == KnobKind::parameter || e == Effect::initial_soc ? tier2 : tier1).push_back(e);
+    auto tried = score_candidates(ctx, out, st.all_constant, tier1, {});
+    Candidate best = forward_selection(ctx, out, tried);
+    if (!tier2.empty() && best.score.heldout_mv > settings.explained_share * out.heldout_before_mv) {
+      say("tier 1 does not explain the residual: tier 2, the cell's parameters re-fitted");
+      tried = score_candidates(ctx, out, st.all_constant, tier2, std::move(tried));
+      best = forward_selection(ctx, out, tried);
     }
-    std::vector<CandidateScore> scores;
-    for (Effect e : settings.candidates) {
-      CandidateResult cand;
-      cand.effect = e;
-      cand.available = effect_available(e);
-      if (!cand.available) {
-        cand.note = "not in this build's truth model";
-        say(fmt::format("candidate {}: skipped ({})", effect_name(e), cand.note));
-        out.candidates.push_back(cand);
-        scores.push_back({e, false, 0.0, 0.0});
-        continue;
-      }
-      const SearchSpace space = search_space(e, imax);
-      int failures = 0;
-      auto objective = [&](double x) {
-        const EffectSetting s{e, space.value(x)};
-        Pool train;
-        try {
-          for (std::size_t c = 0; c < out.cases.size(); ++c) {
-            if (!any(out.cases[c].train)) continue;
-            const auto run = run_model(search_setup, *out.cases[c].record, s);
-            train.add(residual_mv(corrected(run.voltage_v, delta[c]), *out.cases[c].record), out.cases[c].train);
-          }
-        } catch (const RuntimeFailure&) {
-          ++failures;
-          return kFailedRunMv;
-        }
-        const double f = train.rms();
-        say(fmt::format("candidate {}: {} = {:.6g}: training RMSE {:.4f} mV", effect_name(e), parameter_name(e),
-                        s.value, f));
-        return f;
-      };
-      const auto m = minimise_bounded(objective, space.lo, space.hi, space.tol);
-      cand.value = space.value(m.x);
-      cand.train_rmse_mv = m.f;
-      cand.evaluations = m.evaluations;
-      if (failures) cand.note = fmt::format("{} solver failure(s) during the search", failures);
-      // Scored on the final mesh: the held-out error is the score, all samples give "after".
-      Pool all, held;
-      try {
-        for (const auto& c : out.cases) {
-          const auto run = run_model(final_setup, *c.record, {e, cand.value});
-          const auto r = residual_mv(run.voltage_v, *c.record);
-          all.add(r, {});
-          held.add(r, c.validate);
-          cand.voltage_v.push_back(run.voltage_v);
-        }
-        cand.heldout_rmse_mv = held.rms();
-        cand.rmse_after_mv = all.rms();
-        cand.max_abs_after_mv = all.max_abs;
-      } catch (const RuntimeFailure& err) {
-        cand.available = false;
-        cand.note = std::string("final run failed: ") + err.what();
-      }
-      if (cand.available)
-        say(fmt::format("candidate {}: {} = {:.6g} after {} runs: held-out RMSE {:.4f} mV (plain {:.4f}), all {:.4f} mV",
-                        effect_name(e), parameter_name(e), cand.value, cand.evaluations, cand.heldout_rmse_mv,
-                        out.heldout_before_mv, cand.rmse_after_mv));
-      else
-        say(fmt::format("candidate {}: dropped ({})", effect_name(e), cand.note));
-      scores.push_back({e, cand.available, cand.value, cand.heldout_rmse_mv});
-      out.candidates.push_back(std::move(cand));
-    }
-    SelectionRules rules = settings.rules;
-    rules.constant_current_only = all_constant;
-    out.selection = select_effect(out.heldout_before_mv, scores, rules);
-    if (out.selection.effect == Effect::none && !out.excitation_note.empty() &&
-        out.selection.reason.find("constant current") == std::string::npos)
-      out.selection.reason += " (" + out.excitation_note + ")";
+    fit_all_and_after(ctx, out, best);
+    say("sensitivities and Fisher information at the fitted model");
+    identifiability(ctx, out);
   }
-
-  const CandidateResult* chosen = &out.candidates.front();
-  for (const auto& c : out.candidates)
-    if (c.effect == out.selection.effect) chosen = &c;
-  Pool after_all, after_held;
-  for (std::size_t c = 0; c < out.cases.size(); ++c) {
-    auto& cr = out.cases[c];
-    cr.after = cr.before;
-    cr.after.voltage_v = chosen->voltage_v[c];
-    cr.residual_after_mv = residual_mv(cr.after.voltage_v, *cr.record);
-    cr.rmse_after_mv = rms(cr.residual_after_mv);
-    cr.max_abs_after_mv = max_abs(cr.residual_after_mv);
-    cr.char_after = characterise(*cr.record, cr.residual_after_mv, cr.soc);
-    after_all.add(cr.residual_after_mv, {});
-    after_held.add(cr.residual_after_mv, cr.validate);
-  }
-  out.rmse_after_mv = after_all.rms();
-  out.max_abs_after_mv = after_all.max_abs;
-  out.heldout_after_mv = after_held.rms();
-  out.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
-  say(fmt::format("diagnosis: {} ({})", effect_name(out.selection.effect), out.selection.reason));
+  if (out.selection.effect == Effect::none && !out.excitation_note.empty() &&
+      out.selection.reason.find("constant current") == std::string::npos)
+    out.selection.reason += " (" + out.excitation_note + ")";
+  decide(out, settings);
+  out.runs = eval.runs();
+  out.wall_s = elapsed();
+  say(fmt::format("diagnosis: {} ({} model runs)", effect_name(out.answer), out.runs));
   return out;
 }
 

@@ -1,8 +1,13 @@
 #pragma once
-// The candidate effects of the diagnosis (contract names) and how each is added to the model
-// under test: contact resistance, hysteresis and the thermal model are switches of the truth
-// model (ModelEffects); a current-sensor offset or gain means the true current differs from
-// the measured one, so the model is driven with the corrected current.
+// The knobs of the diagnosis and how each is added to the model under test. Three kinds:
+//  - model switches of the truth DFN (contact resistance, hysteresis, thermal, particle size);
+//  - drive corrections: a current-sensor offset or gain means the true current differs from the
+//    measured one, so the model is driven with the corrected current; a start-state offset;
+//  - parameter re-fits: a factor on one of the cell's own parameters (the `simulate --set` names);
+//  - measurement structure applied to the model's voltage after the run, no re-run needed:
+//    voltage-sensor offset and gain, an extra RC relaxation branch, a time skew between the
+//    voltage and the current samples.
+// A candidate is one knob, except `rc_branch` (resistance and time constant together).
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -13,26 +18,65 @@
 
 namespace bms::diagnosis {
 
-enum class Effect { none, contact_resistance, hysteresis, current_offset, current_gain, thermal, particle_size };
+enum class Effect {
+  none,
+  contact_resistance,
+  hysteresis,
+  current_offset,
+  current_gain,
+  thermal,
+  particle_size,
+  voltage_offset,
+  voltage_gain,
+  rc_branch,  // its resistance; the time constant is the knob rc_time_constant
+  rc_time_constant,
+  time_skew,
+  diffusivity_positive,
+  diffusivity_negative,
+  conductivity,
+  electrolyte_diffusivity,
+  i0_positive,
+  i0_negative,
+  initial_soc,
+  unexplained,  // an answer, not a knob: a residual remains that no candidate explains
+};
 
-inline constexpr Effect kAllCandidates[] = {Effect::contact_resistance, Effect::hysteresis, Effect::current_offset,
-                                            Effect::current_gain, Effect::thermal};
-// particle_size (cathode particle-size spread) is scored only when listed in --candidates: it
-// is a hypothesis about the cell's structure, not a sensor or wiring fault, and leaving it out
-// of `all` keeps the earlier diagnoses (and their run times) as they were.
+enum class KnobKind { model_switch, drive, parameter, post };
+
+// The listed effects (issue 7) first, then the structural ones, then the parameter re-fits.
+inline constexpr Effect kAllCandidates[] = {
+    Effect::contact_resistance,   Effect::hysteresis,   Effect::current_offset,          Effect::current_gain,
+    Effect::thermal,              Effect::voltage_offset, Effect::voltage_gain,          Effect::rc_branch,
+    Effect::time_skew,            Effect::diffusivity_positive, Effect::diffusivity_negative, Effect::conductivity,
+    Effect::electrolyte_diffusivity, Effect::i0_positive, Effect::i0_negative,            Effect::initial_soc};
+// The five effects of issue 7 (`--candidates listed`).
+inline constexpr Effect kListedCandidates[] = {Effect::contact_resistance, Effect::hysteresis, Effect::current_offset,
+                                               Effect::current_gain, Effect::thermal};
+// particle_size (cathode particle-size spread) is scored only when listed in --candidates: each
+// of its runs carries three particle populations, and it is kept as an off-list effect for the
+// honesty tests.
 
 const char* effect_name(Effect e);
 bool parse_effect(std::string_view name, Effect& out);
 const char* parameter_name(Effect e);  // key in summary.json "parameters", with its unit
+KnobKind knob_kind(Effect e);
+// The knobs a candidate fits (rc_branch: time constant, then resistance).
+std::vector<Effect> knobs_of(Effect candidate);
+// What a fitted value means physically, and whether it is plausible (a sentence).
+std::string plausibility_note(Effect e, double value);
+std::string format_value(Effect e, double value);
 
 struct EffectSetting {
   Effect effect = Effect::none;
-  double value = 0.0;  // in the contract's unit for the effect
+  double value = 0.0;  // in the unit of parameter_name(effect)
 };
+using Hypothesis = std::vector<EffectSetting>;
 
-// hysteresis_v and thermal_h_w_per_k are being added to ModelEffects by issue 7's truth-model
-// work; until they exist the candidates are reported as unavailable instead of breaking the
-// build. The detection is at compile time, so nothing changes at run time once they land.
+// The value of a knob in h (fallback when absent).
+double knob_value(const Hypothesis& h, Effect e, double fallback = 0.0);
+
+// hysteresis_v and thermal_h_w_per_k are detected at compile time so that a truth model
+// without them reports the candidates as unavailable instead of breaking the build.
 template <class E, class = void>
 struct HasHysteresis : std::false_type {};
 template <class E>
@@ -61,11 +105,8 @@ bool set_model_effect(E& effects, const EffectSetting& s) {
         return false;
       }
     case Effect::particle_size: effects.particle_size_sigma = s.value; return true;
-    case Effect::none:
-    case Effect::current_offset:
-    case Effect::current_gain: return true;  // not a model switch
+    default: return true;  // not a model switch
   }
-  return false;
 }
 
 // Whether this build's truth model can represent the effect.
@@ -74,5 +115,15 @@ bool effect_available(Effect e);
 // The current that drives the model: the measured one, corrected for a sensor offset
 // (reads value A high) or gain (reads (1 + value) times the true current).
 std::vector<double> driving_current(const EffectSetting& s, const std::vector<double>& measured_a);
+std::vector<double> driving_current(const Hypothesis& h, const std::vector<double>& measured_a);
+
+// The `simulate --set` name of a parameter re-fit ("" for the other kinds).
+const char* truth_parameter_of(Effect e);
+
+// The measurement structure of h applied to a model voltage (post knobs only): the time
+// skew (the voltage sample at t_k belongs to t_k + skew), the RC branch's drop, then the
+// voltage sensor's gain and offset.
+std::vector<double> apply_post(const Hypothesis& h, const std::vector<double>& t_s,
+                               const std::vector<double>& current_a, const std::vector<double>& model_v);
 
 }  // namespace bms::diagnosis

@@ -1,10 +1,13 @@
 #include "diagnosis/model_run.hpp"
 
+#include <fmt/format.h>
+
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
 #include "io/input_error.hpp"
-#include "sim/cycler.hpp"
+#include "sim/truth_parameters.hpp"
 
 namespace bms::diagnosis {
 
@@ -12,23 +15,85 @@ namespace {
 // The run stops only well outside the cell's window, so that the knee at the end of a
 // discharge is scored instead of cut off.
 constexpr double kStopMarginV = 0.5;
+// Stoichiometries the start state may reach (the OCP tables end at 0 and 1).
+constexpr double kStoichEdge = 2e-3;
+
+double electrode_capacity_ah(const CellParameters& cell, const ElectrodeParameters& e) {
+  return kFaraday_c_mol * cell.electrode_area_m2 * e.thickness_m * e.solid_fraction * e.max_concentration_mol_m3 /
+         3600.0;
+}
+
+CellParameters with_parameters(const CellParameters& nominal, const Hypothesis& h) {
+  std::vector<std::string> sets;
+  for (const auto& s : h)
+    if (knob_kind(s.effect) == KnobKind::parameter) sets.push_back(fmt::format("{}={:.17g}", truth_parameter_of(s.effect), s.value));
+  if (sets.empty()) return nominal;
+  return TruthSettings::parse(sets).apply(nominal);
+}
+
 }  // namespace
 
-ModelRun run_model(const ModelSetup& setup, const Record& record, const EffectSetting& effect) {
+InitialConditions initial_state_at_depth(const CellParameters& cell, double depth_ah) {
+  InitialConditions ic = default_initial_conditions(cell);
+  ic.stoich_neg -= depth_ah / electrode_capacity_ah(cell, cell.negative);
+  ic.stoich_pos += depth_ah / electrode_capacity_ah(cell, cell.positive);
+  ic.stoich_neg = std::clamp(ic.stoich_neg, kStoichEdge, 1.0 - kStoichEdge);
+  ic.stoich_pos = std::clamp(ic.stoich_pos, kStoichEdge, 1.0 - kStoichEdge);
+  return ic;
+}
+
+double depth_from_rest_voltage(const CellParameters& cell, double v, std::string* note) {
+  const InitialConditions ic0 = default_initial_conditions(cell);
+  const double qn = electrode_capacity_ah(cell, cell.negative), qp = electrode_capacity_ah(cell, cell.positive);
+  // Depth range that keeps both stoichiometries inside (edge, 1 - edge).
+  const double lo = -std::min((1.0 - kStoichEdge - ic0.stoich_neg) * qn, (ic0.stoich_pos - kStoichEdge) * qp);
+  const double hi = std::min((ic0.stoich_neg - kStoichEdge) * qn, (1.0 - kStoichEdge - ic0.stoich_pos) * qp);
+  auto ocv = [&](double d) {
+    return cell.positive.ocp_v->value(ic0.stoich_pos + d / qp) - cell.negative.ocp_v->value(ic0.stoich_neg - d / qn);
+  };
+  if (v >= ocv(lo) || v <= ocv(hi)) {
+    const double d = v >= ocv(lo) ? lo : hi;
+    if (note)
+      *note = fmt::format("rest voltage {:.4f} V outside the model's open-circuit range {:.4f}..{:.4f} V: start at "
+                          "its {} end",
+                          v, ocv(hi), ocv(lo), d == lo ? "full" : "empty");
+    return d;
+  }
+  double a = lo, b = hi;  // the open-circuit voltage falls with depth
+  for (int it = 0; it < 100 && b - a > 1e-9; ++it) {
+    const double m = 0.5 * (a + b);
+    (ocv(m) > v ? a : b) = m;
+  }
+  return 0.5 * (a + b);
+}
+
+ModelRun run_model(const ModelSetup& setup, const Record& record, const Hypothesis& h) {
   SimulationConfig cfg;
-  cfg.cell = setup.cell;
+  cfg.cell = with_parameters(setup.cell, h);
   cfg.mesh = setup.mesh;
   cfg.solver.rtol = setup.rtol;
   cfg.temperature_k = record.temperature_k.empty() ? cfg.cell.thermal.ambient_temperature_k
                                                    : record.temperature_k.front();
   cfg.cell.thermal.ambient_temperature_k = cfg.temperature_k;
   cfg.cell.thermal.initial_temperature_k = cfg.temperature_k;
-  cfg.ic = default_initial_conditions(cfg.cell);
-  if (!set_model_effect(cfg.effects, effect))
-    throw RuntimeFailure(std::string("effect ") + effect_name(effect.effect) + " is not in this build's truth model");
-  const std::vector<double> current = driving_current(effect, record.current_a);
-  const auto result = run_current_profile(cfg, record.t_s, current, cfg.cell.lower_voltage_v - kStopMarginV,
-                                          cfg.cell.upper_voltage_v + kStopMarginV);
+  const double soc_shift = knob_value(h, Effect::initial_soc);
+  const double capacity_ah = cfg.cell.nominal_capacity_ah > 0 ? cfg.cell.nominal_capacity_ah : 1.0;
+  if (std::isfinite(record.initial_depth_ah) || soc_shift != 0.0)
+    cfg.ic = initial_state_at_depth(cfg.cell, (std::isfinite(record.initial_depth_ah) ? record.initial_depth_ah : 0.0) -
+                                                  soc_shift * capacity_ah);
+  else
+    cfg.ic = default_initial_conditions(cfg.cell);
+  for (const auto& s : h)
+    if (!set_model_effect(cfg.effects, s))
+      throw RuntimeFailure(std::string("effect ") + effect_name(s.effect) + " is not in this build's truth model");
+  const std::vector<double> current = driving_current(h, record.current_a);
+  SimulationResult result;
+  try {
+    result = run_current_profile(cfg, record.t_s, current, cfg.cell.lower_voltage_v - kStopMarginV,
+                                 cfg.cell.upper_voltage_v + kStopMarginV);
+  } catch (const RuntimeFailure& e) {
+    throw RuntimeFailure(record.source + ": " + e.what());
+  }
   ModelRun run;
   run.voltage_v.assign(record.t_s.size(), std::numeric_limits<double>::quiet_NaN());
   // The cycler samples at the profile's own times, in order, so sample k is record row k.

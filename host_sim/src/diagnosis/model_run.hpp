@@ -1,6 +1,7 @@
 #pragma once
-// Runs the truth DFN on a measured record with one candidate effect added, and gives the
-// model voltage at every sample of the record.
+// Runs the truth DFN on a measured record with a hypothesis's run knobs (model switches, drive
+// corrections, parameter re-fits) and gives the model voltage at every sample of the record.
+// The measurement-structure knobs (post) are applied by the caller with apply_post.
 #include <string>
 #include <vector>
 
@@ -8,6 +9,7 @@
 #include "diagnosis/effects.hpp"
 #include "diagnosis/records.hpp"
 #include "dfn/dfn_model.hpp"
+#include "sim/cycler.hpp"
 
 namespace bms::diagnosis {
 
@@ -24,11 +26,21 @@ struct ModelRun {
   double wall_s = 0.0;
 };
 
-// The model starts from the cell's default initial state at the record's first temperature
-// (when the record has one; else the cell's ambient). CV segments are driven by their
-// measured current too: the cycler's profile control is current-only, and the current
-// measured in CV carries the same information as the voltage the charger held.
-ModelRun run_model(const ModelSetup& setup, const Record& record, const EffectSetting& effect);
+// The model starts from the record's initial state (record.initial_depth_ah, shifted by the
+// hypothesis's initial_soc knob; the cell's default state when unset) at the record's first
+// temperature (when the record has one; else the cell's ambient). CV segments are driven by
+// their measured current too: the cycler's profile control is current-only.
+ModelRun run_model(const ModelSetup& setup, const Record& record, const Hypothesis& h);
+inline ModelRun run_model(const ModelSetup& setup, const Record& record, const EffectSetting& e) {
+  return run_model(setup, record, Hypothesis{e});
+}
+
+// The cell at rest with depth_ah of charge taken from its default initial state (cyclable
+// lithium conserved: each electrode's stoichiometry moves by depth / its capacity).
+InitialConditions initial_state_at_depth(const CellParameters& cell, double depth_ah);
+// The depth whose open-circuit voltage is v (bisection within the stoichiometry limits;
+// clamped, with a note, when v lies outside the reachable range).
+double depth_from_rest_voltage(const CellParameters& cell, double v, std::string* note = nullptr);
 
 // Voltage residual (model - measured) in mV. Samples the model did not reach take the
 // residual of its last sample, so a candidate cannot score better by stopping early.

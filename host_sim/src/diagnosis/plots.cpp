@@ -46,23 +46,23 @@ PlotOutcome draw_residual_plots(const std::filesystem::path& dir, int cases, std
       "set ylabel 'voltage (V)'\n"
       "plot for [c=0:N-1] 'residual.csv' every E using 2:($1==c?$5:1/0) with lines lw 2 title sprintf('measured, case %d', c), "
       "for [c=0:N-1] '' every E using 2:($1==c?$6:1/0) with lines title sprintf('model before, case %d', c), "
-      "for [c=0:N-1] '' every E using 2:($1==c?$7:1/0) with lines dt 2 title sprintf('model after, case %d', c)\n"
+      "for [c=0:N-1] '' every E using 2:($1==c?$7:1/0) with lines dt 2 title sprintf('model fitted, case %d', c)\n"
       "set ylabel 'residual (mV)'; set xlabel 'time (s)'\n"
       "plot for [c=0:N-1] 'residual.csv' every E using 2:($1==c?$8:1/0) with lines title sprintf('before, case %d', c), "
-      "for [c=0:N-1] '' every E using 2:($1==c?$9:1/0) with lines title sprintf('after, case %d', c)\n"
+      "for [c=0:N-1] '' every E using 2:($1==c?$9:1/0) with lines title sprintf('fitted, case %d', c)\n"
       "unset multiplot\n",
       names[0]);
   gp += fmt::format(
       "set output '{0}.tmp'\nset title 'Residual against state of charge (coulomb counting)'\n"
       "set xlabel 'state of charge'; set ylabel 'residual (mV)'\n"
       "plot 'residual.csv' every E using 10:8 with points pt 7 ps 0.3 title 'before', "
-      "'' every E using 10:9 with points pt 7 ps 0.3 title 'after'\n",
+      "'' every E using 10:9 with points pt 7 ps 0.3 title 'fitted'\n",
       names[1]);
   gp += fmt::format(
       "set output '{0}.tmp'\nset title 'Residual against measured current (positive = discharge)'\n"
       "set xlabel 'current (A)'; set ylabel 'residual (mV)'\n"
       "plot 'residual.csv' every E using 4:8 with points pt 7 ps 0.3 title 'before', "
-      "'' every E using 4:9 with points pt 7 ps 0.3 title 'after'\n",
+      "'' every E using 4:9 with points pt 7 ps 0.3 title 'fitted'\n",
       names[2]);
   AtomicFileWriter script(dir / "plots.gp");
   script.append(gp);

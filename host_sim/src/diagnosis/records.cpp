@@ -61,17 +61,35 @@ Record make_record(std::string name, std::vector<double> t_s, std::vector<double
   return r;
 }
 
-Record load_record(const std::filesystem::path& file) {
+Record load_record(const std::filesystem::path& file, CurrentSign sign) {
   // NaN, gaps, non-monotonic time and unknown modes are rejected by the shared reader.
-  MeasuredProfile p = read_measured_profile(file, ProfileColumns::measured);
+  MeasuredProfile p = read_measured_profile(file, ProfileColumns::measured, sign);
+  const std::string layout_note = fmt::format("{} layout, current read as {}", p.layout,
+                                              p.current_negated ? "charge-positive" : "discharge-positive");
   std::vector<Mode> modes;
   for (const auto& s : p.mode) {
     Mode m = Mode::unknown;
     parse_mode(s, m);
     modes.push_back(m);
   }
-  return make_record(file.string(), std::move(p.t_s), std::move(p.current_a), std::move(p.voltage_v),
-                     std::move(p.temperature_k), std::move(modes));
+  Record r = make_record(file.string(), std::move(p.t_s), std::move(p.current_a), std::move(p.voltage_v),
+                         std::move(p.temperature_k), std::move(modes));
+  r.layout_note = layout_note;
+  return r;
+}
+
+std::vector<double> time_since_step_s(const Record& r) {
+  double imax = 0.0;
+  for (double i : r.current_a) imax = std::max(imax, std::abs(i));
+  const double step = 0.05 * imax + 1e-6;
+  std::vector<double> out(r.t_s.size(), 0.0);
+  double last = r.t_s.front();
+  for (std::size_t k = 1; k < out.size(); ++k) {
+    if (std::abs(r.current_a[k] - r.current_a[k - 1]) > step) last = 0.5 * (r.t_s[k] + r.t_s[k - 1]);
+    out[k] = r.t_s[k] - last;
+  }
+  out[0] = 0.0;
+  return out;
 }
 
 std::string Excitation::describe() const {

@@ -2,17 +2,34 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
+
 namespace bms::diagnosis {
+
+namespace {
+// At one constant current: a shift by a constant (contact resistance, hysteresis, a voltage
+// offset) or a scaling of the current (sensor offset and gain).
+int twin_class(Effect e) {
+  switch (e) {
+    case Effect::contact_resistance:
+    case Effect::hysteresis:
+    case Effect::voltage_offset: return 1;
+    case Effect::current_offset:
+    case Effect::current_gain: return 2;
+    default: return 0;
+  }
+}
+}  // namespace
 
 Effect constant_current_twin(Effect e) {
   switch (e) {
     case Effect::contact_resistance: return Effect::hysteresis;
     case Effect::hysteresis: return Effect::contact_resistance;
+    case Effect::voltage_offset: return Effect::contact_resistance;
     case Effect::current_offset: return Effect::current_gain;
     case Effect::current_gain: return Effect::current_offset;
-    case Effect::thermal:
-    case Effect::particle_size:
-    case Effect::none: break;
+    default: break;
   }
   return Effect::none;
 }
@@ -34,7 +51,9 @@ Selection select_effect(double none_mv, const std::vector<CandidateScore>& candi
     s.reason = "no candidate effect available";
     return s;
   }
+  s.best = best->effect;
   const double gain = none_mv - best->heldout_rmse_mv;
+  auto excess = [&](double mv) { return std::sqrt(std::max(0.0, mv * mv - rules.floor_mv * rules.floor_mv)); };
   if (gain < rules.min_relative_gain * none_mv || gain < rules.min_absolute_gain_mv) {
     s.reason = fmt::format(
         "no candidate improves the held-out RMSE meaningfully: best {} {:.3f} mV vs {:.3f} mV without "
@@ -43,7 +62,8 @@ Selection select_effect(double none_mv, const std::vector<CandidateScore>& candi
         rules.min_absolute_gain_mv);
     return s;
   }
-  if (second && second->heldout_rmse_mv - best->heldout_rmse_mv < rules.tie_share * gain) {
+  if (second && excess(second->heldout_rmse_mv) - excess(best->heldout_rmse_mv) < rules.tie_share * gain) {
+    s.identifiable = false;
     s.reason = fmt::format(
         "not identifiable: {} ({:.3f} mV) and {} ({:.3f} mV) explain the residual equally well "
         "(held-out RMSE without an effect {:.3f} mV); the data do not separate them",
@@ -52,10 +72,11 @@ Selection select_effect(double none_mv, const std::vector<CandidateScore>& candi
     return s;
   }
   if (rules.constant_current_only) {
-    const Effect twin = constant_current_twin(best->effect);
+    const int cls = twin_class(best->effect);
     for (const auto& c : candidates) {
-      if (c.effect != twin || !c.available) continue;
+      if (cls == 0 || c.effect == best->effect || twin_class(c.effect) != cls || !c.available) continue;
       if (none_mv - c.heldout_rmse_mv >= rules.min_relative_gain * none_mv) {
+        s.identifiable = false;
         s.reason = fmt::format(
             "not identifiable from one constant current: {} ({:.3f} mV) and {} ({:.3f} mV) both explain the "
             "residual (held-out RMSE without an effect {:.3f} mV); data with other currents, rest or CV phases "

@@ -27,6 +27,10 @@ struct SelectionRules {
   // constant, sensor offset and gain both scale the current, so a win of one over its twin
   // would rest on details (the initial hysteresis branch), not on the data.
   bool constant_current_only = false;
+  // The residual's floor (noise and numerical error): held-out RMSEs are compared by what they
+  // leave above it, sqrt(rmse^2 - floor^2), so two fits at the floor are not a tie when one
+  // still leaves a structured part.
+  double floor_mv = 0.0;
 };
 
 // The effect that leaves the same residual as e at one constant current (none if there is none).
@@ -36,6 +40,8 @@ struct Selection {
   Effect effect = Effect::none;
   double value = 0.0;
   std::string reason;
+  Effect best = Effect::none;  // the best candidate even when not chosen
+  bool identifiable = true;    // false: a tie or a constant-current twin stopped the choice
 };
 
 Selection select_effect(double heldout_none_mv, const std::vector<CandidateScore>& candidates,

@@ -12,11 +12,11 @@ namespace {
 nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 }  // namespace
 
-void write_estimates_csv(const std::filesystem::path& file, const EstimateResult& r) {
+void write_estimates_csv(const std::filesystem::path& file, const EstimateResult& r, bool with_truth) {
   std::vector<std::string> cols = {"t_s", "cycle", "mode", "rcsi_active", "r_film_est_ohm_m2", "r_film_true_ohm_m2",
                                    "z_v", "model_voltage_v", "model_current_a", "j_side_a_m3", "li_loss_ah", "status",
-                                   "film_initial_est_ohm_m2", "growth_gain_est", "inventory_deviation_est",
-                                   "inventory_err_pct"};
+                                   "film_initial_est_ohm_m2", "growth_gain_est", "inventory_deviation_est"};
+  if (with_truth) cols.push_back("inventory_err_pct");
   const std::size_t n_theta = r.theta.size();
   for (std::size_t i = 0; i < n_theta / 2; ++i) cols.push_back("theta_m" + std::to_string(i + 1));
   for (std::size_t i = 0; i < n_theta / 2; ++i) cols.push_back("theta_n" + std::to_string(i + 1));
@@ -29,8 +29,10 @@ void write_estimates_csv(const std::filesystem::path& file, const EstimateResult
     else w.cell("");
     w.cell(row.z_v).cell(row.model_voltage_v).cell(row.model_current_a).cell(row.j_side_a_m3).cell(row.li_loss_ah);
     w.cell(row.status).cell(row.film_initial_ohm_m2).cell(row.growth_gain).cell(row.inventory_deviation);
-    if (std::isfinite(row.inventory_err_pct)) w.cell(row.inventory_err_pct);
-    else w.cell("");
+    if (with_truth) {
+      if (std::isfinite(row.inventory_err_pct)) w.cell(row.inventory_err_pct);
+      else w.cell("");
+    }
     for (double th : r.theta_rows[i]) w.cell(th);
     w.end_row();
   }

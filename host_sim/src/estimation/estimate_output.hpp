@@ -8,7 +8,8 @@
 
 namespace bms {
 
-void write_estimates_csv(const std::filesystem::path& file, const EstimateResult& r);
+// Without a truth (a measured file) the error column inventory_err_pct is left out.
+void write_estimates_csv(const std::filesystem::path& file, const EstimateResult& r, bool with_truth = true);
 nlohmann::json estimate_summary_json(const EstimateResult& r, const EstimateOptions& o);
 
 }  // namespace bms

@@ -19,8 +19,40 @@
 
 namespace bms {
 
-EstimateData read_estimate_data(const std::string& file) {
+namespace {
+
+EstimateData read_measured_file(const std::string& file, CurrentSign sign) {
+  const MeasuredProfile p = read_measured_profile(file, ProfileColumns::measured, sign);
+  std::vector<double> dt(p.t_s.size() - 1);
+  for (std::size_t i = 1; i < p.t_s.size(); ++i) dt[i - 1] = p.t_s[i] - p.t_s[i - 1];
+  std::nth_element(dt.begin(), dt.begin() + static_cast<long>(dt.size() / 2), dt.end());
+  const double step = dt[dt.size() / 2];
+  EstimateData d;
+  d.source = file;
+  const auto n = static_cast<std::size_t>(std::floor((p.t_s.back() - p.t_s.front()) / step + 1e-9)) + 1;
+  std::size_t j = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double t = p.t_s.front() + step * static_cast<double>(k);
+    while (j + 2 < p.t_s.size() && p.t_s[j + 1] < t) ++j;
+    const double w = std::clamp((t - p.t_s[j]) / (p.t_s[j + 1] - p.t_s[j]), 0.0, 1.0);
+    d.t_s.push_back(t);
+    d.current_a.push_back((1.0 - w) * p.current_a[j] + w * p.current_a[j + 1]);
+    d.voltage_v.push_back((1.0 - w) * p.voltage_v[j] + w * p.voltage_v[j + 1]);
+  }
+  if (d.t_s.size() < 2) throw InputError(file + ": needs at least 2 samples");
+  d.cycle.assign(d.t_s.size(), 1);
+  d.layout_note = fmt::format("{} layout, current read as {}; {} samples resampled linearly to {} at {} s (the "
+                              "median step)",
+                              p.layout, p.current_negated ? "charge-positive" : "discharge-positive", p.t_s.size(),
+                              d.t_s.size(), step);
+  return d;
+}
+
+}  // namespace
+
+EstimateData read_estimate_data(const std::string& file, CurrentSign sign) {
   const CsvTable t = read_csv(file, {"mode"});
+  if (!t.has("t_s")) return read_measured_file(file, sign);
   for (const char* c : {"t_s", "current_meas_a", "voltage_meas_v"})
     if (!t.has(c))
       throw InputError(fmt::format("{}: needs a '{}' column (a truth.csv from 'bmssim simulate')", file, c));

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "io/measured_profile.hpp"
+
 #include "bms/fw/cell_effects.hpp"
 #include "bms/fw/operating_mode.hpp"
 #include "cell/cell_parameters.hpp"
@@ -23,10 +25,15 @@ struct EstimateData {
   // Truth mean stoichiometries (scoring the inventory estimate only); empty when absent.
   std::vector<double> stoich_neg_true, stoich_pos_true;
   std::string source;
+  std::string layout_note;  // a measured file: how it was read and resampled
+  bool has_truth() const { return !r_film_true_ohm_m2.empty(); }
 };
 
-// Reads truth.csv (current_meas_a, voltage_meas_v; truth columns only for scoring).
-EstimateData read_estimate_data(const std::string& file);
+// Reads truth.csv (current_meas_a, voltage_meas_v; truth columns only for scoring), or a
+// measured file (About:Energy or any cycler CSV with time, current and voltage columns picked
+// by name; no truth): the latter is resampled linearly onto its median time step, the fixed
+// tick the firmware runs at.
+EstimateData read_estimate_data(const std::string& file, CurrentSign sign = CurrentSign::by_layout);
 
 // The fixed tick the firmware model runs the data at: the median sample step rounded to
 // 1 ns. Throws InputError when any step is more than 1 % off the median.

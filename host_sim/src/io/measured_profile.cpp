@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 
 #include "io/csv_table.hpp"
 #include "io/input_error.hpp"
@@ -51,15 +52,95 @@ double median(std::vector<double> v) {
 }
 
 struct Layout {
+  std::string kind;
   std::string time, current, voltage, temperature;
   bool negate_current = false;
   bool celsius = false;
+  double time_scale = 1.0, current_scale = 1.0, voltage_scale = 1.0;
 };
+
+// Lower case without spaces, underscores and dots: "Test_Time (s)" -> "testtime(s)".
+std::string normalised(std::string_view s) {
+  std::string out;
+  for (char c : s) {
+    if (c == ' ' || c == '_' || c == '.') continue;
+    out.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(c))));
+  }
+  return out;
+}
+
+bool starts_with(const std::string& s, std::string_view p) { return s.compare(0, p.size(), p) == 0; }
+// The unit written after the quantity: "current(ma)" -> "ma", "i[a]" -> "a", "voltage" -> "".
+std::string unit_of(const std::string& n) {
+  const auto open = n.find_first_of("[(");
+  if (open == std::string::npos) return {};
+  const auto close = n.find_first_of("])", open + 1);
+  return n.substr(open + 1, close == std::string::npos ? std::string::npos : close - open - 1);
+}
+std::string quantity_of(const std::string& n) { return n.substr(0, n.find_first_of("[(")); }
+
+enum class Quantity { other, time, current, voltage, temperature };
+
+Quantity quantity(const std::string& column) {
+  const std::string n = normalised(column), q = quantity_of(n), u = unit_of(n);
+  if (q == "t" && (u == "degc" || u == "c" || u == "k")) return Quantity::temperature;
+  if (starts_with(q, "temp") || q == "tcell" || q == "celltemperature") return Quantity::temperature;
+  if (q == "t" || q == "time" || q == "times" || q == "testtime" || q == "totaltime" || q == "elapsedtime" ||
+      q == "ts")
+    return Quantity::time;
+  if (q == "i" || q == "current" || q == "currenta" || q == "cellcurrent" || q == "ia") return Quantity::current;
+  if (q == "u" || q == "v" || q == "voltage" || q == "voltagev" || q == "cellvoltage" || q == "ecell" || q == "uv" ||
+      q == "vcell")
+    return Quantity::voltage;
+  return Quantity::other;
+}
+
+// Every column naming the quantity; InputError when none does or several do.
+std::string pick(const CsvTable& table, Quantity want, std::string_view what, bool required) {
+  std::vector<std::string> found;
+  for (const std::string& c : table.columns())
+    if (quantity(c) == want) found.push_back(c);
+  if (found.size() > 1)
+    throw InputError(fmt::format("{}: line 1: several {} columns ({}): keep one", table.name(), what,
+                                 fmt::join(found, ", ")));
+  if (found.empty() && required)
+    throw InputError(fmt::format("{}: line 1: no {} column (the header has: {}); name it e.g. '{}'", table.name(),
+                                 what, fmt::join(table.columns(), ", "),
+                                 want == Quantity::time      ? "Time [s]"
+                                 : want == Quantity::current ? "Current [A]"
+                                                             : "Voltage [V]"));
+  return found.empty() ? std::string() : found.front();
+}
+
+double unit_scale(const CsvTable& table, const std::string& column, std::string_view base) {
+  const std::string u = unit_of(normalised(column));
+  if (u.empty() || u == base) return 1.0;
+  if (base == "s" && u == "min") return 60.0;
+  if (base == "s" && u == "h") return 3600.0;
+  if ((base == "a" || base == "v") && u == std::string("m") + std::string(base)) return 1e-3;
+  throw InputError(fmt::format("{}: line 1: column '{}': unit '{}' not understood", table.name(), column, u));
+}
+
+Layout by_column_names(const CsvTable& table) {
+  Layout l;
+  l.kind = "by column names";
+  l.time = pick(table, Quantity::time, "time", true);
+  l.current = pick(table, Quantity::current, "current", true);
+  l.voltage = pick(table, Quantity::voltage, "voltage", true);
+  l.temperature = pick(table, Quantity::temperature, "temperature", false);
+  l.time_scale = unit_scale(table, l.time, "s");
+  l.current_scale = unit_scale(table, l.current, "a");
+  l.voltage_scale = unit_scale(table, l.voltage, "v");
+  l.celsius = !l.temperature.empty() && unit_of(normalised(l.temperature)) != "k";
+  l.negate_current = true;
+  return l;
+}
 
 Layout layout_of(const CsvTable& table, ProfileColumns which) {
   Layout l;
   if (table.has("t_s")) {
     const bool truth = which == ProfileColumns::truth;
+    l.kind = "truth.csv";
     l.time = "t_s";
     l.current = truth ? "current_a" : "current_meas_a";
     l.voltage = truth ? "voltage_v" : "voltage_meas_v";
@@ -67,16 +148,11 @@ Layout layout_of(const CsvTable& table, ProfileColumns which) {
     return l;
   }
   l.time = find_column(table, {"Time[s]"});
-  if (l.time.empty()) {
-    throw InputError(fmt::format(
-        "{}: line 1: unrecognised header '{}' (expected 'Time [s],I[A],U[V]' or a truth.csv "
-        "header with 't_s')",
-        table.name(), fmt::join(table.columns(), ",")));
-  }
+  if (l.time.empty() || find_column(table, {"I[A]"}).empty()) return by_column_names(table);
+  l.kind = "About:Energy";
   l.current = find_column(table, {"I[A]"});
-  if (l.current.empty()) l.current = "I[A]";  // reported as missing by numbers()
   l.voltage = find_column(table, {"U[V]"});
-  if (l.voltage.empty()) l.voltage = "U[V]";
+  if (l.voltage.empty()) l.voltage = "U[V]";  // reported as missing by numbers()
   l.negate_current = true;
   l.temperature = find_column(table, {"T[degC]", "Temperature[degC]"});
   l.celsius = !l.temperature.empty();
@@ -117,16 +193,29 @@ void check_range(const CsvTable& table, const std::string& column, const std::ve
 
 }  // namespace
 
+bool parse_current_sign(std::string_view text, CurrentSign& out) {
+  if (text == "discharge-positive") out = CurrentSign::discharge_positive;
+  else if (text == "charge-positive") out = CurrentSign::charge_positive;
+  else return false;
+  return true;
+}
+
 MeasuredProfile parse_measured_profile(std::string_view text, std::string_view name,
-                                       ProfileColumns which) {
+                                       ProfileColumns which, CurrentSign sign) {
   const CsvTable table = parse_csv(text, name, {"mode"});
-  const Layout l = layout_of(table, which);
+  Layout l = layout_of(table, which);
+  if (sign != CurrentSign::by_layout) l.negate_current = sign == CurrentSign::charge_positive;
 
   MeasuredProfile p;
   p.source = std::string(name);
+  p.layout = l.kind;
+  p.current_negated = l.negate_current;
   p.t_s = table.numbers(l.time);
   p.current_a = table.numbers(l.current);
   p.voltage_v = table.numbers(l.voltage);
+  for (double& t : p.t_s) t *= l.time_scale;
+  for (double& i : p.current_a) i *= l.current_scale;
+  for (double& v : p.voltage_v) v *= l.voltage_scale;
   if (!l.temperature.empty()) p.temperature_k = table.numbers(l.temperature);
   if (table.has("mode")) p.mode = table.strings("mode");
   if (table.rows() < 2) {
@@ -157,8 +246,8 @@ MeasuredProfile parse_measured_profile(std::string_view text, std::string_view n
   return p;
 }
 
-MeasuredProfile read_measured_profile(const std::filesystem::path& file, ProfileColumns which) {
-  return parse_measured_profile(read_text_file(file), file.string(), which);
+MeasuredProfile read_measured_profile(const std::filesystem::path& file, ProfileColumns which, CurrentSign sign) {
+  return parse_measured_profile(read_text_file(file), file.string(), which, sign);
 }
 
 }  // namespace bms

@@ -34,6 +34,7 @@ namespace {
 struct CurrentProfile {
   std::vector<double> t_s, current_a;  // linear between points; a repeated time is a step
   std::vector<size_t> restart_at;      // sample indices after a step (restart half-way before them)
+  std::vector<size_t> step_point;      // per step: index of the first of its two points in t_s
   std::vector<double> knot_s;          // times of the kinks, increasing
 };
 
@@ -99,6 +100,7 @@ CurrentProfile build_current_profile(const std::vector<double>& ts, const std::v
     if (run_end + 1 >= n) break;
     // The step, half-way to the next sample: hold, then jump (a repeated time in the profile).
     const double mid = 0.5 * (ts[run_end] + ts[run_end + 1]);
+    p.step_point.push_back(p.t_s.size());
     p.t_s.push_back(mid);
     p.current_a.push_back(p.current_a.back());
     p.restart_at.push_back(run_end + 1);
@@ -109,6 +111,72 @@ CurrentProfile build_current_profile(const std::vector<double>& ts, const std::v
   p.t_s.push_back(ts.back() + 1.0);  // hold the last value past the end
   p.current_a.push_back(p.current_a.back());
   return p;
+}
+
+// Position in the profile while it is integrated sample by sample.
+struct Cursor {
+  size_t next_restart = 0, next_knot = 0;
+};
+
+// From sample i-1 to sample i: stop on each kink (no restart: the current is continuous), so
+// no IDA step interpolates the current through one; then the step, if any, and the sample.
+DfnSolver::Result advance_interval(DfnSolver& solver, const CurrentProfile& prof, const std::vector<double>& ts,
+                                   size_t i, Cursor& cur) {
+  DfnSolver::Result res = DfnSolver::Result::reached;
+  const bool restart = cur.next_restart < prof.restart_at.size() && prof.restart_at[cur.next_restart] == i;
+  const double mid = 0.5 * (ts[i - 1] + ts[i]);
+  while (res == DfnSolver::Result::reached && cur.next_knot < prof.knot_s.size() && prof.knot_s[cur.next_knot] <= ts[i] &&
+         (!restart || prof.knot_s[cur.next_knot] < mid))
+    res = solver.advance_exactly_to(prof.knot_s[cur.next_knot++]);
+  if (restart) {
+    if (res == DfnSolver::Result::reached) res = solver.advance_exactly_to(mid);
+    if (res == DfnSolver::Result::reached) solver.restart();
+    ++cur.next_restart;
+  }
+  while (res == DfnSolver::Result::reached && cur.next_knot < prof.knot_s.size() && prof.knot_s[cur.next_knot] <= ts[i])
+    res = solver.advance_exactly_to(prof.knot_s[cur.next_knot++]);
+  if (res == DfnSolver::Result::reached) res = solver.advance_to(ts[i]);
+  return res;
+}
+
+// Sub-steps per sample interval tried, in turn, after the solver fails on one.
+constexpr int kRefinements[] = {4, 32, 256};
+
+// A sample interval the solver could not take: from the state at sample i-1 again, a step in
+// it becomes a ramp over the interval (no consistent re-initialisation inside the jump), and
+// the interval is taken in ever smaller exact sub-steps. Throws RuntimeFailure naming the
+// time when none works.
+DfnSolver::Result refine_interval(DfnSolver& solver, const Control& c, const StopConditions& stop,
+                                  CurrentProfile& prof, const std::vector<double>& ts, double t0, size_t i,
+                                  Cursor& cur, const Cursor& before, const std::vector<double>& y_before,
+                                  const std::string& first_error) {
+  const double t_prev = ts[i - 1];
+  if (before.next_restart < prof.restart_at.size() && prof.restart_at[before.next_restart] == i) {
+    const size_t k = prof.step_point[before.next_restart];
+    prof.t_s[k] = ts[i - 1];
+    prof.t_s[k + 1] = ts[i];
+  }
+  std::string last_error = first_error;
+  for (int n_sub : kRefinements) {
+    try {
+      solver.start(t_prev, y_before);
+      solver.switch_control(c, stop);
+      DfnSolver::Result res = DfnSolver::Result::reached;
+      for (int k = 1; k <= n_sub && res == DfnSolver::Result::reached; ++k)
+        res = solver.advance_exactly_to(t_prev + (ts[i] - t_prev) * k / n_sub);
+      cur = before;
+      while (cur.next_knot < prof.knot_s.size() && prof.knot_s[cur.next_knot] <= ts[i]) ++cur.next_knot;
+      if (cur.next_restart < prof.restart_at.size() && prof.restart_at[cur.next_restart] == i) ++cur.next_restart;
+      return res;
+    } catch (const RuntimeFailure& e) {
+      last_error = e.what();
+    }
+  }
+  throw RuntimeFailure("the solver failed between t = " + std::to_string(t_prev + t0) + " s and " +
+                       std::to_string(ts[i] + t0) + " s (sample " + std::to_string(i + 1) +
+                       ") even with the interval in " + std::to_string(kRefinements[2]) +
+                       " sub-steps and any current step as a ramp: " + last_error +
+                       "; try a tighter --rtol or check the record there");
 }
 
 }  // namespace
@@ -125,8 +193,7 @@ SimulationResult run_current_profile(const SimulationConfig& cfg, const std::vec
   const double t0 = t_s.front();
   std::vector<double> ts(t_s.size());
   for (size_t i = 0; i < ts.size(); ++i) ts[i] = t_s[i] - t0;
-  const CurrentProfile prof = build_current_profile(ts, current_a);
-  const auto& restart_at = prof.restart_at;
+  CurrentProfile prof = build_current_profile(ts, current_a);
   Control c;
   c.kind = ControlKind::profile;
   c.profile_t_s = &prof.t_s;
@@ -144,24 +211,18 @@ SimulationResult run_current_profile(const SimulationConfig& cfg, const std::vec
     return i > 1e-6 ? Mode::cc_discharge : (i < -1e-6 ? Mode::cc_charge : Mode::rest);
   };
   out.samples.push_back(rec.sample(t_s[0], 1, mode_of(current_a[0]), solver.y()));
-  size_t next_restart = 0, next_knot = 0;
+  Cursor cur;
+  int refined = 0;  // sample intervals taken again after a solver failure
   for (size_t i = 1; i < ts.size(); ++i) {
-    DfnSolver::Result res = DfnSolver::Result::reached;
-    // Stop on each kink (no restart: the current is continuous), so no IDA step interpolates
-    // the current through one; then the step, if any, and the sample.
-    const bool restart = next_restart < restart_at.size() && restart_at[next_restart] == i;
-    const double mid = 0.5 * (ts[i - 1] + ts[i]);
-    while (res == DfnSolver::Result::reached && next_knot < prof.knot_s.size() && prof.knot_s[next_knot] <= ts[i] &&
-           (!restart || prof.knot_s[next_knot] < mid))
-      res = solver.advance_exactly_to(prof.knot_s[next_knot++]);
-    if (restart) {
-      if (res == DfnSolver::Result::reached) res = solver.advance_exactly_to(mid);
-      if (res == DfnSolver::Result::reached) solver.restart();
-      ++next_restart;
+    const Cursor before = cur;
+    const std::vector<double> y_before = solver.y();
+    DfnSolver::Result res;
+    try {
+      res = advance_interval(solver, prof, ts, i, cur);
+    } catch (const RuntimeFailure& e) {
+      res = refine_interval(solver, c, stop, prof, ts, t0, i, cur, before, y_before, e.what());
+      ++refined;
     }
-    while (res == DfnSolver::Result::reached && next_knot < prof.knot_s.size() && prof.knot_s[next_knot] <= ts[i])
-      res = solver.advance_exactly_to(prof.knot_s[next_knot++]);
-    if (res == DfnSolver::Result::reached) res = solver.advance_to(ts[i]);
     if (res == DfnSolver::Result::stopped) {
       const StopCause& cause = solver.stop_cause();
       std::string why;
@@ -178,6 +239,9 @@ SimulationResult run_current_profile(const SimulationConfig& cfg, const std::vec
     out.samples.push_back(rec.sample(t_s[i], 1, mode_of(current_a[i]), solver.y()));
     if (progress && i % 2000 == 0) progress(t_s[i], 1, mode_of(current_a[i]));
   }
+  if (refined > 0)
+    out.note += (out.note.empty() ? "" : "; ") + std::to_string(refined) +
+                " sample interval(s) taken again in sub-steps after a solver failure";
   // A driven run is one "cycle" in the summary (contract: cycles[] is never empty).
   CycleSummary cs{};
   cs.cycle = 1;
