@@ -584,7 +584,7 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
   while (!im.root_pending && im.tn < tout) {
     if (++steps_here > settings_.max_steps || (steps_here % 64 == 0 && wall_limit_passed(wall0))) {
       if (exact) IDASetStopTime(im.ida, 1e300);
-      throw RuntimeFailure(limit_message(tout, steps_here > settings_.max_steps));
+      throw SolverLimitExceeded(limit_message(tout, steps_here > settings_.max_steps));
     }
     realtype tret = im.tn;
     const int flag = IDASolve(im.ida, tout, &tret, im.y, im.yp, IDA_ONE_STEP);

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "dfn/dfn_model.hpp"
+#include "io/input_error.hpp"
 
 namespace bms {
 
@@ -64,6 +65,14 @@ std::vector<std::vector<int>> structural_jacobian_pattern(DfnModel& m, const std
 // The same found numerically, column by column with dual numbers near y0: O(n^2) (3.35 s at
 // 80/80); the structural pattern's test reference.
 std::vector<std::vector<int>> probed_jacobian_pattern(DfnModel& m, const std::vector<double>& y0);
+
+// The step or wall-clock limit of SolverSettings was reached: not a step the solver cannot
+// take (a retry in smaller steps would only spend the limit again), so callers that refine
+// failed steps let it through.
+class SolverLimitExceeded : public RuntimeFailure {
+ public:
+  using RuntimeFailure::RuntimeFailure;
+};
 
 struct SolverStats {
   long steps = 0, residual_evals = 0, jacobian_evals = 0, reinits = 0, colors = 0, nonzeros = 0;

@@ -168,6 +168,8 @@ DfnSolver::Result refine_interval(DfnSolver& solver, const Control& c, const Sto
       while (cur.next_knot < prof.knot_s.size() && prof.knot_s[cur.next_knot] <= ts[i]) ++cur.next_knot;
       if (cur.next_restart < prof.restart_at.size() && prof.restart_at[cur.next_restart] == i) ++cur.next_restart;
       return res;
+    } catch (const SolverLimitExceeded&) {
+      throw;
     } catch (const RuntimeFailure& e) {
       last_error = e.what();
     }
@@ -219,6 +221,8 @@ SimulationResult run_current_profile(const SimulationConfig& cfg, const std::vec
     DfnSolver::Result res;
     try {
       res = advance_interval(solver, prof, ts, i, cur);
+    } catch (const SolverLimitExceeded&) {
+      throw;
     } catch (const RuntimeFailure& e) {
       res = refine_interval(solver, c, stop, prof, ts, t0, i, cur, before, y_before, e.what());
       ++refined;
