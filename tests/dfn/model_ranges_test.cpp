@@ -32,7 +32,7 @@ TEST(DfnModelRanges, EffectsOutsidePhysicalRanges) {
   EXPECT_EQ(error_of(e), "(no error)");
   ModelEffects t;
   t.thermal_h_w_per_k = 1e9;
-  EXPECT_NE(error_of(t).find("thermal: heat-transfer coefficient must be in [0, 1000] W/K"), std::string::npos);
+  EXPECT_NE(error_of(t).find("thermal: heat-transfer coefficient must be in [0, 1e6] W/K"), std::string::npos);
 }
 
 }  // namespace

@@ -64,7 +64,7 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
     throw std::invalid_argument("DfnMesh: need at least 2 cells per electrode, 1 in the separator, 3 radial");
   const auto bad = [](const std::string& what) { throw InputError("effect " + what); };
   // Physical ranges, generous: a cell's contact resistance is milliohms (1 ohm drops 2.5 V at
-  // 2.5 A); an 18650's loss to ambient is 0.01-1 W/K.
+  // 2.5 A); an 18650's loss to ambient is 0.01-1 W/K, and 1e5 W/K holds a cell at ambient.
   if (!(effects.contact_resistance_ohm >= 0.0 && effects.contact_resistance_ohm <= 1.0))
     bad("contact_resistance: must be in [0, 1] ohm (a cell's is milliohms)");
   if (!(std::isfinite(effects.hysteresis_v) && effects.hysteresis_v >= 0.0 && effects.hysteresis_v <= 0.5))
@@ -72,8 +72,8 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
   if (!(std::isfinite(effects.hysteresis_rate_per_soc) && effects.hysteresis_rate_per_soc > 0.0))
     bad("hysteresis rate: must be > 0 per unit of state of charge");
   if (!(std::abs(effects.hysteresis_initial_branch) <= 1.0)) bad("hysteresis initial branch: must be in [-1, 1]");
-  if (!(effects.thermal_h_w_per_k >= 0.0 && effects.thermal_h_w_per_k <= 1e3))
-    bad("thermal: heat-transfer coefficient must be in [0, 1000] W/K");
+  if (!(effects.thermal_h_w_per_k >= 0.0 && effects.thermal_h_w_per_k <= 1e6))
+    bad("thermal: heat-transfer coefficient must be in [0, 1e6] W/K");
   for (const double sigma : {effects.particle_size_sigma, effects.particle_size_negative_sigma})
     if (!(std::isfinite(sigma) && sigma >= 0.0 && sigma <= 1.5))
       bad("particle_size: log-space standard deviation of the particle radius must be in [0, 1.5]");
