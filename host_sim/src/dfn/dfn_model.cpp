@@ -64,7 +64,7 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
     throw std::invalid_argument("DfnMesh: need at least 2 cells per electrode, 1 in the separator, 3 radial");
   const auto bad = [](const std::string& what) { throw InputError("effect " + what); };
   // Physical ranges, generous: a cell's contact resistance is milliohms (1 ohm drops 2.5 V at
-  // 2.5 A); an 18650's loss to ambient is 0.01-1 W/K.
+  // 2.5 A); an 18650's loss to ambient is 0.01-1 W/K, and 1e5 W/K holds a cell at ambient.
   if (!(effects.contact_resistance_ohm >= 0.0 && effects.contact_resistance_ohm <= 1.0))
     bad("contact_resistance: must be in [0, 1] ohm (a cell's is milliohms)");
   if (!(std::isfinite(effects.hysteresis_v) && effects.hysteresis_v >= 0.0 && effects.hysteresis_v <= 0.5))

@@ -619,13 +619,7 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
       }
       if (exact) IDASetStopTime(im.ida, 1e300);
       IDASetInitStep(im.ida, 0.0);
-      std::string text = "IDA could not step on from t = " + std::to_string(tret) + " s towards " +
-                         std::to_string(tout) + " s (flag " + std::to_string(flag) + ", " +
-                         flag_name(flag) + ", last step " + std::to_string(h_last) + " s, after " +
-                         std::to_string(restarts - 1) + " restarts)";
-      if (!ida_message.empty()) text += ": " + ida_message;
-      text += "; " + describe(nearest_surface_limit(model_, N_VGetArrayPointer(im.y)));
-      throw RuntimeFailure(text);
+      throw RuntimeFailure(step_failure_text(tret, tout, flag, h_last, restarts - 1, ida_message));
     }
     if (small_first_step) {  // back to IDA's own estimate for later re-initialisations
       check(IDASetInitStep(im.ida, 0.0), "IDASetInitStep");
@@ -642,20 +636,8 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
     if (flag == IDA_TSTOP_RETURN) im.tn = tout;
     check_crawl(exact);
   }
-  if (im.root_pending && im.root_t <= tout) {
-    if (exact) IDASetStopTime(im.ida, 1e300);
-    im.root_pending = false;
-    im.tn = t_ = im.root_t;
-    for (int i = 0; i < n; ++i) y_[i] = NV_Ith_S(im.y, i);
-    cause_ = StopCause{};
-    cause_.voltage_below = im.roots[0] != 0;
-    cause_.voltage_above = im.roots[1] != 0;
-    cause_.current_below = im.roots[2] != 0;
-    cause_.surface_stoich = im.roots[3] != 0;
-    update_stats();
-    return Result::stopped;
-  }
   if (exact) IDASetStopTime(im.ida, 1e300);  // SUNDIALS 6.4 has no IDAClearStopTime
+  if (im.root_pending && im.root_t <= tout) return stop_at_root();
   if (!im.root_pending && im.tn == tout) {
     for (int i = 0; i < n; ++i) y_[i] = NV_Ith_S(im.y, i);
   } else {
@@ -665,6 +647,30 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
   t_ = tout;
   update_stats();
   return Result::reached;
+}
+
+std::string DfnSolver::step_failure_text(double tret, double tout, int flag, double h_last, int restarts,
+                                         const std::string& ida_message) const {
+  std::string text = "IDA could not step on from t = " + std::to_string(tret) + " s towards " + std::to_string(tout) +
+                     " s (flag " + std::to_string(flag) + ", " + flag_name(flag) + ", last step " +
+                     std::to_string(h_last) + " s, after " + std::to_string(restarts) + " restarts)";
+  if (!ida_message.empty()) text += ": " + ida_message;
+  return text + "; " + describe(nearest_surface_limit(model_, N_VGetArrayPointer(impl_->y)));
+}
+
+// The state at the stop condition IDA found (its y holds the state at the root).
+DfnSolver::Result DfnSolver::stop_at_root() {
+  Impl& im = *impl_;
+  im.root_pending = false;
+  im.tn = t_ = im.root_t;
+  for (int i = 0; i < model_.size(); ++i) y_[i] = NV_Ith_S(im.y, i);
+  cause_ = StopCause{};
+  cause_.voltage_below = im.roots[0] != 0;
+  cause_.voltage_above = im.roots[1] != 0;
+  cause_.current_below = im.roots[2] != 0;
+  cause_.surface_stoich = im.roots[3] != 0;
+  update_stats();
+  return Result::stopped;
 }
 
 bool DfnSolver::wall_limit_passed(std::chrono::steady_clock::time_point since) const {

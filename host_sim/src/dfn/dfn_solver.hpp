@@ -110,6 +110,9 @@ class DfnSolver {
 
  private:
   Result advance(double tout, bool exact);
+  Result stop_at_root();
+  std::string step_failure_text(double tret, double tout, int flag, double h_last, int restarts,
+                                const std::string& ida_message) const;
   void consistent_init();
   int continuation_init(double& reached);
   void update_stats();
