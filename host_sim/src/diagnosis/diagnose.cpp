@@ -714,8 +714,12 @@ DiagnosisResult diagnose(const CellParameters& cell, const std::vector<Record>& 
   none.rmse_after_mv = out.rmse_before_mv;
   none.max_abs_after_mv = out.max_abs_before_mv;
   out.candidates.push_back(none);
-  if (st.all_rest) {
-    out.selection.reason = "no current flows in the data: no effect can be identified";
+  if (st.all_rest || out.at_floor_before) {
+    // At the floor no candidate can bring the held-out RMSE to 20 % of it (the noise stays):
+    // the answer is none whatever the candidates do, so none is run.
+    out.selection.reason = st.all_rest ? "no current flows in the data: no effect can be identified"
+                                       : "the plain model is already at the residual's floor: no candidate searched";
+    say(out.selection.reason);
     Candidate plain{Effect::none, {}, {}, 0.0, 0};
     plain.score.heldout_mv = out.heldout_before_mv;
     fit_all_and_after(ctx, out, plain);
