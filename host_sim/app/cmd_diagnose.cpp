@@ -30,6 +30,7 @@ struct DiagnoseOptions {
   double rtol = 1e-6;
   int blocks = 8;
   int max_effects = 3;
+  double search_drive_tolerance = 0.0;
   std::string initial_soc = "auto";
   std::string current_sign = "by-layout";
   bool quiet = false;
@@ -72,6 +73,7 @@ std::string command_line(const DiagnoseOptions& o) {
   if (o.rtol != 1e-6) s += fmt::format(" --rtol {}", o.rtol);
   if (o.blocks != 8) s += fmt::format(" --blocks {}", o.blocks);
   if (o.max_effects != 3) s += fmt::format(" --max-effects {}", o.max_effects);
+  if (o.search_drive_tolerance > 0) s += fmt::format(" --search-drive-tolerance {}", o.search_drive_tolerance);
   if (o.initial_soc != "auto") s += " --initial-soc " + o.initial_soc;
   if (o.current_sign != "by-layout") s += " --current-sign " + o.current_sign;
   return s + " --out " + o.out;
@@ -116,6 +118,10 @@ Runner add_diagnose(CLI::App& app) {
   sub->add_option("--search-radial", o->search_radial, "Search mesh: finite volumes per particle")
       ->capture_default_str()->check(CLI::Range(3, 400));
   sub->add_option("--rtol", o->rtol, "IDA relative tolerance")->capture_default_str();
+  sub->add_option("--search-drive-tolerance", o->search_drive_tolerance,
+                  "Search runs follow the measured current as straight pieces within this share of its largest "
+                  "value (e.g. 0.02 for a drive cycle: far fewer solver stops; the final runs use the exact current)")
+      ->capture_default_str()->check(CLI::Range(0.0, 0.2));
   sub->add_option("--blocks", o->blocks, "One record: split into this many blocks, alternately training and validation")
       ->capture_default_str()->check(CLI::Range(2, 1000));
   sub->add_flag("--quiet", o->quiet, "No progress output");
@@ -132,6 +138,7 @@ Runner add_diagnose(CLI::App& app) {
     settings.rtol = o->rtol;
     settings.blocks = o->blocks;
     settings.max_effects = o->max_effects;
+    settings.search_drive_tolerance = o->search_drive_tolerance;
     CurrentSign sign = CurrentSign::by_layout;
     if (o->current_sign != "by-layout" && !parse_current_sign(o->current_sign, sign))
       throw InputError("--current-sign: '" + o->current_sign + "' is not discharge-positive or charge-positive");

@@ -410,7 +410,12 @@ void run_before(Context& ctx, DiagnosisResult& out) {
     const auto& coarse = ctx.eval.run(c, {}, false);
     std::vector<double> delta(coarse.size());
     for (std::size_t k = 0; k < delta.size(); ++k) delta[k] = cr.before.voltage_v[k] - coarse[k];
-    const double numerical = numerical_error_mv(cr.before.voltage_v, coarse, s.search_mesh.n_r, s.final_mesh.n_r);
+    // The mesh's own error from runs that differ only in the mesh (not in how the drive is followed).
+    const double numerical = numerical_error_mv(
+        cr.before.voltage_v,
+        s.search_drive_tolerance > 0 ? run_model(ModelSetup{ctx.eval.setup(false).cell, s.search_mesh, s.rtol}, rec, Hypothesis{}).voltage_v
+                                     : coarse,
+        s.search_mesh.n_r, s.final_mesh.n_r);
     ctx.eval.set_delta(c, std::move(delta));
     cr.residual_before_mv = residual_mv(cr.before.voltage_v, rec);
     cr.rmse_before_mv = rms(cr.residual_before_mv);
@@ -704,7 +709,7 @@ DiagnosisResult diagnose(const CellParameters& cell, const std::vector<Record>& 
   if (records.empty()) throw InputError("--data: no record given");
   DiagnosisResult out;
   const Setup st = build_cases(cell, records, settings, out, say);
-  Evaluator eval(out.cases, ModelSetup{cell, settings.search_mesh, settings.rtol},
+  Evaluator eval(out.cases, ModelSetup{cell, settings.search_mesh, settings.rtol, settings.search_drive_tolerance},
                  ModelSetup{cell, settings.final_mesh, settings.rtol});
   Context ctx{settings, out.cases, eval, {}, {}, st.imax, st.dt_s, say};
   ctx.folds = make_folds(out.cases, ctx.all);

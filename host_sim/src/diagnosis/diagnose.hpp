@@ -21,6 +21,8 @@ struct DiagnoseSettings {
   DfnMesh search_mesh{8, 8, 8, 8};     // every objective evaluation is a full run
   DfnMesh final_mesh{20, 20, 20, 20};  // the reported before/after and the scores
   double rtol = 1e-6;
+  // Search runs follow the current within this share of its largest value (see ModelSetup).
+  double search_drive_tolerance = 0.0;
   std::vector<Effect> candidates{std::begin(kAllCandidates), std::end(kAllCandidates)};
   // One record: alternate blocks of it train and validate. Several records: each record is
   // validated by a fit on the others (leave one record out).
