@@ -519,8 +519,8 @@ Candidate forward_selection(Context& ctx, DiagnosisResult& out, std::vector<Cand
   Effect first = out.selection.effect;
   for (const auto& c : tried)
     if (first == Effect::none && out.selection.identifiable && c.effect == out.selection.best &&
-        out.heldout_before_mv - c.score.heldout_mv >= std::max(s.further_gain * out.heldout_before_mv,
-                                                               s.rules.min_absolute_gain_mv))
+        out.heldout_before_mv - c.score.heldout_mv >= std::max(s.open_gain * out.heldout_before_mv,
+                                                               s.open_gain > 0 ? s.rules.min_absolute_gain_mv : -HUGE_VAL))
       first = c.effect;
   if (first == Effect::none) return current;
   std::sort(tried.begin(), tried.end(), [](auto& a, auto& b) { return a.score.heldout_mv < b.score.heldout_mv; });

@@ -31,6 +31,9 @@ struct DiagnoseSettings {
   // Complexity penalty: a further effect must cut the held-out RMSE by this share and by
   // rules.min_absolute_gain_mv.
   double further_gain = 0.1;
+  // A first effect too weak to be named alone opens a combination when it cuts the held-out
+  // RMSE by this share (0: always explore from the best one).
+  double open_gain = 0.1;
   // The held-out RMSE must fall to this share of the plain model's for `explained`.
   double explained_share = 0.2;
   SelectionRules rules;
