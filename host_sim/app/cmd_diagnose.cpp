@@ -30,6 +30,8 @@ struct DiagnoseOptions {
   double rtol = 1e-6;
   int blocks = 8;
   int max_effects = 3;
+  double search_drive_tolerance = 0.0;
+  double open_gain = 0.1;
   std::string initial_soc = "auto";
   std::string current_sign = "by-layout";
   bool quiet = false;
@@ -72,6 +74,8 @@ std::string command_line(const DiagnoseOptions& o) {
   if (o.rtol != 1e-6) s += fmt::format(" --rtol {}", o.rtol);
   if (o.blocks != 8) s += fmt::format(" --blocks {}", o.blocks);
   if (o.max_effects != 3) s += fmt::format(" --max-effects {}", o.max_effects);
+  if (o.open_gain != 0.1) s += fmt::format(" --open-gain {}", o.open_gain);
+  if (o.search_drive_tolerance > 0) s += fmt::format(" --search-drive-tolerance {}", o.search_drive_tolerance);
   if (o.initial_soc != "auto") s += " --initial-soc " + o.initial_soc;
   if (o.current_sign != "by-layout") s += " --current-sign " + o.current_sign;
   return s + " --out " + o.out;
@@ -101,6 +105,10 @@ Runner add_diagnose(CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--max-effects", o->max_effects, "Forward selection: at most this many effects combined")
       ->capture_default_str()->check(CLI::Range(1, 3));
+  sub->add_option("--open-gain", o->open_gain,
+                  "A first effect too weak to be named alone opens a combination when it cuts the held-out RMSE by "
+                  "this share (0: always explore combinations from the best single effect)")
+      ->capture_default_str()->check(CLI::Range(0.0, 1.0));
   sub->add_option("--initial-soc", o->initial_soc,
                   "auto (from the first rest voltage when the record does not start in the cell's default state), "
                   "full (the default state) or a state of charge in [0, 1]")
@@ -116,6 +124,10 @@ Runner add_diagnose(CLI::App& app) {
   sub->add_option("--search-radial", o->search_radial, "Search mesh: finite volumes per particle")
       ->capture_default_str()->check(CLI::Range(3, 400));
   sub->add_option("--rtol", o->rtol, "IDA relative tolerance")->capture_default_str();
+  sub->add_option("--search-drive-tolerance", o->search_drive_tolerance,
+                  "Search runs follow the measured current as straight pieces within this share of its largest "
+                  "value (e.g. 0.02 for a drive cycle: far fewer solver stops; the final runs use the exact current)")
+      ->capture_default_str()->check(CLI::Range(0.0, 0.2));
   sub->add_option("--blocks", o->blocks, "One record: split into this many blocks, alternately training and validation")
       ->capture_default_str()->check(CLI::Range(2, 1000));
   sub->add_flag("--quiet", o->quiet, "No progress output");
@@ -132,6 +144,8 @@ Runner add_diagnose(CLI::App& app) {
     settings.rtol = o->rtol;
     settings.blocks = o->blocks;
     settings.max_effects = o->max_effects;
+    settings.search_drive_tolerance = o->search_drive_tolerance;
+    settings.open_gain = o->open_gain;
     CurrentSign sign = CurrentSign::by_layout;
     if (o->current_sign != "by-layout" && !parse_current_sign(o->current_sign, sign))
       throw InputError("--current-sign: '" + o->current_sign + "' is not discharge-positive or charge-positive");

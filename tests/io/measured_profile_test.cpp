@@ -138,7 +138,12 @@ TEST(MeasuredProfile, BadFilesNameLineAndColumn) {
   gap += "3600,-1,3.2\n3601,-1,3.2\n";
   EXPECT_EQ(profile_error(gap),
             "p.csv: line 22, column 1 ('Time [s]'): gap of 3581 s in the record after t = 19 s "
-            "(line 21); the median time step is 1 s");
+            "(line 21) under current; the median time step is 1 s (a gap is accepted only at rest)");
+  // The same gap at rest on both sides: a logger that paused during a long rest.
+  std::string rest_gap = ae;
+  for (int t = 0; t < 20; ++t) rest_gap += std::to_string(t) + (t < 10 ? ",-1,3.3\n" : ",0,3.3\n");
+  rest_gap += "3600,0,3.31\n3601,-1,3.2\n";
+  EXPECT_EQ(profile_error(rest_gap), "(no error)");
   // A long step is fine when the record is sampled that slowly anyway, or when it is short.
   EXPECT_EQ(profile_error(ae + "0,-1,3.3\n100,-1,3.2\n200,-1,3.2\n400,-1,3.2\n"), "(no error)");
   EXPECT_EQ(profile_error(ae + "0,-1,3.3\n0.1,-1,3.2\n0.2,-1,3.2\n50,-1,3.2\n"), "(no error)");

@@ -410,7 +410,12 @@ void run_before(Context& ctx, DiagnosisResult& out) {
     const auto& coarse = ctx.eval.run(c, {}, false);
     std::vector<double> delta(coarse.size());
     for (std::size_t k = 0; k < delta.size(); ++k) delta[k] = cr.before.voltage_v[k] - coarse[k];
-    const double numerical = numerical_error_mv(cr.before.voltage_v, coarse, s.search_mesh.n_r, s.final_mesh.n_r);
+    // The mesh's own error from runs that differ only in the mesh (not in how the drive is followed).
+    const double numerical = numerical_error_mv(
+        cr.before.voltage_v,
+        s.search_drive_tolerance > 0 ? run_model(ModelSetup{ctx.eval.setup(false).cell, s.search_mesh, s.rtol}, rec, Hypothesis{}).voltage_v
+                                     : coarse,
+        s.search_mesh.n_r, s.final_mesh.n_r);
     ctx.eval.set_delta(c, std::move(delta));
     cr.residual_before_mv = residual_mv(cr.before.voltage_v, rec);
     cr.rmse_before_mv = rms(cr.residual_before_mv);
@@ -514,8 +519,8 @@ Candidate forward_selection(Context& ctx, DiagnosisResult& out, std::vector<Cand
   Effect first = out.selection.effect;
   for (const auto& c : tried)
     if (first == Effect::none && out.selection.identifiable && c.effect == out.selection.best &&
-        out.heldout_before_mv - c.score.heldout_mv >= std::max(s.further_gain * out.heldout_before_mv,
-                                                               s.rules.min_absolute_gain_mv))
+        out.heldout_before_mv - c.score.heldout_mv >= std::max(s.open_gain * out.heldout_before_mv,
+                                                               s.open_gain > 0 ? s.rules.min_absolute_gain_mv : -HUGE_VAL))
       first = c.effect;
   if (first == Effect::none) return current;
   std::sort(tried.begin(), tried.end(), [](auto& a, auto& b) { return a.score.heldout_mv < b.score.heldout_mv; });
@@ -704,7 +709,7 @@ DiagnosisResult diagnose(const CellParameters& cell, const std::vector<Record>& 
   if (records.empty()) throw InputError("--data: no record given");
   DiagnosisResult out;
   const Setup st = build_cases(cell, records, settings, out, say);
-  Evaluator eval(out.cases, ModelSetup{cell, settings.search_mesh, settings.rtol},
+  Evaluator eval(out.cases, ModelSetup{cell, settings.search_mesh, settings.rtol, settings.search_drive_tolerance},
                  ModelSetup{cell, settings.final_mesh, settings.rtol});
   Context ctx{settings, out.cases, eval, {}, {}, st.imax, st.dt_s, say};
   ctx.folds = make_folds(out.cases, ctx.all);
@@ -714,8 +719,12 @@ DiagnosisResult diagnose(const CellParameters& cell, const std::vector<Record>& 
   none.rmse_after_mv = out.rmse_before_mv;
   none.max_abs_after_mv = out.max_abs_before_mv;
   out.candidates.push_back(none);
-  if (st.all_rest) {
-    out.selection.reason = "no current flows in the data: no effect can be identified";
+  if (st.all_rest || out.at_floor_before) {
+    // At the floor no candidate can bring the held-out RMSE to 20 % of it (the noise stays):
+    // the answer is none whatever the candidates do, so none is run.
+    out.selection.reason = st.all_rest ? "no current flows in the data: no effect can be identified"
+                                       : "the plain model is already at the residual's floor: no candidate searched";
+    say(out.selection.reason);
     Candidate plain{Effect::none, {}, {}, 0.0, 0};
     plain.score.heldout_mv = out.heldout_before_mv;
     fit_all_and_after(ctx, out, plain);

@@ -21,6 +21,8 @@ struct DiagnoseSettings {
   DfnMesh search_mesh{8, 8, 8, 8};     // every objective evaluation is a full run
   DfnMesh final_mesh{20, 20, 20, 20};  // the reported before/after and the scores
   double rtol = 1e-6;
+  // Search runs follow the current within this share of its largest value (see ModelSetup).
+  double search_drive_tolerance = 0.0;
   std::vector<Effect> candidates{std::begin(kAllCandidates), std::end(kAllCandidates)};
   // One record: alternate blocks of it train and validate. Several records: each record is
   // validated by a fit on the others (leave one record out).
@@ -29,6 +31,9 @@ struct DiagnoseSettings {
   // Complexity penalty: a further effect must cut the held-out RMSE by this share and by
   // rules.min_absolute_gain_mv.
   double further_gain = 0.1;
+  // A first effect too weak to be named alone opens a combination when it cuts the held-out
+  // RMSE by this share (0: always explore from the best one).
+  double open_gain = 0.1;
   // The held-out RMSE must fall to this share of the plain model's for `explained`.
   double explained_share = 0.2;
   SelectionRules rules;

@@ -17,6 +17,8 @@ namespace {
 constexpr double kStopMarginV = 0.5;
 // Stoichiometries the start state may reach (the OCP tables end at 0 and 1).
 constexpr double kStoichEdge = 2e-3;
+// The profile drive's own step threshold (current_profile_run.cpp): such changes stay steps.
+constexpr double kKeepStepShare = 0.25;
 
 double electrode_capacity_ah(const CellParameters& cell, const ElectrodeParameters& e) {
   return kFaraday_c_mol * cell.electrode_area_m2 * e.thickness_m * e.solid_fraction * e.max_concentration_mol_m3 /
@@ -86,7 +88,12 @@ ModelRun run_model(const ModelSetup& setup, const Record& record, const Hypothes
   for (const auto& s : h)
     if (!set_model_effect(cfg.effects, s))
       throw RuntimeFailure(std::string("effect ") + effect_name(s.effect) + " is not in this build's truth model");
-  const std::vector<double> current = driving_current(h, record.current_a);
+  std::vector<double> current = driving_current(h, record.current_a);
+  if (setup.drive_tolerance_share > 0) {
+    double imax = 0.0;
+    for (double i : current) imax = std::max(imax, std::abs(i));
+    current = simplified_current(record.t_s, current, setup.drive_tolerance_share * imax);
+  }
   SimulationResult result;
   try {
     result = run_current_profile(cfg, record.t_s, current, cfg.cell.lower_voltage_v - kStopMarginV,
@@ -103,6 +110,40 @@ ModelRun run_model(const ModelSetup& setup, const Record& record, const Hypothes
   run.note = result.note;
   run.wall_s = result.wall_s;
   return run;
+}
+
+std::vector<double> simplified_current(const std::vector<double>& t_s, const std::vector<double>& current_a,
+                                       double tol_a) {
+  const std::size_t n = t_s.size();
+  double imax = 0.0;
+  for (double i : current_a) imax = std::max(imax, std::abs(i));
+  const double step_a = kKeepStepShare * imax;
+  std::vector<double> out = current_a;
+  std::size_t start = 0;
+  double v0 = current_a.front();
+  while (start + 1 < n) {
+    if (std::abs(current_a[start + 1] - current_a[start]) > step_a) {  // a step stays a step
+      v0 = current_a[++start];
+      continue;
+    }
+    // The longest piece from `start` whose line stays within tol_a of every sample it spans.
+    std::size_t best = start + 1;
+    double lo = -HUGE_VAL, hi = HUGE_VAL;
+    for (std::size_t end = start + 1; end < n && std::abs(current_a[end] - current_a[end - 1]) <= step_a; ++end) {
+      const double dt = t_s[end] - t_s[start];
+      const double nlo = std::max(lo, (current_a[end] - tol_a - v0) / dt);
+      const double nhi = std::min(hi, (current_a[end] + tol_a - v0) / dt);
+      if (nlo > nhi) break;
+      lo = nlo;
+      hi = nhi;
+      best = end;
+    }
+    const double slope = std::clamp((current_a[best] - v0) / (t_s[best] - t_s[start]), lo, hi);
+    for (std::size_t k = start + 1; k <= best; ++k) out[k] = v0 + slope * (t_s[k] - t_s[start]);
+    v0 = out[best];
+    start = best;
+  }
+  return out;
 }
 
 std::vector<double> residual_mv(const std::vector<double>& model_v, const Record& record) {

@@ -17,7 +17,17 @@ struct ModelSetup {
   CellParameters cell;
   DfnMesh mesh;
   double rtol = 1e-6;
+  // > 0: the driving current is replaced by piecewise-linear pieces within this share of its
+  // largest value (coarse in time for the search runs: a drive cycle then needs a few hundred
+  // kinks instead of one per sample; the search runs' difference from the final runs is taken
+  // out by the mesh correction).
+  double drive_tolerance_share = 0.0;
 };
+
+// The current as piecewise-linear pieces with knots on samples, each within tol_a of the
+// samples it spans (changes over 25 % of the largest current stay steps).
+std::vector<double> simplified_current(const std::vector<double>& t_s, const std::vector<double>& current_a,
+                                       double tol_a);
 
 struct ModelRun {
   std::vector<double> voltage_v;  // one per record sample; NaN after an early stop

@@ -16,6 +16,8 @@ namespace {
 
 constexpr double kGapMedianFactor = 10.0;
 constexpr double kGapMinimumS = 60.0;
+constexpr double kGapRestShare = 0.01;
+constexpr double kGapRestCurrentA = 1e-3;
 constexpr double kMaxVoltageV = 10.0;
 // -100..200 degC: wide, but catches a Celsius column labelled as kelvin and vice versa.
 constexpr double kMinTemperatureC = -100.0;
@@ -160,7 +162,17 @@ Layout layout_of(const CsvTable& table, ProfileColumns which) {
   return l;
 }
 
-void check_times(const CsvTable& table, const std::string& column, const std::vector<double>& t) {
+// A gap is accepted when the cell rests on both sides of it (a logger that stops recording
+// during a long rest): the current is interpolated across it, and at rest that is the truth.
+bool rests_across(const std::vector<double>& current_a, std::size_t i) {
+  double imax = 0.0;
+  for (double x : current_a) imax = std::max(imax, std::abs(x));
+  const double rest_a = kGapRestShare * imax + kGapRestCurrentA;
+  return std::abs(current_a[i - 1]) <= rest_a && std::abs(current_a[i]) <= rest_a;
+}
+
+void check_times(const CsvTable& table, const std::string& column, const std::vector<double>& t,
+                 const std::vector<double>& current_a) {
   std::vector<double> steps(t.size() - 1);
   for (std::size_t i = 1; i < t.size(); ++i) {
     steps[i - 1] = t[i] - t[i - 1];
@@ -173,9 +185,10 @@ void check_times(const CsvTable& table, const std::string& column, const std::ve
   const double typical = median(steps);
   for (std::size_t i = 1; i < t.size(); ++i) {
     const double step = steps[i - 1];
-    if (step > kGapMedianFactor * typical && step > kGapMinimumS) {
+    if (step > kGapMedianFactor * typical && step > kGapMinimumS && !rests_across(current_a, i)) {
       throw InputError(fmt::format(
-          "{}: gap of {} s in the record after t = {} s (line {}); the median time step is {} s",
+          "{}: gap of {} s in the record after t = {} s (line {}) under current; the median time step is {} s "
+          "(a gap is accepted only at rest)",
           table.where(i, column), step, t[i - 1], CsvTable::line_of_row(i - 1), typical));
     }
   }
@@ -222,7 +235,7 @@ MeasuredProfile parse_measured_profile(std::string_view text, std::string_view n
     throw InputError(fmt::format("{}: needs at least 2 data rows, has {}", name, table.rows()));
   }
 
-  check_times(table, l.time, p.t_s);
+  check_times(table, l.time, p.t_s, p.current_a);
   check_range(table, l.voltage, p.voltage_v, 0.0, kMaxVoltageV, "voltage", "V");
   if (l.negate_current) {
     for (double& i : p.current_a) i = -i;

@@ -36,8 +36,8 @@ enum class ProfileColumns {
 enum class CurrentSign { by_layout, discharge_positive, charge_positive };
 
 // Throws InputError naming the file, line and column: missing column, empty or non-finite
-// cell, fewer than 2 rows, time not strictly increasing, a gap (a step over 10x the median
-// step and over 60 s), voltage outside 0..10 V, temperature outside -100..200 degC (catches
+// cell, fewer than 2 rows, time not strictly increasing, a gap under current (a step over 10x
+// the median step and over 60 s; accepted when the cell rests on both sides), voltage outside 0..10 V, temperature outside -100..200 degC (catches
 // a Celsius column labelled as kelvin), unknown mode.
 MeasuredProfile read_measured_profile(const std::filesystem::path& file, ProfileColumns which,
                                       CurrentSign sign = CurrentSign::by_layout);

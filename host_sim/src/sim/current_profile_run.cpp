@@ -20,9 +20,11 @@ namespace {
 // holding the current piecewise constant turns the CV decay into a staircase (with a 1 %
 // tolerance and a restart per stair: a +-3 mV sawtooth, the former 0.40 mV floor of
 // docs/results/diagnosis.md). So:
-//   - a change between two samples larger than 1 % of the largest current is a step: placed
+//   - a change between two samples larger than 25 % of the largest current is a step: placed
 //     half-way between the samples (the same charge as linear interpolation, what PyBaMM's
-//     interpolant does), the integrator restarts there;
+//     interpolant does), the integrator restarts there. Smaller changes are followed as
+//     ramps: a drive cycle changes by a few per cent of its peak every second, and a restart
+//     (a consistent re-initialisation) per sample made such records crawl;
 //   - between steps the current is continuous and piecewise linear with knots on samples:
 //     each piece is as long as a line from its start can stay within `follow` of every sample
 //     it spans (a feasible-slope cone, one pass). Within the cone, the end of each piece is
@@ -31,6 +33,9 @@ namespace {
 //     discharge).
 // `follow` is 0.02 % of the largest current, or the jitter (90th percentile of the second
 // differences away from steps) when that is larger, so noise makes no kinks.
+constexpr double kStepShare = 0.25;
+constexpr double kSmallChangeShare = 0.01;
+
 struct CurrentProfile {
   std::vector<double> t_s, current_a;  // linear between points; a repeated time is a step
   std::vector<size_t> restart_at;      // sample indices after a step (restart half-way before them)
@@ -42,11 +47,12 @@ CurrentProfile build_current_profile(const std::vector<double>& ts, const std::v
   const size_t n = ts.size();
   double imax = 0.0;
   for (double i : current_a) imax = std::max(imax, std::abs(i));
-  const double step = 1e-2 * imax + 1e-6;
+  const double step = kStepShare * imax + 1e-6;
+  const double small = kSmallChangeShare * imax + 1e-6;  // what jitter can be
   std::vector<double> jitter;
   for (size_t i = 1; i + 1 < n; ++i) {
     const double d1 = current_a[i] - current_a[i - 1], d2 = current_a[i + 1] - current_a[i];
-    if (std::abs(d1) <= step && std::abs(d2) <= step) jitter.push_back(std::abs(d2 - d1));
+    if (std::abs(d1) <= small && std::abs(d2) <= small) jitter.push_back(std::abs(d2 - d1));
   }
   double jitter90 = 0.0;
   if (!jitter.empty()) {
