@@ -17,8 +17,7 @@ Model initial_model() {
 // (Cortex-M4F) keeps the paper's profile until the best one is made to keep the film signal in
 // float (issue 19): its re-synchronisation does not reach its tolerance in float and runs to the
 // iteration cap (355 800 instructions measured, the tick limit is 300 000).
-constexpr bms::fw::Profile kReplayProfile =
-    sizeof(Scalar) == sizeof(double) ? bms::fw::Profile::best : bms::fw::Profile::paper;
+constexpr bms::fw::Profile kReplayProfile = bms::fw::Profile::best;
 ReplayFirmware::ReplayFirmware()
     : model(initial_model()), core(bms::fw::paper_cell_config<Core>(kReplayProfile), model) {}
 
