@@ -5,11 +5,14 @@
       Runs COMMAND (the host executable, or qemu-system-arm ... -kernel bms_replay.elf),
       writes its standard output to FILE, fails unless it exits 0 and printed every tick.
   replay_check.py compare --target FILE --host-exe EXE [--host-float-exe EXE] --scalar double|float
-                          [--data CSV.gz] [--rtol 1e-9] [--json OUT]
-      Runs the host build of the same application and compares. double: every number of
-      every tick must equal the host's within rtol (relative; see tolerance() below), the
-      integer columns exactly. float: reports the film-resistance error against the host's
-      double build (and the host's float build); fails only on a broken run.
+                          [--data CSV.gz] [--rtol 1e-9] [--max-film-median-rel 0.005] [--json OUT]
+      Runs the host build of the same application and compares. Both runs must print the same
+      firmware source hash (target/tools/source_hash.cmake): the reference is built from the
+      image's sources. double: every number of every tick must equal the host's within rtol
+      (relative; see tolerance() below), the integer columns exactly. float: the film
+      estimate against the host's double build, median relative difference over constant-
+      current charge, must be within --max-film-median-rel (the host's float build is
+      reported beside it).
   replay_check.py cost --target FILE [--limit N] [--json OUT]
       Instructions per tick (last column; board runs under -icount shift=0): median and worst
       case over the cycle, RCSI active and idle, per mode; the Newton iteration counts and
@@ -177,8 +180,15 @@ def cmd_compare(a):
         return 2
     if len(host.rows) != len(target.rows):
         return fail(f"{len(target.rows)} target ticks, {len(host.rows)} host ticks")
-    result = {"target": a.target, "host_exe": a.host_exe, "scalar": a.scalar, "ticks": len(target.rows)}
+    result = {"target": a.target, "host_exe": a.host_exe, "scalar": a.scalar, "ticks": len(target.rows),
+              "source_hash": {"target": target.summary.get("source_hash"), "host": host.summary.get("source_hash")}}
     failures = []
+    th, hh = result["source_hash"]["target"], result["source_hash"]["host"]
+    if not th or th != hh:
+        failures.append(f"firmware source hash: target {th}, host reference {hh} (rebuild the host preset "
+                        f"from the same sources)")
+    else:
+        print(f"replay_check: firmware source hash {th} on both")
     modes = host.col("mode")
     if a.scalar == "double":
         result["rtol"] = a.rtol
@@ -209,11 +219,21 @@ def cmd_compare(a):
         result["mode_mismatches_vs_double"] = sum(1 for x, y in zip(target.col("mode"), modes) if x != y)
         if a.host_float_exe:
             hf = host_reference(a.host_float_exe, os.path.join(work, "replay-host-float.txt"))
+            if hf is not None and hf.summary.get("source_hash") != th:
+                failures.append(f"firmware source hash of {a.host_float_exe}: {hf.summary.get('source_hash')}, "
+                                f"target {th}")
             if hf is not None:
                 result["film_vs_host_float"] = compare_real(est, hf.col("r_film_est_ohm_m2"), 0.0)
                 result["identical_lines_vs_host_float"] = sum(
                     1 for x, y in zip(target.rows, hf.rows) if x[:-1] == y[:-1])
         f = result["film_vs_host_double"]
+        result["max_film_median_rel"] = a.max_film_median_rel
+        cc = f.get("cc_charge")
+        if cc is None:
+            failures.append("no constant-current charge in the run")
+        elif cc["median_rel"] > a.max_film_median_rel:
+            failures.append(f"film estimate vs the host's double build: median {cc['median_rel']:.3g} relative over "
+                            f"CC charge > {a.max_film_median_rel:g}")
         print(f"replay_check: float film resistance against the host's double build over {len(est)} ticks:")
         for k in ("all", "cc_charge"):
             if k in f:
@@ -344,6 +364,7 @@ def main():
     c.add_argument("--scalar", choices=["double", "float"], required=True)
     c.add_argument("--data")
     c.add_argument("--rtol", type=float, default=1e-9)
+    c.add_argument("--max-film-median-rel", type=float, default=0.005)
     c.add_argument("--json")
     k = sub.add_parser("cost")
     k.add_argument("--target", required=True)

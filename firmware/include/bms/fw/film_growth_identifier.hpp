@@ -80,26 +80,26 @@ class FilmGrowthIdentifier {
   };
   static_assert(std::is_trivially_copyable<State>::value, "State must be trivially copyable");
 
-  explicit FilmGrowthIdentifier(const Config& c) : config_(c), rls_(make_rls_config(c)) {}
+  explicit FilmGrowthIdentifier(const Config& c) : config_(c), rls_(make_rls_config(c)) { refresh(); }
 
   // The film resistance in use at this tick: theta_R0 + theta_g G, within the admissible range.
   Scalar film_ohm_m2() const {
-    const Scalar r = static_cast<Scalar>(rls_.theta()(0) + rls_.theta()(1) * static_cast<Real>(growth_));
+    const Scalar r = theta_(0) + theta_(1) * growth_;
     if (!std::isfinite(r)) return config_.r_film_nominal_ohm_m2;
     return r < config_.r_film_min_ohm_m2 ? config_.r_film_min_ohm_m2
                                          : (r > config_.r_film_max_ohm_m2 ? config_.r_film_max_ohm_m2 : r);
   }
   // Relative inventory deviation the model should be placed at (clipped to the limit).
   Scalar inventory_deviation() const {
-    const Scalar nu = static_cast<Scalar>(rls_.theta()(2));
+    const Scalar nu = theta_(2);
     if (!std::isfinite(nu)) return Scalar(0);
     const Scalar lim = config_.inventory_limit;
     return nu < -lim ? -lim : (nu > lim ? lim : nu);
   }
-  Scalar gain() const { return static_cast<Scalar>(rls_.theta()(1)); }
-  Scalar initial_film_ohm_m2() const { return static_cast<Scalar>(rls_.theta()(0)); }
+  Scalar gain() const { return theta_(1); }
+  Scalar initial_film_ohm_m2() const { return theta_(0); }
   Scalar growth_ohm_m2() const { return growth_; }
-  Vector theta() const { return rls_.theta().template cast<Scalar>(); }
+  const Vector& theta() const { return theta_; }
   const typename RlsType::Matrix& p() const { return rls_.p(); }
 
   // The first learning tick of a CC charge (see the header: G_c).
@@ -128,7 +128,9 @@ class FilmGrowthIdentifier {
     const Real within_charge = rls_.theta()(1) * static_cast<Real>(growth_ - growth_at_charge_);
     typename RlsType::Vector phi;
     phi << Real(1), static_cast<Real>(growth_at_charge_), static_cast<Real>(s_over_h);
-    return rls_.update(phi, static_cast<Real>(u_star) + static_cast<Real>(s_over_h * nu_model) - within_charge);
+    const StatusWord st = rls_.update(phi, static_cast<Real>(u_star) + static_cast<Real>(s_over_h * nu_model) - within_charge);
+    refresh();
+    return st;
   }
 
   // The model was moved to an inventory far from where the data so far were linearised (S is
@@ -140,6 +142,7 @@ class FilmGrowthIdentifier {
     for (int i = 0; i < kParams * kParams; ++i) st.p[i] = Real(0);
     for (int i = 0; i < kParams; ++i) st.p[i * (kParams + 1)] = p0(i);
     rls_.restore(st);
+    refresh();
   }
 
   State save() const { return State{rls_.save(), growth_, growth_at_charge_, growth_carry_}; }
@@ -152,6 +155,7 @@ class FilmGrowthIdentifier {
     growth_ = s.growth_ohm_m2;
     growth_at_charge_ = s.growth_at_charge_ohm_m2;
     growth_carry_ = s.growth_carry_ohm_m2;
+    refresh();
     return true;
   }
 
@@ -168,8 +172,13 @@ class FilmGrowthIdentifier {
     return rc;
   }
 
+  // theta in Scalar, refreshed at each change: every tick reads the film from it, and on a
+  // Cortex-M4F a software-double read per tick (held ticks included) is not free.
+  void refresh() { theta_ = rls_.theta().template cast<Scalar>(); }
+
   Config config_;
   RlsType rls_;
+  Vector theta_ = Vector::Zero();
   Scalar growth_ = Scalar(0);
   Scalar growth_at_charge_ = Scalar(0);
   Scalar growth_carry_ = Scalar(0);

@@ -301,14 +301,20 @@ class ReducedCell {
       apply(dn);
       return peek_voltage(current_a, r_film_ohm_m2, dt_s) - voltage_v;
     };
-    Scalar a = lo, b = hi, fa = mismatch(a), fb = mismatch(b);
+    Scalar a = lo, b = hi, fa = Scalar(0), fb = Scalar(0);
+    // Every evaluation counts against kResyncIterations: the tick's cost has a fixed bound.
+    int used = 0;
+    if (!bracket_near(mismatch, lo, hi, a, b, fa, fb, used)) {
+      a = lo; b = hi; fa = mismatch(a); fb = mismatch(b);
+      used += 2;
+    }
     if (!std::isfinite(fa) || !std::isfinite(fb) || fa > Scalar(0) || fb < Scalar(0)) {
       s_ = base;
       return false;
     }
     Scalar x = a, fx = fa;
     int side = 0;
-    for (int it = 0; it < kResyncIterations; ++it) {
+    for (int it = used; it < kResyncIterations; ++it) {
       x = (a * fb - b * fa) / (fb - fa);
       fx = mismatch(x);
       if (!std::isfinite(fx)) {
@@ -346,15 +352,60 @@ class ReducedCell {
   static constexpr double kMaxNewtonStepA = 20.0;
   static constexpr double kResyncMargin = 1e-3;
   static constexpr double kResyncToleranceV = kVoltageFloorV > 1e-7 ? kVoltageFloorV : 1e-7;
-  // Each iteration is one model evaluation: in float on a Cortex-M4F about 8 900 instructions,
-  // so 20 keeps a re-synchronising CV tick under 300 000 with the Newton step at its cap.
-  static constexpr int kResyncIterations = sizeof(Scalar) >= sizeof(double) ? 40 : 20;
+  // Evaluations of the re-synchronisation (bracket and regula falsi together): in float on a
+  // Cortex-M4F one costs about 9 600 instructions, so 18, plus the two of the inventory
+  // direction, keep a re-synchronising CV tick under 300 000 with its Newton step at the cap
+  // (96 500). A root near the present state takes 3-6 (bracket_near).
+  static constexpr int kResyncIterations = sizeof(Scalar) >= sizeof(double) ? 40 : 18;
   static constexpr double kResyncAcceptV = 1e-4;
+  static constexpr double kResyncFirstStep = 1e-3;  // anode stoichiometry: about 1-10 mV
+  static constexpr int kResyncBracketSteps = 6;
 
  private:
   void shift(Scalar d_stoich_neg, Scalar d_stoich_pos) {
     for (int i = 0; i < kNrN; ++i) s_.cs_neg_mol_m3[i] += d_stoich_neg * Scalar(Cell::kNeg.max_concentration_mol_m3);
     for (int i = 0; i < kNrP; ++i) s_.cs_pos_mol_m3[i] += d_stoich_pos * Scalar(Cell::kPos.max_concentration_mol_m3);
+  }
+
+  // A bracket [a, b] of the re-synchronisation's root near the present state (dn = 0: the model
+  // is usually within a few mV of the cell), found by secant steps from 0 that overshoot the
+  // predicted root, within [lo, hi]. The regula falsi then starts a few evaluations from its
+  // tolerance instead of halving its way in from the whole admissible range (which took 25
+  // evaluations). Adds its evaluations to `used`; false when no bracket was found (the caller
+  // falls back to [lo, hi]).
+  template <typename Mismatch>
+  static bool bracket_near(Mismatch& mismatch, Scalar lo, Scalar hi, Scalar& a, Scalar& b, Scalar& fa, Scalar& fb,
+                           int& used) {
+    if (!(lo < Scalar(0) && hi > Scalar(0))) return false;
+    Scalar x = Scalar(0), fx = mismatch(x);
+    ++used;
+    if (!std::isfinite(fx)) return false;
+    Scalar step = fx < Scalar(0) ? Scalar(kResyncFirstStep) : Scalar(-kResyncFirstStep);
+    for (int n = 1; n <= kResyncBracketSteps; ++n) {
+      Scalar xn = x + step;
+      xn = xn < lo ? lo : (xn > hi ? hi : xn);
+      const Scalar fn = mismatch(xn);
+      ++used;
+      if (!std::isfinite(fn)) return false;
+      if ((fn < Scalar(0)) != (fx < Scalar(0))) {
+        if (fn < Scalar(0)) {
+          a = xn; fa = fn; b = x; fb = fx;
+        } else {
+          a = x; fa = fx; b = xn; fb = fn;
+        }
+        return true;
+      }
+      // Secant prediction of the root from the last two points, overshot so the next point
+      // lands beyond it; at least doubling the step when the slope says nothing.
+      const Scalar slope = (fn - fx) / (xn - x);
+      Scalar next = slope != Scalar(0) ? -fn / slope * Scalar(2) : step * Scalar(2);
+      if (std::fabs(next) < std::fabs(step) * Scalar(2) || (next > Scalar(0)) != (step > Scalar(0))) next = step * Scalar(2);
+      x = xn;
+      fx = fn;
+      step = next;
+      if (x == lo || x == hi) return false;
+    }
+    return false;
   }
 
   // At a re-synchronised state: the voltage's slopes to a uniform shift of each particle, and
