@@ -116,22 +116,28 @@ inline constexpr double kInitialFilm_ohm_m2 = 3.391e-3;
 // tests/firmware/test_float_numerics.cpp holds the two forms together).
 template <typename T>
 T ocp_positive_v(T x) {
-  if constexpr (detail::SinglePrecision<T>::value) return detail::ocp_positive_split(x);
-  using std::exp; using std::sqrt; using std::tanh;
-  const T sx = sqrt(x);
-  return T(7.49983) - T(13.7758) * sx + T(21.7683) * x - T(12.6985) * x * sx + T(0.0174967) / x -
-         T(0.41649) / sx - T(0.0161404) * exp(T(100.0) * x - T(97.1069)) +
-         T(0.363031) * tanh(T(5.89493) * x - T(4.21921));
+  if constexpr (detail::SinglePrecision<T>::value) {
+    return detail::ocp_positive_split(x);
+  } else {
+    using std::exp; using std::sqrt; using std::tanh;
+    const T sx = sqrt(x);
+    return T(7.49983) - T(13.7758) * sx + T(21.7683) * x - T(12.6985) * x * sx + T(0.0174967) / x -
+           T(0.41649) / sx - T(0.0161404) * exp(T(100.0) * x - T(97.1069)) +
+           T(0.363031) * tanh(T(5.89493) * x - T(4.21921));
+  }
 }
 
 template <typename T>
 T ocp_negative_v(T x) {
-  if constexpr (detail::SinglePrecision<T>::value) return detail::ocp_negative_split(x);
-  using std::exp; using std::sqrt; using std::tanh;
-  const T sx = sqrt(x);
-  return T(9.99877) - T(9.99961) * sx - T(9.98836) * x + T(8.2024) * x * sx + T(0.23584) / x -
-         T(2.03569) / sx - T(1.47266) * exp(T(-1.14872) * x + T(2.13185)) -
-         T(9.9989) * tanh(T(0.60345) * x - T(1.58171));
+  if constexpr (detail::SinglePrecision<T>::value) {
+    return detail::ocp_negative_split(x);
+  } else {
+    using std::exp; using std::sqrt; using std::tanh;
+    const T sx = sqrt(x);
+    return T(9.99877) - T(9.99961) * sx - T(9.98836) * x + T(8.2024) * x * sx + T(0.23584) / x -
+           T(2.03569) / sx - T(1.47266) * exp(T(-1.14872) * x + T(2.13185)) -
+           T(9.9989) * tanh(T(0.60345) * x - T(1.58171));
+  }
 }
 
 template <typename T>
