@@ -312,27 +312,8 @@ class ReducedCell {
       s_ = base;
       return false;
     }
-    Scalar x = a, fx = fa;
-    int side = 0;
-    for (int it = used; it < kResyncIterations; ++it) {
-      x = (a * fb - b * fa) / (fb - fa);
-      fx = mismatch(x);
-      if (!std::isfinite(fx)) {
-        s_ = base;
-        return false;
-      }
-      if (std::fabs(fx) < Scalar(kResyncToleranceV)) break;
-      if (fx < Scalar(0)) {
-        a = x; fa = fx;
-        if (side == -1) fb /= Scalar(2);
-        side = -1;
-      } else {
-        b = x; fb = fx;
-        if (side == 1) fa /= Scalar(2);
-        side = 1;
-      }
-    }
-    // s_ already holds the state at x (mismatch applied it).
+    const Scalar fx = regula_falsi(mismatch, a, b, fa, fb, used);
+    // s_ already holds the state at the last point (mismatch applied it).
     if (!(std::fabs(fx) < Scalar(kResyncAcceptV))) {
       s_ = base;
       return false;
@@ -365,6 +346,30 @@ class ReducedCell {
   void shift(Scalar d_stoich_neg, Scalar d_stoich_pos) {
     for (int i = 0; i < kNrN; ++i) s_.cs_neg_mol_m3[i] += d_stoich_neg * Scalar(Cell::kNeg.max_concentration_mol_m3);
     for (int i = 0; i < kNrP; ++i) s_.cs_pos_mol_m3[i] += d_stoich_pos * Scalar(Cell::kPos.max_concentration_mol_m3);
+  }
+
+  // Illinois regula falsi on the bracket [a, b] (f(a) <= 0 <= f(b)) until |f| is within
+  // kResyncToleranceV or the evaluations reach kResyncIterations; returns the last f (non-
+  // finite when an evaluation was).
+  template <typename Mismatch>
+  static Scalar regula_falsi(Mismatch& mismatch, Scalar a, Scalar b, Scalar fa, Scalar fb, int used) {
+    Scalar fx = fa;
+    int side = 0;
+    for (int it = used; it < kResyncIterations; ++it) {
+      const Scalar x = (a * fb - b * fa) / (fb - fa);
+      fx = mismatch(x);
+      if (!std::isfinite(fx) || std::fabs(fx) < Scalar(kResyncToleranceV)) break;
+      if (fx < Scalar(0)) {
+        a = x; fa = fx;
+        if (side == -1) fb /= Scalar(2);
+        side = -1;
+      } else {
+        b = x; fb = fx;
+        if (side == 1) fa /= Scalar(2);
+        side = 1;
+      }
+    }
+    return fx;
   }
 
   // A bracket [a, b] of the re-synchronisation's root near the present state (dn = 0: the model
