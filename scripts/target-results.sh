@@ -8,7 +8,11 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
 presets=("$@")
 [ ${#presets[@]} -eq 0 ] && presets=(cortex-m7 cortex-m4f)
-if [ ! -x build/host/target/bms_replay_host ] || [ ! -x build/host/target/bms_replay_host_float ]; then
+# The host reference must be built from the same sources as the images (the comparison checks
+# the firmware source hash): rebuild its two executables whenever the host build exists.
+if [ -f build/host/build.ninja ]; then
+  cmake --build build/host -j1 --target bms_replay_host bms_replay_host_float >/dev/null
+else
   ./bms build host >/dev/null
 fi
 for p in "${presets[@]}"; do

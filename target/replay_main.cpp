@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <cstdio>
 
+#include "fw_source_hash.hpp"
 #include "platform.hpp"
 #include "replay_data.hpp"
 #include "replay_tick.hpp"
@@ -90,6 +91,7 @@ int main() {
               std::isfinite(after_gap.z_v) ? 1u : 0u, static_cast<unsigned long>(g1 - g0));
   std::printf("# ticks %u\n", static_cast<unsigned>(kReplayTicks));
   std::printf("# scalar %s\n", sizeof(Scalar) == sizeof(double) ? "double" : "float");
+  std::printf("# source_hash %s\n", BMS_FW_SOURCE_HASH);
   std::printf("# status_or 0x%08x\n", static_cast<unsigned>(status_or));
   std::printf("# newton_iterations_max %u (cap %d)\n", static_cast<unsigned>(newton_max),
               bms::target::Model::kMaxNewtonIterations);

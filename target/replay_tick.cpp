@@ -13,12 +13,10 @@ Model initial_model() {
 }
 }  // namespace
 
-// The default profile of every caller (bms/fw/paper_cell_profiles.hpp): best. The float build
-// (Cortex-M4F) keeps the paper's profile until the best one is made to keep the film signal in
-// float (issue 19): its re-synchronisation does not reach its tolerance in float and runs to the
-// iteration cap (355 800 instructions measured, the tick limit is 300 000).
-constexpr bms::fw::Profile kReplayProfile =
-    sizeof(Scalar) == sizeof(double) ? bms::fw::Profile::best : bms::fw::Profile::paper;
+// The default profile of every caller (bms/fw/paper_cell_profiles.hpp): best, in double (host,
+// Cortex-M7) and in float (Cortex-M4F; the numerics that keep the film signal in float are
+// described in reduced_cell.hpp and docs/results/target.md).
+constexpr bms::fw::Profile kReplayProfile = bms::fw::Profile::best;
 ReplayFirmware::ReplayFirmware()
     : model(initial_model()), core(bms::fw::paper_cell_config<Core>(kReplayProfile), model) {}
 

@@ -45,8 +45,15 @@ class FilmGrowthIdentifier {
 
  public:
   static constexpr int kParams = 3;
-  using RlsType = Rls<Scalar, kParams>;
-  using Vector = typename RlsType::Vector;
+  // The regression runs in double whatever Scalar is. Within one charge G_c is constant, so the
+  // regressors 1 and G_c are collinear there and R0 and g are told apart only across charges: P
+  // is nearly singular (R0 and g correlated to within 1e-4), and float's covariance update
+  // loses its small direction (measured on a 3-cycle blind truth: the gain learned in float
+  // 0.57 % from double's, 0.05 % with this part in double; docs/results/target.md). On a
+  // Cortex-M4F this is software double: one update per learning tick.
+  using Real = double;
+  using RlsType = Rls<Real, kParams>;
+  using Vector = Eigen::Matrix<Scalar, kParams, 1>;
 
   struct Config {
     Scalar r_film_nominal_ohm_m2 = Scalar(0);  // theta(0): the nominal cell's initial film
@@ -69,37 +76,44 @@ class FilmGrowthIdentifier {
     typename RlsType::State rls;
     Scalar growth_ohm_m2;            // G(k)
     Scalar growth_at_charge_ohm_m2;  // G_c
+    Scalar growth_carry_ohm_m2;      // compensation of G's sum (Kahan): G = growth + carry
   };
   static_assert(std::is_trivially_copyable<State>::value, "State must be trivially copyable");
 
-  explicit FilmGrowthIdentifier(const Config& c) : config_(c), rls_(make_rls_config(c)) {}
+  explicit FilmGrowthIdentifier(const Config& c) : config_(c), rls_(make_rls_config(c)) { refresh(); }
 
   // The film resistance in use at this tick: theta_R0 + theta_g G, within the admissible range.
   Scalar film_ohm_m2() const {
-    const Scalar r = rls_.theta()(0) + rls_.theta()(1) * growth_;
+    const Scalar r = theta_(0) + theta_(1) * growth_;
     if (!std::isfinite(r)) return config_.r_film_nominal_ohm_m2;
     return r < config_.r_film_min_ohm_m2 ? config_.r_film_min_ohm_m2
                                          : (r > config_.r_film_max_ohm_m2 ? config_.r_film_max_ohm_m2 : r);
   }
   // Relative inventory deviation the model should be placed at (clipped to the limit).
   Scalar inventory_deviation() const {
-    const Scalar nu = rls_.theta()(2);
+    const Scalar nu = theta_(2);
     if (!std::isfinite(nu)) return Scalar(0);
     const Scalar lim = config_.inventory_limit;
     return nu < -lim ? -lim : (nu > lim ? lim : nu);
   }
-  Scalar gain() const { return rls_.theta()(1); }
-  Scalar initial_film_ohm_m2() const { return rls_.theta()(0); }
+  Scalar gain() const { return theta_(1); }
+  Scalar initial_film_ohm_m2() const { return theta_(0); }
   Scalar growth_ohm_m2() const { return growth_; }
-  const Vector& theta() const { return rls_.theta(); }
+  const Vector& theta() const { return theta_; }
   const typename RlsType::Matrix& p() const { return rls_.p(); }
 
   // The first learning tick of a CC charge (see the header: G_c).
   void begin_charge() { growth_at_charge_ = growth_; }
 
   // Every model tick, in every mode: the film grows whether or not it is observed.
+  // G is a sum over the cell's life of per-tick steps of about 2e-9 ohm m2: in float, once G
+  // passes 0.03 ohm m2 a plain sum would drop every step, so the lost low part is carried.
   void propagate(Scalar j_side_a_m3, Scalar dt_s) {
-    if (std::isfinite(j_side_a_m3)) growth_ -= config_.growth_nominal_ohm_m2_per_a_m3_s * j_side_a_m3 * dt_s;
+    if (!std::isfinite(j_side_a_m3)) return;
+    const Scalar y = -config_.growth_nominal_ohm_m2_per_a_m3_s * j_side_a_m3 * dt_s + growth_carry_;
+    const Scalar sum = growth_ + y;
+    growth_carry_ = y - (sum - growth_);
+    growth_ = sum;
   }
 
   // One learning tick. u_hat: the film the model used; z = y_hat - y [V]; H = dV/dR_film [V per
@@ -111,10 +125,12 @@ class FilmGrowthIdentifier {
       return bit(FwStatus::kRejectedNonFinite);
     const Scalar s_over_h = config_.learn_inventory && std::isfinite(s_v) ? s_v / h_v_per_ohm_m2 : Scalar(0);
     const Scalar u_star = u_hat_ohm_m2 - (z_v - bias_v) / h_v_per_ohm_m2;
-    const Scalar within_charge = rls_.theta()(1) * (growth_ - growth_at_charge_);
-    Vector phi;
-    phi << Scalar(1), growth_at_charge_, s_over_h;
-    return rls_.update(phi, u_star + s_over_h * nu_model - within_charge);
+    const Real within_charge = rls_.theta()(1) * static_cast<Real>(growth_ - growth_at_charge_);
+    typename RlsType::Vector phi;
+    phi << Real(1), static_cast<Real>(growth_at_charge_), static_cast<Real>(s_over_h);
+    const StatusWord st = rls_.update(phi, static_cast<Real>(u_star) + static_cast<Real>(s_over_h * nu_model) - within_charge);
+    refresh();
+    return st;
   }
 
   // The model was moved to an inventory far from where the data so far were linearised (S is
@@ -123,41 +139,53 @@ class FilmGrowthIdentifier {
   void relinearise() {
     typename RlsType::State st = rls_.save();
     const auto p0 = make_rls_config(config_).p0_diag;
-    for (int i = 0; i < kParams * kParams; ++i) st.p[i] = Scalar(0);
+    for (int i = 0; i < kParams * kParams; ++i) st.p[i] = Real(0);
     for (int i = 0; i < kParams; ++i) st.p[i * (kParams + 1)] = p0(i);
     rls_.restore(st);
+    refresh();
   }
 
-  State save() const { return State{rls_.save(), growth_, growth_at_charge_}; }
+  State save() const { return State{rls_.save(), growth_, growth_at_charge_, growth_carry_}; }
   bool restore(const State& s) {
     RlsType candidate = rls_;
     // G is a film resistance: beyond the admissible film range it cannot be (a finite 1e308
-    // would make every later estimate infinite).
+    // would make every later estimate infinite); its compensation carry is smaller still.
     const Scalar g_max = config_.r_film_max_ohm_m2 - config_.r_film_min_ohm_m2;
     auto within = [g_max](Scalar g) { return std::isfinite(g) && g >= -g_max && g <= g_max; };
-    if (!within(s.growth_ohm_m2) || !within(s.growth_at_charge_ohm_m2) || !candidate.restore(s.rls)) return false;
+    if (!within(s.growth_ohm_m2) || !within(s.growth_at_charge_ohm_m2) || !within(s.growth_carry_ohm_m2) ||
+        !candidate.restore(s.rls))
+      return false;
     rls_ = candidate;
     growth_ = s.growth_ohm_m2;
     growth_at_charge_ = s.growth_at_charge_ohm_m2;
+    growth_carry_ = s.growth_carry_ohm_m2;
+    refresh();
     return true;
   }
 
  private:
   static typename RlsType::Config make_rls_config(const Config& c) {
     typename RlsType::Config rc;
-    rc.lambda = Scalar(1);
-    const Scalar su = c.sigma_u_ohm_m2;
-    rc.p0_diag << (c.prior_r0_ohm_m2 / su) * (c.prior_r0_ohm_m2 / su), (c.prior_gain / su) * (c.prior_gain / su),
-        (c.prior_inventory / su) * (c.prior_inventory / su);
-    rc.theta0 << c.r_film_nominal_ohm_m2, Scalar(1), Scalar(0);
-    rc.p_trace_cap_factor = Scalar(1);
+    rc.lambda = Real(1);
+    const Real su = static_cast<Real>(c.sigma_u_ohm_m2);
+    const Real pr = static_cast<Real>(c.prior_r0_ohm_m2), pg = static_cast<Real>(c.prior_gain),
+               pi = static_cast<Real>(c.prior_inventory);
+    rc.p0_diag << (pr / su) * (pr / su), (pg / su) * (pg / su), (pi / su) * (pi / su);
+    rc.theta0 << static_cast<Real>(c.r_film_nominal_ohm_m2), Real(1), Real(0);
+    rc.p_trace_cap_factor = Real(1);
     return rc;
   }
 
+  // theta in Scalar, refreshed at each change: every tick reads the film from it, and on a
+  // Cortex-M4F a software-double read per tick (held ticks included) is not free.
+  void refresh() { theta_ = rls_.theta().template cast<Scalar>(); }
+
   Config config_;
   RlsType rls_;
+  Vector theta_ = Vector::Zero();
   Scalar growth_ = Scalar(0);
   Scalar growth_at_charge_ = Scalar(0);
+  Scalar growth_carry_ = Scalar(0);
 };
 
 }  // namespace bms::fw

@@ -22,6 +22,14 @@
 // V(I) = V_measured by Newton on the current with an exact derivative (dual numbers), capped
 // at kMaxNewtonIterations: every tick has a fixed worst case.
 //
+// Precision (Scalar = float on a Cortex-M4F; docs/results/target.md, "Float"): the film's signal
+// is about 1e-5 of the terminal voltage, so the state is advanced in increments, never
+// recomputed from absolute values: each implicit step solves for the change of every
+// concentration (the diffusion right-hand side uses differences of neighbours, which float
+// subtracts exactly), and the change is added with a carried compensation term (Kahan), so
+// the lithium inventory is conserved to round-off instead of drifting by the rounding of the
+// step's constants every tick (measured in float: -2.3e-4 of the inventory per cycle before).
+//
 // Firmware rules: compile-time sizes, no heap, no exceptions, no RTTI, no globals.
 #include <cmath>
 #include <cstdint>
@@ -111,6 +119,12 @@ class ReducedCell {
     // voltage of the last re-synchronisation (inventory_probe_voltage); 0 before the first.
     Scalar inventory_dir_neg_per_mol;
     Scalar inventory_dir_pos_per_mol;
+    // Compensation terms (Kahan) of the accumulated states: the low-order part of each
+    // value that its Scalar could not hold; value = stored + carry.
+    Scalar cs_neg_carry_mol_m3[kNrN];
+    Scalar cs_pos_carry_mol_m3[kNrP];
+    Scalar ce_carry_mol_m3[kNx];
+    Scalar li_loss_carry_mol;
   };
   static_assert(std::is_trivially_copyable<State>::value, "State must be trivially copyable");
 
@@ -127,6 +141,7 @@ class ReducedCell {
     s_.j_side_a_m2 = Scalar(0);
     s_.inventory_dir_neg_per_mol = Scalar(0);
     s_.inventory_dir_pos_per_mol = Scalar(0);
+    clear_carries();
   }
   void init_default() {
     init(Scalar(Cell::kNeg.stoich_init), Scalar(Cell::kPos.stoich_init), Scalar(Cell::kElectrolyteInitMolM3));
@@ -144,7 +159,7 @@ class ReducedCell {
   // within generous bounds; far outside any of them the arithmetic of a tick breaks down.
   bool restore(const State& s) {
     const Scalar li_max = inventory_of(Scalar(1), Scalar(1));
-    bool ok = within(s.li_loss_mol, -li_max, li_max) &&
+    bool ok = within(s.li_loss_mol, -li_max, li_max) && within(s.li_loss_carry_mol, -li_max, li_max) &&
               within(s.charge_c, -Scalar(kMaxChargeThroughput_c), Scalar(kMaxChargeThroughput_c)) &&
               within(s.current_a, -Scalar(kMaxCurrent_a), Scalar(kMaxCurrent_a)) &&
               within(s.j_side_a_m2, -Scalar(kMaxSideCurrent_a_m2), Scalar(kMaxSideCurrent_a_m2)) &&
@@ -155,6 +170,10 @@ class ReducedCell {
     for (int i = 0; ok && i < kNrP; ++i) ok = within(s.cs_pos_mol_m3[i], -pos_max, Scalar(2) * pos_max);
     const Scalar ce_max = Scalar(kMaxElectrolyteFactor * Cell::kElectrolyteInitMolM3);
     for (int k = 0; ok && k < kNx; ++k) ok = within(s.ce_mol_m3[k], -ce_max, ce_max);
+    // The compensation carries of the float build are rounding remainders, far below the states.
+    for (int i = 0; ok && i < kNrN; ++i) ok = within(s.cs_neg_carry_mol_m3[i], -neg_max, neg_max);
+    for (int i = 0; ok && i < kNrP; ++i) ok = within(s.cs_pos_carry_mol_m3[i], -pos_max, pos_max);
+    for (int k = 0; ok && k < kNx; ++k) ok = within(s.ce_carry_mol_m3[k], -ce_max, ce_max);
     if (!ok) return false;
     s_ = s;
     return true;
@@ -234,10 +253,14 @@ class ReducedCell {
     return Cell::kFilmMolarMassKgMol /
            (Cell::kFilmDensityKgM3 * kFaradayC_mol * Cell::kFilmConductivitySM * a_neg());
   }
-  Scalar li_loss_ah() const { return s_.li_loss_mol * Scalar(kFaradayC_mol / 3600.0); }
-  Scalar li_loss_mol() const { return s_.li_loss_mol; }
-  Scalar mean_stoich_neg() const { return mean_shell(s_.cs_neg_mol_m3, vol_n_, kNrN) / Scalar(Cell::kNeg.max_concentration_mol_m3); }
-  Scalar mean_stoich_pos() const { return mean_shell(s_.cs_pos_mol_m3, vol_p_, kNrP) / Scalar(Cell::kPos.max_concentration_mol_m3); }
+  Scalar li_loss_ah() const { return li_loss_mol() * Scalar(kFaradayC_mol / 3600.0); }
+  Scalar li_loss_mol() const { return s_.li_loss_mol + s_.li_loss_carry_mol; }
+  Scalar mean_stoich_neg() const {
+    return mean_shell(s_.cs_neg_mol_m3, s_.cs_neg_carry_mol_m3, vol_n_, kNrN) / Scalar(Cell::kNeg.max_concentration_mol_m3);
+  }
+  Scalar mean_stoich_pos() const {
+    return mean_shell(s_.cs_pos_mol_m3, s_.cs_pos_carry_mol_m3, vol_p_, kNrP) / Scalar(Cell::kPos.max_concentration_mol_m3);
+  }
 
   // Lithium held in both particles [mol]: the cyclable inventory.
   Scalar solid_inventory_mol() const {
@@ -290,27 +313,73 @@ class ReducedCell {
       const Scalar dp = (missing_mol - cap_n * dn) / cap_p;
       for (int i = 0; i < kNrN; ++i) s_.cs_neg_mol_m3[i] += dn * Scalar(Cell::kNeg.max_concentration_mol_m3);
       for (int i = 0; i < kNrP; ++i) s_.cs_pos_mol_m3[i] += dp * Scalar(Cell::kPos.max_concentration_mol_m3);
-      for (int k = 0; k < kNx; ++k) s_.ce_mol_m3[k] *= ce_scale;
+      for (int k = 0; k < kNx; ++k) {
+        s_.ce_mol_m3[k] *= ce_scale;
+        s_.ce_carry_mol_m3[k] *= ce_scale;
+      }
     };
     auto mismatch = [&](Scalar dn) {
       apply(dn);
       return peek_voltage(current_a, r_film_ohm_m2, dt_s) - voltage_v;
     };
-    Scalar a = lo, b = hi, fa = mismatch(a), fb = mismatch(b);
+    Scalar a = lo, b = hi, fa = Scalar(0), fb = Scalar(0);
+    // Every evaluation counts against kResyncIterations: the tick's cost has a fixed bound.
+    int used = 0;
+    if (!bracket_near(mismatch, lo, hi, a, b, fa, fb, used)) {
+      a = lo; b = hi; fa = mismatch(a); fb = mismatch(b);
+      used += 2;
+    }
     if (!std::isfinite(fa) || !std::isfinite(fb) || fa > Scalar(0) || fb < Scalar(0)) {
       s_ = base;
       return false;
     }
-    Scalar x = a, fx = fa;
+    const Scalar fx = regula_falsi(mismatch, a, b, fa, fb, used);
+    // s_ already holds the state at the last point (mismatch applied it).
+    if (!(std::fabs(fx) < Scalar(kResyncAcceptV))) {
+      s_ = base;
+      return false;
+    }
+    // The voltage of this state is the last mismatch's (the same evaluation): no third one.
+    set_inventory_direction(current_a, r_film_ohm_m2, dt_s, voltage_v + fx);
+    return true;
+  }
+
+  // The floor of a model voltage in this Scalar: 8 units in the last place of 4 V. In float the
+  // terminal voltage scatters from rounding by about 1e-6 V rms (most of it in the open-circuit
+  // potentials' cancelling terms of size 10; measured against double at the same state), so a
+  // tighter tolerance is met only by chance and runs the iteration to its cap.
+  static constexpr double kVoltageFloorV = 8.0 * 4.0 * static_cast<double>(std::numeric_limits<Scalar>::epsilon());
+  static constexpr double kVoltageToleranceV = kVoltageFloorV > 1e-9 ? kVoltageFloorV : 1e-9;
+  static constexpr double kInventoryProbeStoich = 1e-3;
+  static constexpr double kMaxNewtonStepA = 20.0;
+  static constexpr double kResyncMargin = 1e-3;
+  static constexpr double kResyncToleranceV = kVoltageFloorV > 1e-7 ? kVoltageFloorV : 1e-7;
+  // Evaluations of the re-synchronisation (bracket and regula falsi together): in float on a
+  // Cortex-M4F one costs about 9 600 instructions, so 18, plus the two of the inventory
+  // direction, keep a re-synchronising CV tick under 300 000 with its Newton step at the cap
+  // (96 500). A root near the present state takes 3-6 (bracket_near).
+  static constexpr int kResyncIterations = sizeof(Scalar) >= sizeof(double) ? 40 : 18;
+  static constexpr double kResyncAcceptV = 1e-4;
+  static constexpr double kResyncFirstStep = 1e-3;  // anode stoichiometry: about 1-10 mV
+  static constexpr int kResyncBracketSteps = 6;
+
+ private:
+  void shift(Scalar d_stoich_neg, Scalar d_stoich_pos) {
+    for (int i = 0; i < kNrN; ++i) s_.cs_neg_mol_m3[i] += d_stoich_neg * Scalar(Cell::kNeg.max_concentration_mol_m3);
+    for (int i = 0; i < kNrP; ++i) s_.cs_pos_mol_m3[i] += d_stoich_pos * Scalar(Cell::kPos.max_concentration_mol_m3);
+  }
+
+  // Illinois regula falsi on the bracket [a, b] (f(a) <= 0 <= f(b)) until |f| is within
+  // kResyncToleranceV or the evaluations reach kResyncIterations; returns the last f (non-
+  // finite when an evaluation was).
+  template <typename Mismatch>
+  static Scalar regula_falsi(Mismatch& mismatch, Scalar a, Scalar b, Scalar fa, Scalar fb, int used) {
+    Scalar fx = fa;
     int side = 0;
-    for (int it = 0; it < kResyncIterations; ++it) {
-      x = (a * fb - b * fa) / (fb - fa);
+    for (int it = used; it < kResyncIterations; ++it) {
+      const Scalar x = (a * fb - b * fa) / (fb - fa);
       fx = mismatch(x);
-      if (!std::isfinite(fx)) {
-        s_ = base;
-        return false;
-      }
-      if (std::fabs(fx) < Scalar(kResyncToleranceV)) break;
+      if (!std::isfinite(fx) || std::fabs(fx) < Scalar(kResyncToleranceV)) break;
       if (fx < Scalar(0)) {
         a = x; fa = fx;
         if (side == -1) fb /= Scalar(2);
@@ -321,28 +390,48 @@ class ReducedCell {
         side = 1;
       }
     }
-    // s_ already holds the state at x (mismatch applied it).
-    if (!(std::fabs(fx) < Scalar(kResyncAcceptV))) {
-      s_ = base;
-      return false;
-    }
-    // The voltage of this state is the last mismatch's (the same evaluation): no third one.
-    set_inventory_direction(current_a, r_film_ohm_m2, dt_s, voltage_v + fx);
-    return true;
+    return fx;
   }
 
-  static constexpr double kVoltageToleranceV = 1e-9;
-  static constexpr double kInventoryProbeStoich = 1e-3;
-  static constexpr double kMaxNewtonStepA = 20.0;
-  static constexpr double kResyncMargin = 1e-3;
-  static constexpr double kResyncToleranceV = 1e-7;
-  static constexpr int kResyncIterations = 40;
-  static constexpr double kResyncAcceptV = 1e-4;  // float reaches about 1e-5 V here
-
- private:
-  void shift(Scalar d_stoich_neg, Scalar d_stoich_pos) {
-    for (int i = 0; i < kNrN; ++i) s_.cs_neg_mol_m3[i] += d_stoich_neg * Scalar(Cell::kNeg.max_concentration_mol_m3);
-    for (int i = 0; i < kNrP; ++i) s_.cs_pos_mol_m3[i] += d_stoich_pos * Scalar(Cell::kPos.max_concentration_mol_m3);
+  // A bracket [a, b] of the re-synchronisation's root near the present state (dn = 0: the model
+  // is usually within a few mV of the cell), found by secant steps from 0 that overshoot the
+  // predicted root, within [lo, hi]. The regula falsi then starts a few evaluations from its
+  // tolerance instead of halving its way in from the whole admissible range (which took 25
+  // evaluations). Adds its evaluations to `used`; false when no bracket was found (the caller
+  // falls back to [lo, hi]).
+  template <typename Mismatch>
+  static bool bracket_near(Mismatch& mismatch, Scalar lo, Scalar hi, Scalar& a, Scalar& b, Scalar& fa, Scalar& fb,
+                           int& used) {
+    if (!(lo < Scalar(0) && hi > Scalar(0))) return false;
+    Scalar x = Scalar(0), fx = mismatch(x);
+    ++used;
+    if (!std::isfinite(fx)) return false;
+    Scalar step = fx < Scalar(0) ? Scalar(kResyncFirstStep) : Scalar(-kResyncFirstStep);
+    for (int n = 1; n <= kResyncBracketSteps; ++n) {
+      Scalar xn = x + step;
+      xn = xn < lo ? lo : (xn > hi ? hi : xn);
+      const Scalar fn = mismatch(xn);
+      ++used;
+      if (!std::isfinite(fn)) return false;
+      if ((fn < Scalar(0)) != (fx < Scalar(0))) {
+        if (fn < Scalar(0)) {
+          a = xn; fa = fn; b = x; fb = fx;
+        } else {
+          a = x; fa = fx; b = xn; fb = fn;
+        }
+        return true;
+      }
+      // Secant prediction of the root from the last two points, overshot so the next point
+      // lands beyond it; at least doubling the step when the slope says nothing.
+      const Scalar slope = (fn - fx) / (xn - x);
+      Scalar next = slope != Scalar(0) ? -fn / slope * Scalar(2) : step * Scalar(2);
+      if (std::fabs(next) < std::fabs(step) * Scalar(2) || (next > Scalar(0)) != (step > Scalar(0))) next = step * Scalar(2);
+      x = xn;
+      fx = fn;
+      step = next;
+      if (x == lo || x == hi) return false;
+    }
+    return false;
   }
 
   // At a re-synchronised state: the voltage's slopes to a uniform shift of each particle, and
@@ -364,9 +453,9 @@ class ReducedCell {
 
   template <typename T>
   struct Trial {
-    T cs_neg[kNrN];
-    T cs_pos[kNrP];
-    T ce[kNx];
+    T d_cs_neg[kNrN];  // changes over the tick (the step's unknowns)
+    T d_cs_pos[kNrP];
+    T d_ce[kNx];
     T voltage_v;
     T j_side_a_m3;   // volumetric, mean over the anode
     T j_side_a_m2;   // pore-wall, mean over the anode
@@ -383,13 +472,38 @@ class ReducedCell {
     return Cell::kPos.max_concentration_mol_m3 * Cell::kPos.solid_fraction * Cell::kPos.thickness_m * Cell::kAreaM2;
   }
 
-  static Scalar mean_shell(const Scalar* c, const Scalar* vol, int n) {
+  static Scalar mean_shell(const Scalar* c, const Scalar* carry, const Scalar* vol, int n) {
     Scalar sum = Scalar(0), v = Scalar(0);
     for (int i = 0; i < n; ++i) {
-      sum += c[i] * vol[i];
+      sum += (c[i] + carry[i]) * vol[i];
       v += vol[i];
     }
     return sum / v;
+  }
+
+  void clear_carries() {
+    for (int i = 0; i < kNrN; ++i) s_.cs_neg_carry_mol_m3[i] = Scalar(0);
+    for (int i = 0; i < kNrP; ++i) s_.cs_pos_carry_mol_m3[i] = Scalar(0);
+    for (int k = 0; k < kNx; ++k) s_.ce_carry_mol_m3[k] = Scalar(0);
+    s_.li_loss_carry_mol = Scalar(0);
+  }
+
+  // value + carry += increment, keeping in carry what value cannot hold (Kahan).
+  static void add_compensated(Scalar& value, Scalar& carry, Scalar increment) {
+    const Scalar y = increment + carry;
+    const Scalar sum = value + y;
+    carry = y - (sum - value);
+    value = sum;
+  }
+
+  // Diffusive exchange of cell i with its neighbours at the start of the tick, sum over the
+  // faces of g (c_i - c_j), from the differences of the stored values and of their carries.
+  template <int N>
+  static Scalar outflow(const Scalar (&c)[N], const Scalar (&carry)[N], const Scalar (&g)[N], int i) {
+    Scalar out = Scalar(0);
+    if (i > 0) out += g[i - 1] * ((c[i] - c[i - 1]) + (carry[i] - carry[i - 1]));
+    if (i + 1 < N) out += g[i] * ((c[i] - c[i + 1]) + (carry[i] - carry[i + 1]));
+    return out;
   }
 
   static void shells(double radius, int n, Scalar* vol, Scalar* cond_r2_over_d, Scalar& outer_r2,
@@ -448,21 +562,21 @@ class ReducedCell {
     for (int i = N - 2; i >= 0; --i) x[i] = x[i] / dd[i] + cp[i] * x[i + 1];
   }
 
-  // Backward-Euler particle step with molar flux out of the surface `flux_out` [mol/m2/s];
-  // returns the surface concentration.
+  // Backward-Euler particle step with molar flux out of the surface `flux_out` [mol/m2/s], in
+  // increments: (M + G) dc = -G c_old - flux term; returns the surface concentration.
   template <typename T, int N>
-  static T particle_step(const Scalar (&c_old)[N], const Scalar (&vol)[N], const Scalar* g_r2_d,
-                         Scalar outer_r2, Scalar surface_half, double ds, Scalar dt,
-                         const T& flux_out, T (&c_new)[N]) {
+  static T particle_step(const Scalar (&c_old)[N], const Scalar (&carry)[N], const Scalar (&vol)[N],
+                         const Scalar* g_r2_d, Scalar outer_r2, Scalar surface_half, double ds, Scalar dt,
+                         const T& flux_out, T (&dc)[N]) {
     Scalar m[N], g[N];
     for (int i = 0; i < N; ++i) {
       m[i] = vol[i] / dt;
       g[i] = i + 1 < N ? g_r2_d[i] * Scalar(ds) : Scalar(0);
-      c_new[i] = T(m[i] * c_old[i]);
     }
-    c_new[N - 1] = c_new[N - 1] - outer_r2 * flux_out;
-    chain_solve(m, g, c_new);
-    return c_new[N - 1] - surface_half * flux_out / Scalar(ds);
+    for (int i = 0; i < N; ++i) dc[i] = T(-outflow(c_old, carry, g, i));
+    dc[N - 1] = dc[N - 1] - outer_r2 * flux_out;
+    chain_solve(m, g, dc);
+    return (dc[N - 1] + (c_old[N - 1] + carry[N - 1])) - surface_half * flux_out / Scalar(ds);
   }
 
   template <typename T>
@@ -491,6 +605,7 @@ class ReducedCell {
 
     // Electrolyte concentration: D_e at the start of the tick, source from the uniform j.
     Scalar m[kNx], g[kNx];
+    T ce[kNx];
     {
       Scalar d_eff[kNx];
       for (int k = 0; k < kNx; ++k) {
@@ -500,10 +615,14 @@ class ReducedCell {
         m[k] = eps_[k] * dx_[k] / dt;
         g[k] = k + 1 < kNx ? Scalar(1) / (dx_[k] / (Scalar(2) * d_eff[k]) + dx_[k + 1] / (Scalar(2) * d_eff[k + 1]))
                            : Scalar(0);
-        const T j_k = k < kNn ? j_n : (k < kNn + kNs ? T(Scalar(0)) : j_p);
-        t.ce[k] = m[k] * s_.ce_mol_m3[k] + Scalar((1.0 - Cell::kTransference) / kFaradayC_mol) * a_[k] * j_k * dx_[k];
       }
-      chain_solve(m, g, t.ce);
+      for (int k = 0; k < kNx; ++k) {
+        const T j_k = k < kNn ? j_n : (k < kNn + kNs ? T(Scalar(0)) : j_p);
+        t.d_ce[k] = Scalar((1.0 - Cell::kTransference) / kFaradayC_mol) * a_[k] * j_k * dx_[k] -
+                    outflow(s_.ce_mol_m3, s_.ce_carry_mol_m3, g, k);
+      }
+      chain_solve(m, g, t.d_ce);
+      for (int k = 0; k < kNx; ++k) ce[k] = t.d_ce[k] + (s_.ce_mol_m3[k] + s_.ce_carry_mol_m3[k]);
     }
 
     // Electrolyte potential at cell centres from the ionic current on the faces
@@ -513,15 +632,15 @@ class ReducedCell {
     {
       T psi = T(Scalar(0));
       T ie = T(Scalar(0));
-      T kap_k = Cell::electrolyte_conductivity_s_m(clamp_low(t.ce[0])) * te_[0];
-      phie[0] = nu * log(clamp_low(t.ce[0]));
+      T kap_k = Cell::electrolyte_conductivity_s_m(clamp_low(ce[0])) * te_[0];
+      phie[0] = nu * log(clamp_low(ce[0]));
       for (int k = 0; k + 1 < kNx; ++k) {
         const T j_k = k < kNn ? j_n : (k < kNn + kNs ? T(Scalar(0)) : j_p);
         ie = ie + a_[k] * j_k * dx_[k];
-        const T kap_n = Cell::electrolyte_conductivity_s_m(clamp_low(t.ce[k + 1])) * te_[k + 1];
+        const T kap_n = Cell::electrolyte_conductivity_s_m(clamp_low(ce[k + 1])) * te_[k + 1];
         const T rk = dx_[k] / (Scalar(2) * kap_k) + dx_[k + 1] / (Scalar(2) * kap_n);
         psi = psi - ie * rk;
-        phie[k + 1] = psi + nu * log(clamp_low(t.ce[k + 1]));
+        phie[k + 1] = psi + nu * log(clamp_low(ce[k + 1]));
         kap_k = kap_n;
       }
     }
@@ -534,14 +653,14 @@ class ReducedCell {
     T cs_surf_n = T(Scalar(0));
     for (int pass = 0; pass <= kSidePasses; ++pass) {
       const T flux_out = (j_n - js) / Scalar(kFaradayC_mol);
-      cs_surf_n = clamp_conc(particle_step(s_.cs_neg_mol_m3, vol_n_, g_n_, r2_n_, half_n_,
-                                           Cell::kNeg.solid_diffusivity_m2_s, dt, flux_out, t.cs_neg),
+      cs_surf_n = clamp_conc(particle_step(s_.cs_neg_mol_m3, s_.cs_neg_carry_mol_m3, vol_n_, g_n_, r2_n_, half_n_,
+                                           Cell::kNeg.solid_diffusivity_m2_s, dt, flux_out, t.d_cs_neg),
                              cmax_n);
       const T ocp = Cell::ocp_neg_v(cs_surf_n / Scalar(cmax_n));
       T js_sum = T(Scalar(0));
       phis_n = T(Scalar(0));
       for (int k = 0; k < kNn; ++k) {
-        const T i0 = Scalar(Cell::kNeg.i0_coefficient) * sqrt(clamp_low(t.ce[k]) * cs_surf_n * (Scalar(cmax_n) - cs_surf_n));
+        const T i0 = Scalar(Cell::kNeg.i0_coefficient) * sqrt(clamp_low(ce[k]) * cs_surf_n * (Scalar(cmax_n) - cs_surf_n));
         const T eta = Scalar(2) / frt * asinh_of((j_n - js) / (Scalar(2) * i0));
         phis_n = phis_n + phie[k] + ocp + eta + j_n * r_film;
         T arg = Scalar(-Cell::kSideAlpha) * frt * (eta + ocp - Scalar(Cell::kSideRefPotentialV));
@@ -555,13 +674,13 @@ class ReducedCell {
 
     // Positive electrode.
     const T cs_surf_p = clamp_conc(
-        particle_step(s_.cs_pos_mol_m3, vol_p_, g_p_, r2_p_, half_p_, Cell::kPos.solid_diffusivity_m2_s, dt,
-                      T(j_p / Scalar(kFaradayC_mol)), t.cs_pos),
+        particle_step(s_.cs_pos_mol_m3, s_.cs_pos_carry_mol_m3, vol_p_, g_p_, r2_p_, half_p_,
+                      Cell::kPos.solid_diffusivity_m2_s, dt, T(j_p / Scalar(kFaradayC_mol)), t.d_cs_pos),
         cmax_p);
     const T ocp_p = Cell::ocp_pos_v(cs_surf_p / Scalar(cmax_p));
     T phis_p = T(Scalar(0));
     for (int k = kNn + kNs; k < kNx; ++k) {
-      const T i0 = Scalar(Cell::kPos.i0_coefficient) * sqrt(clamp_low(t.ce[k]) * cs_surf_p * (Scalar(cmax_p) - cs_surf_p));
+      const T i0 = Scalar(Cell::kPos.i0_coefficient) * sqrt(clamp_low(ce[k]) * cs_surf_p * (Scalar(cmax_p) - cs_surf_p));
       phis_p = phis_p + phie[k] + ocp_p + Scalar(2) / frt * asinh_of(j_p / (Scalar(2) * i0));
     }
     phis_p = phis_p / Scalar(kNp);
@@ -582,15 +701,17 @@ class ReducedCell {
 
   bool commit(const Trial<Scalar>& t, Scalar current_a, Scalar dt) {
     bool ok = std::isfinite(t.voltage_v) && std::isfinite(t.j_side_a_m2);
-    for (int i = 0; ok && i < kNrN; ++i) ok = std::isfinite(t.cs_neg[i]);
-    for (int i = 0; ok && i < kNrP; ++i) ok = std::isfinite(t.cs_pos[i]);
-    for (int k = 0; ok && k < kNx; ++k) ok = std::isfinite(t.ce[k]);
+    for (int i = 0; ok && i < kNrN; ++i) ok = std::isfinite(t.d_cs_neg[i]);
+    for (int i = 0; ok && i < kNrP; ++i) ok = std::isfinite(t.d_cs_pos[i]);
+    for (int k = 0; ok && k < kNx; ++k) ok = std::isfinite(t.d_ce[k]);
     if (!ok) return false;
-    for (int i = 0; i < kNrN; ++i) s_.cs_neg_mol_m3[i] = t.cs_neg[i];
-    for (int i = 0; i < kNrP; ++i) s_.cs_pos_mol_m3[i] = t.cs_pos[i];
-    for (int k = 0; k < kNx; ++k) s_.ce_mol_m3[k] = t.ce[k];
-    // Lithium consumed by the side reaction over the anode (j_s < 0 consumes).
-    s_.li_loss_mol -= t.j_side_a_m2 * Scalar(a_neg() * Cell::kNeg.thickness_m * Cell::kAreaM2 / kFaradayC_mol) * dt;
+    for (int i = 0; i < kNrN; ++i) add_compensated(s_.cs_neg_mol_m3[i], s_.cs_neg_carry_mol_m3[i], t.d_cs_neg[i]);
+    for (int i = 0; i < kNrP; ++i) add_compensated(s_.cs_pos_mol_m3[i], s_.cs_pos_carry_mol_m3[i], t.d_cs_pos[i]);
+    for (int k = 0; k < kNx; ++k) add_compensated(s_.ce_mol_m3[k], s_.ce_carry_mol_m3[k], t.d_ce[k]);
+    // Lithium consumed by the side reaction over the anode (j_s < 0 consumes): a sum that
+    // grows over the cell's life while each tick adds about 1e-10 mol.
+    add_compensated(s_.li_loss_mol, s_.li_loss_carry_mol,
+                    -t.j_side_a_m2 * Scalar(a_neg() * Cell::kNeg.thickness_m * Cell::kAreaM2 / kFaradayC_mol) * dt);
     s_.charge_c += current_a * dt;
     s_.current_a = current_a;
     s_.j_side_a_m2 = t.j_side_a_m2;

@@ -114,7 +114,8 @@ template <class S>
 constexpr std::uint32_t state_schema(Type<FilmGrowthIdentifier<S>> /*tag*/) {
   using St = typename FilmGrowthIdentifier<S>::State;
   constexpr Field f[] = {BMS_SCHEMA_NESTED(St, rls, typename FilmGrowthIdentifier<S>::RlsType),
-                         BMS_SCHEMA_FIELD(St, growth_ohm_m2), BMS_SCHEMA_FIELD(St, growth_at_charge_ohm_m2)};
+                         BMS_SCHEMA_FIELD(St, growth_ohm_m2), BMS_SCHEMA_FIELD(St, growth_at_charge_ohm_m2),
+                         BMS_SCHEMA_FIELD(St, growth_carry_ohm_m2)};
   static_assert(covers(f, sizeof(St), alignof(St)), "FilmGrowthIdentifier::State changed: update its schema table");
   return hash("FilmGrowthIdentifier.State", f, sizeof(St));
 }
@@ -165,7 +166,11 @@ constexpr std::uint32_t state_schema(Type<ReducedCell<S, Cell, Mesh>> /*tag*/) {
                          BMS_SCHEMA_FIELD(St, current_a),
                          BMS_SCHEMA_FIELD(St, j_side_a_m2),
                          BMS_SCHEMA_FIELD(St, inventory_dir_neg_per_mol),
-                         BMS_SCHEMA_FIELD(St, inventory_dir_pos_per_mol)};
+                         BMS_SCHEMA_FIELD(St, inventory_dir_pos_per_mol),
+                         BMS_SCHEMA_FIELD(St, cs_neg_carry_mol_m3),
+                         BMS_SCHEMA_FIELD(St, cs_pos_carry_mol_m3),
+                         BMS_SCHEMA_FIELD(St, ce_carry_mol_m3),
+                         BMS_SCHEMA_FIELD(St, li_loss_carry_mol)};
   static_assert(covers(f, sizeof(St), alignof(St)), "ReducedCell::State changed: update its schema table");
   return hash("ReducedCell.State", f, sizeof(St));
 }
