@@ -133,7 +133,7 @@ TEST(ParticleSize, DischargeConservesChargeAndFillsSmallParticlesFirst) {
   const auto& p = cell.positive;
   const double cathode_mol = (m.mean_stoich(y, false) - cathode0) * p.max_concentration_mol_m3 * p.solid_fraction *
                              p.thickness_m * cell.electrode_area_m2;
-  const double passed_mol = y[m.idx_charge()] * 3600.0 / kFaraday_c_mol;
+  const double passed_mol = y[m.idx_charge()] * 3600.0 / kFaradayC_mol;
   ASSERT_GT(passed_mol, 0.0);
   EXPECT_NEAR(cathode_mol, passed_mol, 1e-4 * passed_mol);
   EXPECT_NEAR(m.lithium_inventory_mol(y), inventory0, 1e-6 * inventory0);

@@ -50,7 +50,7 @@ double diffusion_potential_v(const ScalarFunctionPtr& factor) {
 double nu_v() {
   const CellParameters cell = make_paper_cell();
   return 2.0 * (1.0 - cell.electrolyte.transference_number) * kGas_j_mol_k * cell.thermal.ambient_temperature_k /
-         kFaraday_c_mol;
+         kFaradayC_mol;
 }
 
 TEST(ThermodynamicFactor, NoCurrentDiffusionPotential) {

@@ -16,7 +16,7 @@ namespace {
 
 using nlohmann::json;
 
-constexpr double kFaraday = 96485.33212;
+constexpr double kFaradayC_mol = 96485.33212;  // C/mol
 const std::string kLfpFile = BMS_SHARED_DIR "/data/aboutenergy-lfp18650/lfp_18650_cell_BPX.json";
 
 json lfp_json() { return json::parse(read_text_file(kLfpFile)); }
@@ -39,7 +39,7 @@ json& positive(json& j) { return j["Parameterisation"]["Positive electrode"]; }
 // Theoretical capacity of an electrode between its stoichiometry limits, in A h.
 double electrode_capacity_ah(const CellParameters& p, const ElectrodeParameters& e) {
   return e.solid_fraction * e.thickness_m * p.electrode_area_m2 * e.max_concentration_mol_m3 *
-         (e.stoich_max - e.stoich_min) * kFaraday / 3600.0;
+         (e.stoich_max - e.stoich_min) * kFaradayC_mol / 3600.0;
 }
 
 TEST(BpxReader, ReadsTheAboutEnergyLfpCell) {
@@ -63,7 +63,7 @@ TEST(BpxReader, ReadsTheAboutEnergyLfpCell) {
   EXPECT_DOUBLE_EQ(n.solid_diffusivity_m2_s, 9.6e-15);
   EXPECT_DOUBLE_EQ(n.max_concentration_mol_m3, 31400);
   EXPECT_DOUBLE_EQ(n.conductivity_eff_s_m, 7.46);
-  EXPECT_DOUBLE_EQ(n.i0_coefficient, kFaraday * 6.872e-6 / (std::sqrt(1000.0) * 31400));
+  EXPECT_DOUBLE_EQ(n.i0_coefficient, kFaradayC_mol * 6.872e-6 / (std::sqrt(1000.0) * 31400));
   EXPECT_DOUBLE_EQ(n.stoich_min, 0.0016261);
   EXPECT_DOUBLE_EQ(n.stoich_max, 0.82258);
   EXPECT_DOUBLE_EQ(n.stoich_init, 0.82258);

@@ -99,7 +99,7 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
           "'Density [kg.m-3]', 'Volume [m3]')");
   }
   temperature_dependent_ = effects.thermal_on() || temperature_k != cell.thermal.reference_temperature_k;
-  f_rt_ = kFaraday_c_mol / (kGas_j_mol_k * temperature_k_);
+  f_rt_ = kFaradayC_mol / (kGas_j_mol_k * temperature_k_);
   nx_ = mesh.n_neg + mesh.n_sep + mesh.n_pos;
   ne_ = mesh.n_neg + mesh.n_pos;
   cs_end_ = 2 * nx_ + ne_ * mesh.n_r;
@@ -296,7 +296,7 @@ void DfnModel::set_side_reaction_enabled(bool on) {
 }
 
 double DfnModel::film_growth_factor(const SideReactionParameters& s) {
-  return s.film_growth_scale * (s.molar_mass_kg_mol / (s.density_kg_m3 * kFaraday_c_mol * s.film_conductivity_s_m));
+  return s.film_growth_scale * (s.molar_mass_kg_mol / (s.density_kg_m3 * kFaradayC_mol * s.film_conductivity_s_m));
 }
 
 template <typename T>
@@ -321,7 +321,7 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
   const bool thermal = idx_temp_ >= 0;
   const bool want_heat = thermal || heat != nullptr;
   const T temp = thermal ? y[idx_temp_] : T(temperature_k_);
-  const T f_rt = temp_dep ? T(kFaraday_c_mol / kGas_j_mol_k) / temp : T(f_rt_);
+  const T f_rt = temp_dep ? T(kFaradayC_mol / kGas_j_mol_k) / temp : T(f_rt_);
   const T nu = temp_dep ? T(2.0 * (1.0 - tplus)) / f_rt : T(2.0 * (1.0 - tplus) / f_rt_);  // V, without the TDF
   const T half_f = temp_dep ? T(0.5) * f_rt : T(0.5 * f_rt_);
   const T minus_alpha_f_side =
@@ -392,7 +392,7 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
       for (int pop = 1; pop < n_populations(e); ++pop) a_j = a_j + a_pop_[side_of(e)][pop] * y[idx_j_pop(e, pop)];
       source = a_j * dx_[k];
     }
-    g[idx_ce(k)] = flux_right - flux_left + (1.0 - tplus) / kFaraday_c_mol * source;
+    g[idx_ce(k)] = flux_right - flux_left + (1.0 - tplus) / kFaradayC_mol * source;
     g[idx_phie(k)] = ie_right - ie_left - source;
     flux_left = flux_right;
     ie_left = ie_right;
@@ -429,7 +429,7 @@ void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
       const T jp = pop == 0 ? j : y[idx_j_pop(e, pop)];
       T js = T(0.0);
       if (neg && side_on) js = side_current(phis, phie, jp, r_film, minus_alpha_f_side);
-      const T flux_out = (jp - js) / kFaraday_c_mol;
+      const T flux_out = (jp - js) / kFaradayC_mol;
       for (int r = 0; r < nr; ++r) {
         const T c = y[idx_cs_pop(e, pop, r)];
         T in_right = r + 1 < nr ? face_r2_[side * (nr + 1) + r + 1] * ds * (y[idx_cs_pop(e, pop, r + 1)] - c) /
@@ -536,7 +536,7 @@ HeatRates DfnModel::heat_rates(const double* y) const {
 double DfnModel::mean_side_current_a_m2(const double* y) const {
   if (!cell_.side.enabled) return 0.0;
   const double minus_alpha_f = -cell_.side.transfer_coefficient *
-                               (temperature_dependent_ ? kFaraday_c_mol / kGas_j_mol_k / temperature_k(y) : f_rt_);
+                               (temperature_dependent_ ? kFaradayC_mol / kGas_j_mol_k / temperature_k(y) : f_rt_);
   double sum = 0.0;
   for (int e = 0; e < mesh_.n_neg; ++e)
     sum += side_current(y[idx_phis(e)], y[idx_phie(e)], y[idx_j(e)], y[idx_film()], minus_alpha_f) * dx_[e];
@@ -546,7 +546,7 @@ double DfnModel::mean_side_current_a_m2(const double* y) const {
 void DfnModel::film_row_jacobian(const double* y, std::vector<std::pair<int, double>>& out) const {
   out.clear();
   const double r = y[idx_film()];
-  const double f_rt = temperature_dependent_ ? kFaraday_c_mol / kGas_j_mol_k / temperature_k(y) : f_rt_;
+  const double f_rt = temperature_dependent_ ? kFaradayC_mol / kGas_j_mol_k / temperature_k(y) : f_rt_;
   const double alpha_f = cell_.side.transfer_coefficient * f_rt;
   const double scale = film_frozen_ || !cell_.side.enabled ? 0.0 : -film_growth_factor() / cell_.negative.thickness_m;
   double d_r = 0.0, d_temp = 0.0;
@@ -617,7 +617,7 @@ double DfnModel::lithium_loss_mol(double r_film, double r_film_start) const {
   // dR/dt = -factor mean(js); Li loss rate = -A L_n a_n mean(js) / F. The factor carries
   // film_growth_scale, so dividing by it gives the lithium whatever the scale (which is > 0).
   const double per_r = cell_.electrode_area_m2 * cell_.negative.thickness_m *
-                       cell_.negative.surface_area_per_volume_m() / (kFaraday_c_mol * film_growth_factor());
+                       cell_.negative.surface_area_per_volume_m() / (kFaradayC_mol * film_growth_factor());
   return (r_film - r_film_start) * per_r;
 }
 

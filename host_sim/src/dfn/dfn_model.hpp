@@ -12,7 +12,7 @@
 
 namespace bms {
 
-inline constexpr double kFaraday_c_mol = fw::kFaradayC_mol;
+using fw::kFaradayC_mol;
 inline constexpr double kGas_j_mol_k = fw::kGasJ_molK;
 
 struct DfnMesh {

@@ -21,7 +21,7 @@ constexpr double kStoichEdge = 2e-3;
 constexpr double kKeepStepShare = 0.25;
 
 double electrode_capacity_ah(const CellParameters& cell, const ElectrodeParameters& e) {
-  return kFaraday_c_mol * cell.electrode_area_m2 * e.thickness_m * e.solid_fraction * e.max_concentration_mol_m3 /
+  return kFaradayC_mol * cell.electrode_area_m2 * e.thickness_m * e.solid_fraction * e.max_concentration_mol_m3 /
          3600.0;
 }
 

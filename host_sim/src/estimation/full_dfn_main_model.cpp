@@ -72,7 +72,7 @@ fw::ModelTickResult<double> FullDfnMainModel::step(ControlKind kind, double valu
 }
 
 double FullDfnMainModel::li_loss_ah() const {
-  return (inventory0_mol_ - model_.lithium_inventory_mol(solver_->y().data())) * kFaraday_c_mol / 3600.0;
+  return (inventory0_mol_ - model_.lithium_inventory_mol(solver_->y().data())) * kFaradayC_mol / 3600.0;
 }
 
 double FullDfnMainModel::li_loss_mol() const {

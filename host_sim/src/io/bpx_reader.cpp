@@ -27,7 +27,7 @@ namespace {
 
 using nlohmann::json;
 
-constexpr double kFaraday = 96485.33212;  // C/mol
+constexpr double kFaradayC_mol = 96485.33212;  // C/mol, the firmware's value (bms_io builds without the firmware)
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kDefaultReferenceTemperatureK = 298.15;
 
@@ -216,7 +216,7 @@ ElectrodeParameters read_electrode(const Section& s, double c_e0, bool negative)
   // BPX: j0 = F k sqrt((c_e/c_e0) (c_s/c_max) (1 - c_s/c_max)), folded into the struct's
   // i0 = i0_coefficient sqrt(c_e c_s (c_max - c_s)).
   const double k_norm = s.number("Reaction rate constant [mol.m-2.s-1]", kRateConstant);
-  e.i0_coefficient = kFaraday * k_norm / (std::sqrt(c_e0) * e.max_concentration_mol_m3);
+  e.i0_coefficient = kFaradayC_mol * k_norm / (std::sqrt(c_e0) * e.max_concentration_mol_m3);
 
   e.stoich_min = s.number("Minimum stoichiometry", kStoichiometry);
   e.stoich_max = s.number("Maximum stoichiometry", kStoichiometry);

@@ -194,7 +194,7 @@ SimulationResult run_experiment(const SimulationConfig& cfg, const Experiment& e
     cs.growth_pct = cs.r_film_start_ohm_m2 > 0.0
                         ? 100.0 * (cs.r_film_end_ohm_m2 - cs.r_film_start_ohm_m2) / cs.r_film_start_ohm_m2
                         : 0.0;
-    cs.li_loss_ah = model.lithium_loss_mol(cs.r_film_end_ohm_m2, cs.r_film_start_ohm_m2) * kFaraday_c_mol / 3600.0;
+    cs.li_loss_ah = model.lithium_loss_mol(cs.r_film_end_ohm_m2, cs.r_film_start_ohm_m2) * kFaradayC_mol / 3600.0;
     out.cycles.push_back(cs);
     sink.on_cycle(cs);
   }

@@ -20,7 +20,7 @@ class Recorder {
     s.voltage_v = m_.terminal_voltage_v(y.data());
     s.r_film_ohm_m2 = y[m_.idx_film()];
     s.j_s_a_m3 = m_.mean_side_current_a_m2(y.data()) * m_.cell().negative.surface_area_per_volume_m();
-    s.li_loss_ah = m_.lithium_loss_mol(s.r_film_ohm_m2, r0_) * kFaraday_c_mol / 3600.0;
+    s.li_loss_ah = m_.lithium_loss_mol(s.r_film_ohm_m2, r0_) * kFaradayC_mol / 3600.0;
     s.temperature_k = m_.temperature_k(y.data());
     s.charge_ah = y[m_.idx_charge()];
     s.inventory_mol = m_.lithium_inventory_mol(y.data());

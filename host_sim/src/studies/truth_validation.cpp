@@ -83,12 +83,12 @@ ConservationReport check_conservation(const CellParameters& cell, int cycles) {
     const auto& s0 = r.samples.front();
     const auto& s1 = r.samples.back();
     const double dn_cathode = (s1.stoich_pos - s0.stoich_pos) * capacity_mol;
-    rep.throughput_vs_cathode_rel = std::abs(s1.charge_ah * 3600.0 / kFaraday_c_mol - dn_cathode) / capacity_mol;
+    rep.throughput_vs_cathode_rel = std::abs(s1.charge_ah * 3600.0 / kFaradayC_mol - dn_cathode) / capacity_mol;
   }
   {
     const auto r = run_cccv(config_for(cell, DfnMesh{}), protocol_for(cell, cycles, fw::paper::kCurrent_a));
     rep.li_loss_mol = r.samples.front().inventory_mol - r.samples.back().inventory_mol;
-    const double per_a_m3 = cell.electrode_area_m2 * cell.negative.thickness_m / kFaraday_c_mol;
+    const double per_a_m3 = cell.electrode_area_m2 * cell.negative.thickness_m / kFaradayC_mol;
     double integral = 0.0, charge_trap = 0.0, charge_state = 0.0;
     for (size_t i = 1; i < r.samples.size(); ++i) {
       const auto& a = r.samples[i - 1];
@@ -104,7 +104,7 @@ ConservationReport check_conservation(const CellParameters& cell, int cycles) {
     }
     rep.li_side_current_mol = integral;
     rep.li_loss_rel_error = std::abs(rep.li_loss_mol - integral) / std::abs(integral);
-    const double throughput_ah = capacity_mol * kFaraday_c_mol / 3600.0;
+    const double throughput_ah = capacity_mol * kFaradayC_mol / 3600.0;
     rep.charge_state_vs_trapezoid_rel = std::abs(charge_state - charge_trap) / throughput_ah;
   }
   return rep;
