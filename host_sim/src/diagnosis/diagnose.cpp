@@ -601,6 +601,31 @@ void fit_all_and_after(Context& ctx, DiagnosisResult& out, const Candidate& best
   out.max_abs_after_mv = all.max_abs;
 }
 
+// The Fisher information J^T J / sigma^2 of a few knobs and its pseudo-inverse, in matrices of
+// bounded size: the host links the firmware's EIGEN_NO_MALLOC, so nothing here may allocate.
+constexpr std::size_t kMaxFisherKnobs = 16;
+using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxFisherKnobs, kMaxFisherKnobs>;
+
+SmallMatrix fisher_pseudo_inverse(const std::vector<std::vector<double>>& columns, double sigma) {
+  const auto p = static_cast<Eigen::Index>(columns.size());
+  SmallMatrix fisher(p, p);
+  for (Eigen::Index a = 0; a < p; ++a)
+    for (Eigen::Index b = 0; b <= a; ++b) {
+      double dot = 0.0;
+      const auto& ca = columns[static_cast<std::size_t>(a)];
+      const auto& cb = columns[static_cast<std::size_t>(b)];
+      for (std::size_t i = 0; i < std::min(ca.size(), cb.size()); ++i) dot += ca[i] * cb[i];
+      fisher(a, b) = fisher(b, a) = dot / (sigma * sigma);
+    }
+  const Eigen::SelfAdjointEigenSolver<SmallMatrix> eig(fisher);
+  const auto& lambda = eig.eigenvalues();
+  const double tol = 1e-12 * std::max(lambda.cwiseAbs().maxCoeff(), 1e-300);
+  SmallMatrix inv_lambda = SmallMatrix::Zero(p, p);
+  for (Eigen::Index k = 0; k < p; ++k)
+    if (lambda(k) > tol) inv_lambda(k, k) = 1.0 / lambda(k);
+  return eig.eigenvectors() * inv_lambda * eig.eigenvectors().transpose();
+}
+
 // Sensitivity of the model voltage to every candidate knob at the fitted model, and the
 // Fisher information of the selected ones: J^T J / sigma^2 with sigma = the floor.
 void identifiability(Context& ctx, DiagnosisResult& out) {
@@ -611,7 +636,7 @@ void identifiability(Context& ctx, DiagnosisResult& out) {
       if (effect_available(k) && std::find(knobs.begin(), knobs.end(), k) == knobs.end()) knobs.push_back(k);
   std::vector<std::vector<double>> base(ctx.cases.size());
   for (std::size_t c = 0; c < ctx.cases.size(); ++c) base[c] = ctx.eval.voltage(c, out.model, false);
-  std::vector<Eigen::VectorXd> columns;
+  std::vector<std::vector<double>> columns;
   for (Effect k : knobs) {
     const SearchSpace sp = search_space(k, ctx.imax, ctx.dt_s);
     Hypothesis h = out.model;
@@ -634,17 +659,15 @@ void identifiability(Context& ctx, DiagnosisResult& out) {
     ki.knob = k;
     ki.value = knob_value(out.model, k, neutral_value(k));
     ki.selected = out.identifiability.size() < n_selected;
-    const Eigen::VectorXd j = Eigen::Map<Eigen::VectorXd>(col.data(), static_cast<Eigen::Index>(col.size()));
-    ki.sensitivity_mv = j.norm() / std::sqrt(static_cast<double>(std::max<Eigen::Index>(j.size(), 1)));
-    if (ki.selected) columns.push_back(j);
+    double sum_sq = 0.0;
+    for (double x : col) sum_sq += x * x;
+    ki.sensitivity_mv = std::sqrt(sum_sq / static_cast<double>(std::max<std::size_t>(col.size(), 1)));
+    if (ki.selected && columns.size() < kMaxFisherKnobs) columns.push_back(std::move(col));
     out.identifiability.push_back(ki);
   }
   if (columns.empty()) return;
   const double sigma = std::max(out.floor_mv, 0.01);
-  Eigen::MatrixXd jm(columns.front().size(), static_cast<Eigen::Index>(columns.size()));
-  for (std::size_t k = 0; k < columns.size(); ++k) jm.col(static_cast<Eigen::Index>(k)) = columns[k];
-  const Eigen::MatrixXd fisher = jm.transpose() * jm / (sigma * sigma);
-  const Eigen::MatrixXd cov = fisher.completeOrthogonalDecomposition().pseudoInverse();
+  const SmallMatrix cov = fisher_pseudo_inverse(columns, sigma);
   for (std::size_t k = 0; k < columns.size(); ++k) {
     auto& ki = out.identifiability[k];
     const auto i = static_cast<Eigen::Index>(k);

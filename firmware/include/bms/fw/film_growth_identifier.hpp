@@ -28,6 +28,7 @@
 //
 // When it learns (named as in PX4 EKF2's aid sources): start when the tick is in CC charge past
 // the warm-up and the model gave a valid H > 0; continue while so; stop (hold theta) otherwise.
+#include <cstddef>
 #include <cmath>
 #include <cstdint>
 #include <type_traits>
@@ -139,8 +140,8 @@ class FilmGrowthIdentifier {
   void relinearise() {
     typename RlsType::State st = rls_.save();
     const auto p0 = make_rls_config(config_).p0_diag;
-    for (int i = 0; i < kParams * kParams; ++i) st.p[i] = Real(0);
-    for (int i = 0; i < kParams; ++i) st.p[i * (kParams + 1)] = p0(i);
+    for (Real& p : st.p) p = Real(0);
+    for (int i = 0; i < kParams; ++i) st.p[static_cast<std::ptrdiff_t>(i) * (kParams + 1)] = p0(i);
     rls_.restore(st);
     refresh();
   }
