@@ -146,9 +146,7 @@ Runner add_diagnose(CLI::App& app) {
     settings.max_effects = o->max_effects;
     settings.search_drive_tolerance = o->search_drive_tolerance;
     settings.open_gain = o->open_gain;
-    CurrentSign sign = CurrentSign::by_layout;
-    if (o->current_sign != "by-layout" && !parse_current_sign(o->current_sign, sign))
-      throw InputError("--current-sign: '" + o->current_sign + "' is not discharge-positive or charge-positive");
+    const CurrentSign sign = current_sign_option(o->current_sign);
     const CellParameters cell = load_cell(o->cell);
     std::vector<diagnosis::Record> records;
     for (const auto& d : o->data) {

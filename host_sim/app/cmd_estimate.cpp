@@ -163,9 +163,7 @@ Runner add_estimate(CLI::App& app) {
       throw InputError("--r-film-init: must be a finite film resistance in [0, 1] ohm m2");
     const CellParameters cell = load_cell(c->cell);
     c->o.ic = perturbed_initial_conditions(cell, c->ic_error_pct);
-    CurrentSign sign = CurrentSign::by_layout;
-    if (!c->current_sign.empty() && !parse_current_sign(c->current_sign, sign))
-      throw InputError("--current-sign: '" + c->current_sign + "' is not discharge-positive or charge-positive");
+    const CurrentSign sign = current_sign_option(c->current_sign);
     const EstimateData data = read_estimate_data(c->data, sign);
     const bool quiet = c->quiet;
     auto progress = [quiet](std::size_t row, std::size_t rows) {

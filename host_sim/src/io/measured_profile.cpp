@@ -213,6 +213,13 @@ bool parse_current_sign(std::string_view text, CurrentSign& out) {
   return true;
 }
 
+CurrentSign current_sign_option(std::string_view text) {
+  CurrentSign sign = CurrentSign::by_layout;
+  if (!text.empty() && text != "by-layout" && !parse_current_sign(text, sign))
+    throw InputError("--current-sign: '" + std::string(text) + "' is not discharge-positive or charge-positive");
+  return sign;
+}
+
 MeasuredProfile parse_measured_profile(std::string_view text, std::string_view name,
                                        ProfileColumns which, CurrentSign sign) {
   const CsvTable table = parse_csv(text, name, {"mode"});

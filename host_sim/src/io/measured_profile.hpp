@@ -45,5 +45,8 @@ MeasuredProfile parse_measured_profile(std::string_view text, std::string_view n
                                        ProfileColumns which, CurrentSign sign = CurrentSign::by_layout);
 // "discharge-positive" / "charge-positive"; false for anything else.
 bool parse_current_sign(std::string_view text, CurrentSign& out);
+// The --current-sign option of the commands that read measured files: "" or "by-layout" is
+// CurrentSign::by_layout; anything but the two names is an InputError naming the option.
+CurrentSign current_sign_option(std::string_view text);
 
 }  // namespace bms
