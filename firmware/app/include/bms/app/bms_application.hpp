@@ -15,6 +15,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <type_traits>
 
 #include "bms/app/state_persistence.hpp"
 #include "bms/app/tick_supervisor.hpp"
@@ -34,6 +35,8 @@ template <class Core>
 class BmsApplication {
  public:
   using Persistence = StatePersistence<Core>;
+  // The core's number type (float on a single-precision FPU): the bus's values are doubles.
+  using CoreScalar = std::remove_cv_t<decltype(Core::Output::r_film_est_ohm_m2)>;
   using Persisted = typename Persistence::Persisted;
   using Store = typename Persistence::Store;
   static constexpr std::uint32_t kPersistedTag = Persistence::kPersistedTag;
@@ -124,7 +127,7 @@ class BmsApplication {
     const fw::TickInput<double> in = receive_frames();
     receiver_.on_tick();
     if (reset_requested_) reset_estimator();
-    const auto out = core_.tick(in);
+    const auto out = core_.tick({CoreScalar(in.voltage_v), CoreScalar(in.current_a), in.present});
     last_ = out;
     // Real time: a tick the timer skipped is an overrun of the tick before it.
     const bool late = !o_.lockstep && missed > 0u;
