@@ -4,8 +4,10 @@
 
 #include <cstdint>
 
-#include "bms/hal/nvm.hpp"
-#include "bms/hal/watchdog.hpp"
+namespace bms::hal {
+class NonVolatileMemory;
+class Watchdog;
+}  // namespace bms::hal
 
 namespace bms::target {
 

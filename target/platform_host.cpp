@@ -2,6 +2,9 @@
 // array as non-volatile memory.
 #include "platform.hpp"
 
+#include "bms/hal/nvm.hpp"
+#include "bms/hal/watchdog.hpp"
+
 #include <cstdio>
 #include <cstring>
 
