@@ -138,7 +138,10 @@ Args parse_args(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string f = argv[i];
     auto value = [&]() -> std::string {
-      if (i + 1 >= argc) bad_argument("the flag needs a value", f);
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "bms-firmware: %s needs a value\n", f.c_str());
+        std::exit(2);
+      }
       return argv[++i];
     };
     if (f == "--can") a.iface = value();
