@@ -1,7 +1,7 @@
 // See replay_tick.hpp.
 #include "replay_tick.hpp"
 
-#include <bms/fw/paper_cell_profiles.hpp>
+#include <bms/fw/make_config.hpp>
 
 namespace bms::target {
 
@@ -13,12 +13,16 @@ Model initial_model() {
 }
 }  // namespace
 
-// The default profile of every caller (bms/fw/paper_cell_profiles.hpp): best, in double (host,
+// The default profile of every caller (bms/fw/make_config.hpp): best, in double (host,
 // Cortex-M7) and in float (Cortex-M4F; the numerics that keep the film signal in float are
 // described in reduced_cell.hpp and docs/results/target.md).
-constexpr bms::fw::Profile kReplayProfile = bms::fw::Profile::best;
-ReplayFirmware::ReplayFirmware()
-    : model(initial_model()), core(bms::fw::paper_cell_config<Core>(kReplayProfile), model) {}
+Core::Config firmware_config() {
+  return bms::fw::make_config<Core>(bms::fw::paper_nominal_cell<Scalar>(), bms::fw::Profile::best);
+}
+
+Model initial_firmware_model() { return initial_model(); }
+
+ReplayFirmware::ReplayFirmware() : model(initial_model()), core(firmware_config(), model) {}
 
 TickOutput replay_tick(ReplayFirmware& fw, Scalar voltage_v, Scalar current_a) {
   return fw.core.tick({voltage_v, current_a, true});

@@ -21,6 +21,11 @@ using Model = bms::fw::ReducedCell<Scalar>;
 using Core = bms::fw::BmsCore<Scalar, Model>;
 using TickOutput = Core::Output;
 
+/// The board's configuration: make_config over the paper's nominal cell, profile best.
+Core::Config firmware_config();
+/// The model at the paper's initial state.
+Model initial_firmware_model();
+
 /// Everything the firmware owns: the main-system model and the core that drives it.
 /// The paper cell's best profile; the model starts from the paper's initial state.
 struct ReplayFirmware {

@@ -22,7 +22,7 @@
 
 #include "bms/fw/can_protocol.hpp"
 #include "bms/fw/state_schema.hpp"
-#include "bms/hal/bms_application.hpp"
+#include "bms/app/bms_application.hpp"
 #include "bms/hal/lockstep.hpp"
 
 namespace can = bms::fw::can;
@@ -121,7 +121,7 @@ class NullLog final : public hal::LogSink {
   void write(hal::LogLevel, const char*) override {}
 };
 
-using App = hal::BmsApplication<fuzz_app::Core>;
+using App = bms::app::BmsApplication<fuzz_app::Core>;
 
 hal::CanFrame make_frame(const std::uint8_t* r, bool fix_crc) {
   hal::CanFrame f{};

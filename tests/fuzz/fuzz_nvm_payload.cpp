@@ -21,7 +21,7 @@
 #include "bms/fw/bms_core.hpp"
 #include "bms/fw/nvm_store.hpp"
 #include "bms/fw/paper_cell_profiles.hpp"
-#include "bms/hal/bms_application.hpp"
+#include "bms/app/bms_application.hpp"
 
 namespace fw = bms::fw;
 namespace hal = bms::hal;
@@ -30,7 +30,7 @@ namespace {
 
 using Model = fw::ReducedCell<double>;
 using Core = fw::BmsCore<double, Model, 1, 0>;
-using App = hal::BmsApplication<Core>;
+using App = bms::app::BmsApplication<Core>;
 using Persisted = App::Persisted;
 
 [[noreturn]] void fail() { std::abort(); }

@@ -12,7 +12,7 @@
 #include "bms/fw/can_protocol.hpp"
 #include "bms/fw/paper_cell_profiles.hpp"
 #include "bms/fw/state_schema.hpp"
-#include "bms/hal/bms_application.hpp"
+#include "bms/app/bms_application.hpp"
 #include "bms/hal/fake/fake_can.hpp"
 #include "bms/hal/fake/fake_log.hpp"
 #include "bms/hal/fake/fake_nvm.hpp"
@@ -81,7 +81,7 @@ constexpr std::uint32_t state_schema(fw::schema::Type<FakeCore>) {
 namespace {
 
 using app_test::FakeCore;
-using App = hal::BmsApplication<FakeCore>;
+using App = bms::app::BmsApplication<FakeCore>;
 
 CanFrame measurement(std::uint8_t counter, std::uint16_t seq, double v) {
   can::Measurement m;
@@ -329,7 +329,7 @@ namespace {
 
 using Model = fw::ReducedCell<double>;
 using Core = fw::BmsCore<double, Model, 1, 0>;
-using RealApp = hal::BmsApplication<Core>;
+using RealApp = bms::app::BmsApplication<Core>;
 
 // The firmware's core driven through a CC charge by a second model (the plant): a state
 // with everything in use, as the firmware saves it.
@@ -425,7 +425,7 @@ TEST(NvmRestore, TheLayoutTagIsASchemaHash) {
   static_assert(fw::schema::covers(fa, sizeof(A), alignof(A)), "complete");
   // The firmware's tag is the schema hash, and it differs between the float and double cores.
   using FloatCore = fw::BmsCore<float, fw::ReducedCell<float>, 1, 0>;
-  EXPECT_NE(RealApp::kPersistedTag, hal::BmsApplication<FloatCore>::kPersistedTag);
+  EXPECT_NE(RealApp::kPersistedTag, bms::app::BmsApplication<FloatCore>::kPersistedTag);
   EXPECT_NE(fw::schema::state_schema_hash<Core>(), 0u);
 }
 

@@ -1,5 +1,7 @@
 // bms-firmware: the BMS firmware as a Linux process behind the HAL (SocketCAN, timerfd, a
-// file as non-volatile memory). Same application and core as the board image.
+// file as non-volatile memory). The Linux entry point: it parses the flags, opens the drivers,
+// builds the configuration (bms/fw/make_config.hpp) and runs the application
+// (firmware/app: bms::app::BmsApplication), the same class the board image runs.
 //
 //   bms-firmware --can vcan0 --lockstep|--realtime [--nvm FILE] [--h H] [--h-from-model]
 //                [--persist-every-s S] [--flash-endurance-cycles N] [--flash-lifetime-years Y]
@@ -27,9 +29,11 @@
 #include <vector>
 
 #include "bms/fw/bms_core.hpp"
-#include "bms/fw/paper_cell_profiles.hpp"
-#include "bms/hal/bms_application.hpp"
+#include "bms/app/bms_application.hpp"
+#include "bms/fw/make_config.hpp"
 #include "bms/hal/linux/file_nvm.hpp"
+#include "bms/hal/linux/linux_clock.hpp"
+#include "bms/hal/linux/process_watchdog.hpp"
 #include "bms/hal/linux/socketcan.hpp"
 #include "bms/hal/linux/stderr_log.hpp"
 #include "bms/hal/linux/timerfd_tick.hpp"
@@ -109,160 +113,116 @@ void enlarge_receive_buffer(int fd, int bytes) {
     std::fprintf(stderr, "bms-firmware: cannot set the socket receive buffer to %d bytes (errno %d)\n", bytes, errno);
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+struct Args {
   std::string iface, nvm_path;
   bool lockstep = false, realtime = false, h_from_model = false, beyond_paper = false;
   std::string settings = "best";
   double h = 0.01, persist_every_s = -1.0, rcvbuf_bytes = 8388608.0;
   double endurance_cycles = 10000.0, lifetime_years = 10.0;
+};
+
+[[noreturn]] void bad_argument(const char* what, const std::string& got) {
+  std::fprintf(stderr, "bms-firmware: %s (got '%s')\n", what, got.c_str());
+  std::exit(2);
+}
+
+// A number flag within [lo, hi]; exits 2 naming the flag otherwise.
+double number_in(const std::string& v, double lo, double hi, const char* what) {
+  double x = 0.0;
+  if (!parse_number(v, x) || x < lo || x > hi) bad_argument(what, v);
+  return x;
+}
+
+Args parse_args(int argc, char** argv) {
+  Args a;
   for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&](const char* name) -> std::string {
+    const std::string f = argv[i];
+    auto value = [&]() -> std::string {
       if (i + 1 >= argc) {
-        std::fprintf(stderr, "bms-firmware: %s needs a value\n", name);
+        std::fprintf(stderr, "bms-firmware: %s needs a value\n", f.c_str());
         std::exit(2);
       }
       return argv[++i];
     };
-    if (a == "--can") iface = value("--can");
-    else if (a == "--nvm") nvm_path = value("--nvm");
-    else if (a == "--lockstep") lockstep = true;
-    else if (a == "--realtime") realtime = true;
-    else if (a == "--h-from-model") h_from_model = true;
-    else if (a == "--beyond-paper") beyond_paper = true;
-    else if (a == "--settings") {
-      settings = value("--settings");
-      if (settings != "best" && settings != "paper") {
-        std::fprintf(stderr, "bms-firmware: --settings must be 'best' or 'paper' (got '%s')\n", settings.c_str());
-        return 2;
-      }
-    }
-    else if (a == "--h") {
-      const std::string v = value("--h");
-      if (!parse_number(v, h) || h == 0.0) {
-        std::fprintf(stderr, "bms-firmware: --h must be a nonzero number (got '%s')\n", v.c_str());
-        return 2;
-      }
-    } else if (a == "--persist-every-s") {
-      const std::string v = value("--persist-every-s");
-      if (!parse_number(v, persist_every_s) || persist_every_s < 0.0 || persist_every_s > 86400.0) {
-        std::fprintf(stderr, "bms-firmware: --persist-every-s must be 0..86400 (got '%s')\n", v.c_str());
-        return 2;
-      }
-    } else if (a == "--flash-endurance-cycles") {
-      const std::string v = value("--flash-endurance-cycles");
-      if (!parse_number(v, endurance_cycles) || endurance_cycles < 100.0 || endurance_cycles > 1e12) {
-        std::fprintf(stderr, "bms-firmware: --flash-endurance-cycles must be 100..1e12 (got '%s')\n", v.c_str());
-        return 2;
-      }
-    } else if (a == "--flash-lifetime-years") {
-      const std::string v = value("--flash-lifetime-years");
-      if (!parse_number(v, lifetime_years) || lifetime_years < 0.01 || lifetime_years > 100.0) {
-        std::fprintf(stderr, "bms-firmware: --flash-lifetime-years must be 0.01..100 (got '%s')\n", v.c_str());
-        return 2;
-      }
-    } else if (a == "--rcvbuf-bytes") {
-      const std::string v = value("--rcvbuf-bytes");
-      if (!parse_number(v, rcvbuf_bytes) || rcvbuf_bytes < 1024.0 || rcvbuf_bytes > 1073741824.0) {
-        std::fprintf(stderr, "bms-firmware: --rcvbuf-bytes must be 1024..1073741824 (got '%s')\n", v.c_str());
-        return 2;
-      }
-    } else if (a == "--help" || a == "-h") {
+    if (f == "--can") a.iface = value();
+    else if (f == "--nvm") a.nvm_path = value();
+    else if (f == "--lockstep") a.lockstep = true;
+    else if (f == "--realtime") a.realtime = true;
+    else if (f == "--h-from-model") a.h_from_model = true;
+    else if (f == "--beyond-paper") a.beyond_paper = true;
+    else if (f == "--settings") {
+      a.settings = value();
+      if (a.settings != "best" && a.settings != "paper") bad_argument("--settings must be 'best' or 'paper'", a.settings);
+    } else if (f == "--h") {
+      const std::string v = value();
+      if (!parse_number(v, a.h) || a.h == 0.0) bad_argument("--h must be a nonzero number", v);
+    } else if (f == "--persist-every-s") a.persist_every_s = number_in(value(), 0.0, 86400.0, "--persist-every-s must be 0..86400");
+    else if (f == "--flash-endurance-cycles")
+      a.endurance_cycles = number_in(value(), 100.0, 1e12, "--flash-endurance-cycles must be 100..1e12");
+    else if (f == "--flash-lifetime-years")
+      a.lifetime_years = number_in(value(), 0.01, 100.0, "--flash-lifetime-years must be 0.01..100");
+    else if (f == "--rcvbuf-bytes")
+      a.rcvbuf_bytes = number_in(value(), 1024.0, 1073741824.0, "--rcvbuf-bytes must be 1024..1073741824");
+    else if (f == "--help" || f == "-h") {
       usage(stdout);
-      return 0;
+      std::exit(0);
     } else {
-      std::fprintf(stderr, "bms-firmware: unknown argument '%s'\n", a.c_str());
+      std::fprintf(stderr, "bms-firmware: unknown argument '%s'\n", f.c_str());
       usage(stderr);
-      return 2;
+      std::exit(2);
     }
   }
-  if (iface.empty() || lockstep == realtime) {
+  if (a.iface.empty() || a.lockstep == a.realtime) {
     std::fprintf(stderr, "bms-firmware: give --can IFACE and exactly one of --lockstep / --realtime\n");
     usage(stderr);
-    return 2;
+    std::exit(2);
   }
-  std::signal(SIGTERM, on_signal);
-  std::signal(SIGINT, on_signal);
+  return a;
+}
 
-  bms::hal::lnx::StderrLogSink log;
-  bms::hal::lnx::SocketCanBus can;
-  if (can.open(iface.c_str()) != bms::hal::Status::ok) {
-    std::fprintf(stderr, "bms-firmware: cannot open CAN interface %s: %s\n", iface.c_str(), can.last_error());
-    return 1;
-  }
-  enlarge_receive_buffer(can.native_handle(), static_cast<int>(rcvbuf_bytes));
-  bms::hal::lnx::FileNvm file_nvm;
-  RamOnlyNvm ram_nvm;
-  bms::hal::NonVolatileMemory* nvm = &ram_nvm;
-  if (!nvm_path.empty()) {
-    if (file_nvm.open(nvm_path.c_str(), 16384, 256) != bms::hal::Status::ok) {
-      std::fprintf(stderr, "bms-firmware: cannot open NVM file %s: %s\n", nvm_path.c_str(), file_nvm.last_error());
-      return 1;
-    }
-    nvm = &file_nvm;
-  }
+using Model = bms::fw::ReducedCell<double>;
+using Core = bms::fw::BmsCore<double, Model, 1, 0>;
+using App = bms::app::BmsApplication<Core>;
 
-  using Model = bms::fw::ReducedCell<double>;
-  using Core = bms::fw::BmsCore<double, Model, 1, 0>;
-  static Model model;  // static storage: the firmware's objects are not on the stack
-  model.init_default();
-  using Cell = bms::fw::PaperCellTraits;
-  Core::Config cfg =
-      beyond_paper ? Core::beyond_paper_config(Model::inventory_of(Cell::kNeg.stoich_init, Cell::kPos.stoich_init),
-                                               Model::nominal_film_growth_ohm_m2_per_a_m3_s())
-                   : bms::fw::paper_cell_config<Core>(settings == "paper" ? bms::fw::Profile::paper : bms::fw::Profile::best);
-  if (!beyond_paper && settings == "paper") {
-    cfg.estimator.markov_v_per_ohm_m2 = h;
-    cfg.markov_from_model = h_from_model;
+// The estimator's configuration: a profile of the nominal cell (make_config), or session 5's.
+Core::Config config_for(const Args& a) {
+  const bms::fw::NominalCell cell = bms::fw::paper_nominal_cell<double>();
+  if (a.beyond_paper) {
+    Core::Config cfg = Core::beyond_paper_config(cell.inventory_mol, cell.growth_ohm_m2_per_a_m3_s);
+    const Core::Config window = bms::fw::make_config<Core>(cell, bms::fw::Profile::paper);
+    cfg.voltage_min_v = window.voltage_min_v;
+    cfg.voltage_max_v = window.voltage_max_v;
+    return cfg;
   }
-  // Plausibility window of the measured voltage: the paper cell's limits with 0.5 V margin,
-  // so a sensor reading of 0 V (what a NaN becomes on the bus) is rejected, not modelled.
-  cfg.voltage_min_v = bms::fw::paper::kLowerVoltage_v - 0.5;
-  cfg.voltage_max_v = bms::fw::paper::kUpperVoltage_v + 0.5;
-  static Core core(cfg, model);
+  Core::Config cfg = bms::fw::make_config<Core>(cell, a.settings == "paper" ? bms::fw::Profile::paper : bms::fw::Profile::best);
+  if (a.settings == "paper") {
+    cfg.estimator.markov_v_per_ohm_m2 = a.h;
+    cfg.markov_from_model = a.h_from_model;
+  }
+  return cfg;
+}
 
-  bms::fw::can::LockstepTicks ticks_classifier;
-  bms::hal::LockstepBus<64> lockstep_bus(
-      can, [](const bms::hal::CanFrame& f, std::uint32_t& t, void* c) {
-        return static_cast<bms::fw::can::LockstepTicks*>(c)->classify(f, t);
-      },
-      &ticks_classifier);
-  bms::hal::lnx::TimerfdTickSource timer;
-  bms::hal::CanBus* bus = &can;
-  bms::hal::TickSource* ticks = &timer;
-  if (lockstep) {
-    bus = &lockstep_bus;
-    ticks = &lockstep_bus;
-  } else if (timer.open() != bms::hal::Status::ok) {
-    std::fprintf(stderr, "bms-firmware: cannot start the tick timer: %s\n", timer.last_error());
-    return 1;
-  }
-  using App = bms::hal::BmsApplication<Core>;
+App::Options app_options(const Args& a, double dt_s) {
   App::Options ao;
-  ao.lockstep = lockstep;
-  ao.lockstep_ticks = &ticks_classifier;
+  ao.lockstep = a.lockstep;
   ao.tick_timeout_ms = 200;
-  ao.budget.endurance_cycles = endurance_cycles;
-  ao.budget.lifetime_s = lifetime_years * 365.25 * 86400.0;
-  ao.budget.tick_s = cfg.dt_s;
+  ao.budget.endurance_cycles = a.endurance_cycles;
+  ao.budget.lifetime_s = a.lifetime_years * 365.25 * 86400.0;
+  ao.budget.tick_s = dt_s;
   const std::uint32_t budget_ticks = bms::fw::nvm::WriteBudget::interval_for(ao.budget);
-  ao.persist_every_ticks = persist_every_s < 0.0 ? budget_ticks
-                                                 : static_cast<std::uint32_t>(std::lround(persist_every_s / cfg.dt_s));
+  ao.persist_every_ticks =
+      a.persist_every_s < 0.0 ? budget_ticks : static_cast<std::uint32_t>(std::lround(a.persist_every_s / dt_s));
   std::fprintf(stderr, "bms-firmware: NVM write budget: one commit per %.0f s on average (%.0f cycles, %.1f years)\n",
-               budget_ticks * cfg.dt_s, endurance_cycles, lifetime_years);
-  static App app(core, *bus, *ticks, log, *nvm, ao);
-  app.restore_from_nvm();
-  // The host waits for this line before its first frame (a frame sent before the socket
-  // is bound would be lost).
-  std::printf("bms-firmware: ready\n");
-  std::fflush(stdout);
-  unsigned long bus_errors = 0;
+               budget_ticks * dt_s, a.endurance_cycles, a.lifetime_years);
+  return ao;
+}
+
+// Runs ticks until SIGTERM/SIGINT; a bus that goes down is retried, any other failure ends
+// the run (exit 1). The state is committed on the way out.
+int run(App& app, bms::hal::lnx::SocketCanBus& can, unsigned long& bus_errors) {
   while (g_stop == 0) {
     const bms::hal::Status s = app.step();
-    if (s == bms::hal::Status::ok) continue;
-    if (s == bms::hal::Status::timeout) continue;
+    if (s == bms::hal::Status::ok || s == bms::hal::Status::timeout) continue;
     if (g_stop != 0) break;  // a signal interrupted the wait
     if (s != bms::hal::Status::io_error) {
       std::fprintf(stderr, "bms-firmware: bus or timer failed: %s\n", bms::hal::status_name(s));
@@ -275,6 +235,10 @@ int main(int argc, char** argv) {
     usleep(20000);
   }
   app.persist();
+  return 0;
+}
+
+void print_counters(const App& app, unsigned long bus_errors) {
   const auto& rc = app.receiver().counters();
   std::fprintf(stderr,
                "bms-firmware: counters accepted=%u ignored_id=%u dropped_length=%u dropped_crc=%u dropped_counter=%u "
@@ -283,5 +247,67 @@ int main(int argc, char** argv) {
                rc.accepted, rc.ignored_id, rc.dropped_length, rc.dropped_crc, rc.dropped_counter, rc.dropped_seq,
                rc.lost_frames, rc.stale_events, bus_errors, app.nvm_counters().commits, app.nvm_counters().failures,
                app.nvm_counters().refused_by_budget);
-  return 0;
+}
+
+bool classify_tick(const bms::hal::CanFrame& f, std::uint32_t& t, void* c) {
+  return static_cast<bms::fw::can::LockstepTicks*>(c)->classify(f, t);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args args = parse_args(argc, argv);
+  std::signal(SIGTERM, on_signal);
+  std::signal(SIGINT, on_signal);
+
+  bms::hal::lnx::StderrLogSink log;
+  bms::hal::lnx::SocketCanBus can;
+  if (can.open(args.iface.c_str()) != bms::hal::Status::ok) {
+    std::fprintf(stderr, "bms-firmware: cannot open CAN interface %s: %s\n", args.iface.c_str(), can.last_error());
+    return 1;
+  }
+  enlarge_receive_buffer(can.native_handle(), static_cast<int>(args.rcvbuf_bytes));
+  bms::hal::lnx::FileNvm file_nvm;
+  static RamOnlyNvm ram_nvm;
+  bms::hal::NonVolatileMemory* nvm = &ram_nvm;
+  if (!args.nvm_path.empty()) {
+    if (file_nvm.open(args.nvm_path.c_str(), 16384, 256) != bms::hal::Status::ok) {
+      std::fprintf(stderr, "bms-firmware: cannot open NVM file %s: %s\n", args.nvm_path.c_str(), file_nvm.last_error());
+      return 1;
+    }
+    nvm = &file_nvm;
+  }
+  static Model model;  // static storage: the firmware's objects are not on the stack
+  model.init_default();
+  const Core::Config cfg = config_for(args);
+  static Core core(cfg, model);
+
+  static bms::fw::can::LockstepTicks ticks_classifier;
+  static bms::hal::LockstepBus<64> lockstep_bus(can, classify_tick, &ticks_classifier);
+  static bms::hal::lnx::TimerfdTickSource timer;
+  bms::hal::CanBus* bus = &can;
+  bms::hal::TickSource* ticks = &timer;
+  if (args.lockstep) {
+    bus = &lockstep_bus;
+    ticks = &lockstep_bus;
+  } else if (timer.open() != bms::hal::Status::ok) {
+    std::fprintf(stderr, "bms-firmware: cannot start the tick timer: %s\n", timer.last_error());
+    return 1;
+  }
+  static bms::hal::lnx::LinuxMonotonicClock clock;
+  static bms::hal::lnx::ProcessWatchdog watchdog;
+  App::Options ao = app_options(args, cfg.dt_s);
+  ao.lockstep_ticks = &ticks_classifier;
+  ao.watchdog = &watchdog;
+  ao.clock = &clock;
+  static App app(core, *bus, *ticks, log, *nvm, ao);
+  app.restore_from_nvm();
+  // The host waits for this line before its first frame (a frame sent before the socket
+  // is bound would be lost).
+  std::printf("bms-firmware: ready\n");
+  std::fflush(stdout);
+  unsigned long bus_errors = 0;
+  const int rc = run(app, can, bus_errors);
+  if (rc == 0) print_counters(app, bus_errors);
+  return rc;
 }

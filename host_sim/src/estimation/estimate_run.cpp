@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "bms/fw/bms_core.hpp"
+#include "bms/fw/make_config.hpp"
 #include "bms/fw/reduced_model_bias.hpp"
 #include "dfn/dfn_model.hpp"
 #include "estimation/full_dfn_main_model.hpp"
@@ -150,8 +151,10 @@ void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, c
   if (o.identify_growth) {
     // Everything here is the nominal cell's: its initial film, its Ramadass constant, its
     // inventory (set by run_estimate), the model's design-time bias.
-    const auto best = Core::best_config(o.nominal_inventory_mol, cell.side.initial_film_resistance_ohm_m2,
-                                        nominal_growth_ohm_m2_per_a_m3_s(cell), o.model_bias_ohm);
+    const fw::NominalCell nominal{o.nominal_inventory_mol,           cell.side.initial_film_resistance_ohm_m2,
+                                  nominal_growth_ohm_m2_per_a_m3_s(cell), o.model_bias_ohm,
+                                  cell.lower_voltage_v,              cell.upper_voltage_v};
+    const auto best = fw::make_config<Core>(nominal, fw::Profile::best);
     cfg.identifier = best.identifier;
     cfg.identifier.learn_inventory = o.learn_inventory;
     cfg.model_bias_ohm = o.model_bias_ohm;

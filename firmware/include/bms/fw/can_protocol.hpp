@@ -209,12 +209,12 @@ inline constexpr std::uint8_t kVoltageRange = 1u << 2;   ///< measured voltage o
 inline constexpr std::uint8_t kCurrentRange = 1u << 3;   ///< measured current outside the cell's limits
 inline constexpr std::uint8_t kEstimator = 1u << 4;      ///< estimator produced a non-finite/out-of-range value
 inline constexpr std::uint8_t kNvm = 1u << 5;            ///< NVM read/write failed or rolled back; clears at the next good commit
-inline constexpr std::uint8_t kTickOverrun = 1u << 6;    ///< a tick was missed (real-time mode)
-inline constexpr std::uint8_t kInternal = 1u << 7;       ///< any other internal error
+inline constexpr std::uint8_t kTickOverrun = 1u << 6;    ///< a tick over its time budget, or ticks skipped (real time)
+inline constexpr std::uint8_t kInternal = 1u << 7;       ///< core call-order/config fault, a failed send, a refused reset
 }  // namespace fault_bit
 
 struct Control {
-  bool reset_estimator = false;  ///< restore theta(0), P(0)
+  bool reset_estimator = false;  ///< back to the power-on state (bms::app::BmsApplication)
   bool lockstep = false;         ///< 1: the host drives ticks (the firmware ignores its timer)
   bool tick_trigger = false;     ///< 1: this frame triggers tick `tick` (lock-step)
   Mode mode_hint = Mode::unknown;

@@ -6,9 +6,10 @@
 //                    count instructions (one instruction = 1 ns of virtual time)
 //   SemihostLogSink  LogSink on the semihosting console (QEMU -semihosting)
 //   RamNvm           NonVolatileMemory over RAM (kept over a warm reset, lost at power-off)
+//   CmsdkWatchdog    Watchdog: the MPS2's CMSDK APB watchdog at 0x40008000 (QEMU models it)
 //
-// The board has no CAN controller that QEMU emulates and no watchdog is used: those
-// interfaces have no implementation here. Everything is single-threaded (no RTOS); the only
+// The board has no CAN controller that QEMU emulates: the application runs over
+// bms::hal::MemoryCanBus (bms/hal/memory_can.hpp) there. Everything is single-threaded (no RTOS); the only
 // interrupt is SysTick. No heap, no exceptions, no RTTI.
 #pragma once
 
@@ -21,6 +22,7 @@
 #include "bms/hal/nvm.hpp"
 #include "bms/hal/status.hpp"
 #include "bms/hal/tick_source.hpp"
+#include "bms/hal/watchdog.hpp"
 
 namespace bms::hal::cortex_m {
 
@@ -96,6 +98,30 @@ class RamNvm final : public NonVolatileMemory {
   std::size_t size_;
   std::size_t page_size_;
   const char* error_ = "";
+};
+
+/// The CMSDK APB watchdog of the MPS2 boards (0x40008000, clocked at kSysClockHz). Its
+/// counter runs down from the load value; at zero it raises its interrupt (the NMI on MPS2)
+/// and reloads, and at the second zero without a kick it resets the chip. start() checks the
+/// peripheral's identification registers: without the device (another board, another
+/// emulator) present() is false and kick() only counts.
+class CmsdkWatchdog final : public Watchdog {
+ public:
+  static constexpr std::uintptr_t kBase = 0x40008000u;
+
+  /// Arms the watchdog with a deadline of timeout_ms (at most 171 s at 25 MHz).
+  void start(std::uint32_t timeout_ms);
+  void kick() override;
+  std::uint32_t timeout_ms() const override { return timeout_ms_; }
+  bool present() const { return present_; }
+  std::uint32_t kicks() const { return kicks_; }
+  /// The counter's value now (0 without the device): after a kick it is near the load value.
+  std::uint32_t counter() const;
+
+ private:
+  std::uint32_t timeout_ms_ = 0u;
+  std::uint32_t kicks_ = 0u;
+  bool present_ = false;
 };
 
 /// RAM that Reset_Handler neither copies nor zeroes (.noinit): a warm reset keeps it.
