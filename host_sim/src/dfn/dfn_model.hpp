@@ -170,6 +170,7 @@ class DfnModel {
 
  private:
   template <typename T> friend struct DfnResidual;
+  // The constructor's steps, in this order: each uses what the ones before it laid out.
   void layout_populations();
   void layout_regions();
   void layout_shells();
