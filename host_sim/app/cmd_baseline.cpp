@@ -23,6 +23,48 @@ struct BaselineCli {
   double noise_v_mv = -1.0, noise_i_ma = -1.0, ic_error_pct = 0.0, ekf_model_error_mv = 0.3;
   bool quiet = false;
 };
+
+int run_baseline_command(BaselineCli& c) {
+  if (c.shape != "constant" && c.shape != "linear")
+    throw InputError("--batch-shape must be 'constant' or 'linear' (got '" + c.shape + "')");
+  if (c.update != "cc_charge" && c.update != "cc")
+    throw InputError("--ekf-update must be 'cc_charge' or 'cc' (got '" + c.update + "')");
+  if (c.noise_v_mv >= 0.0 && !(c.noise_v_mv > 0.0))
+    throw InputError("--noise-v-mv must be positive (the bound and the weights divide by it)");
+  c.o.batch.linear = c.shape == "linear";
+  c.o.ekf.model_error_v = c.ekf_model_error_mv * 1e-3;
+  c.o.ekf.update_all_cc = c.update == "cc";
+  c.o.sigma_v_v = c.noise_v_mv >= 0.0 ? c.noise_v_mv * 1e-3 : -1.0;
+  c.o.sigma_i_a = c.noise_i_ma >= 0.0 ? c.noise_i_ma * 1e-3 : -1.0;
+  const CellParameters cell = load_cell("paper");
+  c.o.ic = perturbed_initial_conditions(cell, c.ic_error_pct);
+  const EstimateData data = read_estimate_data(c.data);
+  OutputFolder folder(c.out);
+  if (!c.quiet) std::fprintf(stderr, "baseline: %s on %zu ticks of %s\n", c.o.method.c_str(), data.t_s.size(), c.data.c_str());
+  const baselines::BaselineResult r = baselines::run_baseline(data, c.o);
+  const std::filesystem::path dir = folder.staging();
+  baselines::write_baseline_csv(dir / "estimates.csv", r);
+  auto summary = baselines::baseline_summary_json(r, c.o);
+  summary["options"]["ic_error_pct"] = c.ic_error_pct;
+  summary["data"] = c.data;
+  write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
+  folder.commit();
+  if (!c.quiet) {
+    std::fprintf(stderr, "baseline: noise sigma_v %.4g mV (%s), sigma_i %.4g mA (%s)\n", r.noise.sigma_v_v * 1e3,
+                 r.noise.v_source.c_str(), r.noise.sigma_i_a * 1e3, r.noise.i_source.c_str());
+    for (const auto& b : r.bounds) {
+      double med = std::nan(""), end = std::nan("");
+      for (const auto& s : r.scores)
+        if (s.cycle == b.cycle) med = s.r_film_err_median_pct, end = s.r_film_err_end_pct;
+      std::fprintf(stderr, "baseline: cycle %d: film-resistance error in CC charge: median %.3f %%, end %.3f %%; "
+                   "Cramer-Rao bound %.4f %%\n", b.cycle, med, end, b.rel_pct);
+    }
+    std::fprintf(stderr, "baseline: %zu ticks in %.2f s wall -> %s\n", r.rows.size(), r.wall_s,
+                 (folder.destination() / "estimates.csv").c_str());
+  }
+  return 0;
+}
+
 }  // namespace
 
 Runner add_baseline(CLI::App& app) {
@@ -74,46 +116,7 @@ Runner add_baseline(CLI::App& app) {
   sub->add_flag("--quiet", c->quiet, "No progress lines");
   sub->footer("Example: bmssim simulate --cycles 5 --noise-v-mv 0.2 --seed 1 --out out/sim5_v02 && "
               "bmssim baseline --data out/sim5_v02/truth.csv --method ekf --noise-v-mv 0.2 --out out/ekf_v02");
-  return [c]() {
-    if (c->shape != "constant" && c->shape != "linear")
-      throw InputError("--batch-shape must be 'constant' or 'linear' (got '" + c->shape + "')");
-    if (c->update != "cc_charge" && c->update != "cc")
-      throw InputError("--ekf-update must be 'cc_charge' or 'cc' (got '" + c->update + "')");
-    if (c->noise_v_mv >= 0.0 && !(c->noise_v_mv > 0.0))
-      throw InputError("--noise-v-mv must be positive (the bound and the weights divide by it)");
-    c->o.batch.linear = c->shape == "linear";
-    c->o.ekf.model_error_v = c->ekf_model_error_mv * 1e-3;
-    c->o.ekf.update_all_cc = c->update == "cc";
-    c->o.sigma_v_v = c->noise_v_mv >= 0.0 ? c->noise_v_mv * 1e-3 : -1.0;
-    c->o.sigma_i_a = c->noise_i_ma >= 0.0 ? c->noise_i_ma * 1e-3 : -1.0;
-    const CellParameters cell = load_cell("paper");
-    c->o.ic = perturbed_initial_conditions(cell, c->ic_error_pct);
-    const EstimateData data = read_estimate_data(c->data);
-    OutputFolder folder(c->out);
-    if (!c->quiet) std::fprintf(stderr, "baseline: %s on %zu ticks of %s\n", c->o.method.c_str(), data.t_s.size(), c->data.c_str());
-    const baselines::BaselineResult r = baselines::run_baseline(data, c->o);
-    const std::filesystem::path dir = folder.staging();
-    baselines::write_baseline_csv(dir / "estimates.csv", r);
-    auto summary = baselines::baseline_summary_json(r, c->o);
-    summary["options"]["ic_error_pct"] = c->ic_error_pct;
-    summary["data"] = c->data;
-    write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
-    folder.commit();
-    if (!c->quiet) {
-      std::fprintf(stderr, "baseline: noise sigma_v %.4g mV (%s), sigma_i %.4g mA (%s)\n", r.noise.sigma_v_v * 1e3,
-                   r.noise.v_source.c_str(), r.noise.sigma_i_a * 1e3, r.noise.i_source.c_str());
-      for (const auto& b : r.bounds) {
-        double med = std::nan(""), end = std::nan("");
-        for (const auto& s : r.scores)
-          if (s.cycle == b.cycle) med = s.r_film_err_median_pct, end = s.r_film_err_end_pct;
-        std::fprintf(stderr, "baseline: cycle %d: film-resistance error in CC charge: median %.3f %%, end %.3f %%; "
-                     "Cramer-Rao bound %.4f %%\n", b.cycle, med, end, b.rel_pct);
-      }
-      std::fprintf(stderr, "baseline: %zu ticks in %.2f s wall -> %s\n", r.rows.size(), r.wall_s,
-                   (folder.destination() / "estimates.csv").c_str());
-    }
-    return 0;
-  };
+  return [c]() { return run_baseline_command(*c); };
 }
 
 }  // namespace bms::app

@@ -81,6 +81,41 @@ std::string command_line(const DiagnoseOptions& o) {
   return s + " --out " + o.out;
 }
 
+int run_diagnose(const DiagnoseOptions& o) {
+  if (!(o.rtol > 0.0 && o.rtol < 1e-2)) throw InputError("--rtol: must be in (0, 0.01)");
+  diagnosis::DiagnoseSettings settings;
+  settings.candidates = parse_candidates(o.candidates);
+  settings.final_mesh = {o.points, o.points, o.points, o.radial};
+  settings.search_mesh = {o.search_points, o.search_points, o.search_points, o.search_radial};
+  settings.rtol = o.rtol;
+  settings.blocks = o.blocks;
+  settings.max_effects = o.max_effects;
+  settings.search_drive_tolerance = o.search_drive_tolerance;
+  settings.open_gain = o.open_gain;
+  const CurrentSign sign = current_sign_option(o.current_sign);
+  const CellParameters cell = load_cell(o.cell);
+  std::vector<diagnosis::Record> records;
+  for (const auto& d : o.data) {
+    records.push_back(diagnosis::load_record(d, sign));
+    diagnosis::set_initial_state(records.back(), cell, o.initial_soc);
+  }
+  auto log = [q = o.quiet](const std::string& s) {
+    if (!q) std::fprintf(stderr, "diagnose: %s\n", s.c_str());
+  };
+  const auto result = diagnosis::diagnose(cell, records, settings, log);
+  if (!result.excitation_note.empty())
+    std::fprintf(stderr, "diagnose: note: %s\n", result.excitation_note.c_str());
+  const diagnosis::ReportContext ctx{command_line(o), o.cell, settings};
+  const auto plots = diagnosis::write_report(o.out, result, ctx);
+  if (plots.empty()) std::fprintf(stderr, "diagnose: warning: no plots (see %s/report.md)\n", o.out.c_str());
+  std::fprintf(stderr, "diagnose: %s: held-out RMSE %.3f -> %.3f mV, all %.3f -> %.3f mV (%s) -> %s\n",
+               diagnosis::effect_name(result.answer), result.heldout_before_mv,
+               result.explained ? result.heldout_after_mv : result.heldout_before_mv, result.rmse_before_mv,
+               result.explained ? result.rmse_after_mv : result.rmse_before_mv, result.reason.c_str(),
+               o.out.c_str());
+  return 0;
+}
+
 }  // namespace
 
 Runner add_diagnose(CLI::App& app) {
@@ -135,40 +170,7 @@ Runner add_diagnose(CLI::App& app) {
       "Exit codes: 0 diagnosis written (possibly 'none', with the reason), 1 runtime failure, 2 bad input.\n"
       "Example: bmssim simulate --cell paper --protocol cccv --effect contact_resistance=0.001 --out out/rc\n"
       "         bmssim diagnose --data out/rc/truth.csv --cell paper --out out/rc-diag");
-  return [o]() {
-    if (!(o->rtol > 0.0 && o->rtol < 1e-2)) throw InputError("--rtol: must be in (0, 0.01)");
-    diagnosis::DiagnoseSettings settings;
-    settings.candidates = parse_candidates(o->candidates);
-    settings.final_mesh = {o->points, o->points, o->points, o->radial};
-    settings.search_mesh = {o->search_points, o->search_points, o->search_points, o->search_radial};
-    settings.rtol = o->rtol;
-    settings.blocks = o->blocks;
-    settings.max_effects = o->max_effects;
-    settings.search_drive_tolerance = o->search_drive_tolerance;
-    settings.open_gain = o->open_gain;
-    const CurrentSign sign = current_sign_option(o->current_sign);
-    const CellParameters cell = load_cell(o->cell);
-    std::vector<diagnosis::Record> records;
-    for (const auto& d : o->data) {
-      records.push_back(diagnosis::load_record(d, sign));
-      diagnosis::set_initial_state(records.back(), cell, o->initial_soc);
-    }
-    auto log = [q = o->quiet](const std::string& s) {
-      if (!q) std::fprintf(stderr, "diagnose: %s\n", s.c_str());
-    };
-    const auto result = diagnosis::diagnose(cell, records, settings, log);
-    if (!result.excitation_note.empty())
-      std::fprintf(stderr, "diagnose: note: %s\n", result.excitation_note.c_str());
-    const diagnosis::ReportContext ctx{command_line(*o), o->cell, settings};
-    const auto plots = diagnosis::write_report(o->out, result, ctx);
-    if (plots.empty()) std::fprintf(stderr, "diagnose: warning: no plots (see %s/report.md)\n", o->out.c_str());
-    std::fprintf(stderr, "diagnose: %s: held-out RMSE %.3f -> %.3f mV, all %.3f -> %.3f mV (%s) -> %s\n",
-                 diagnosis::effect_name(result.answer), result.heldout_before_mv,
-                 result.explained ? result.heldout_after_mv : result.heldout_before_mv, result.rmse_before_mv,
-                 result.explained ? result.rmse_after_mv : result.rmse_before_mv, result.reason.c_str(),
-                 o->out.c_str());
-    return 0;
-  };
+  return [o]() { return run_diagnose(*o); };
 }
 
 }  // namespace bms::app

@@ -39,8 +39,85 @@ struct EstimateCli {
   bool quiet = false;
   std::vector<std::string> model_effects;
 };
+
+// summary.json: the estimator's summary, and no errors for a file without truth.
+nlohmann::json command_summary(const EstimateResult& r, const EstimateOptions& o, const EstimateData& data) {
+  nlohmann::json summary = estimate_summary_json(r, o);
+  summary["truth"] = data.has_truth();
+  if (!data.has_truth()) {
+    // A measured file: what the estimator learned, and no error (there is nothing to compare with).
+    summary["note"] = "no truth in the data: the estimates are reported without errors";
+    for (auto& cy : summary["cycles"]) {
+      cy["r_film_err_median_pct"] = nullptr;
+      cy["r_film_err_end_pct"] = nullptr;
+      cy["r_film_true_end_ohm_m2"] = nullptr;
+      cy["inventory_err_end_pct"] = nullptr;
+    }
+    summary["data_layout"] = data.layout_note;
+  }
+  const auto& fx = o.model_effects;
+  summary["options"]["model_effects"] =
+      o.model_effects_on ? nlohmann::json{{"contact_resistance_ohm", fx.contact_resistance_ohm},
+                                          {"hysteresis_v", fx.hysteresis_v},
+                                          {"current_offset_a", fx.current_offset_a},
+                                          {"current_gain", fx.current_gain}}
+                         : nlohmann::json::object();
+  return summary;
+}
+
+void print_scores(const EstimateResult& r, const EstimateData& data, const std::string& data_path,
+                  const std::filesystem::path& destination) {
+  if (!data.has_truth())
+    std::fprintf(stderr, "estimate: no truth in %s (%s): estimates without errors\n", data_path.c_str(),
+                 data.layout_note.c_str());
+  for (const auto& cs : r.cycles)
+    if (data.has_truth()) std::fprintf(stderr,
+                 "estimate: cycle %d: film-resistance error in CC charge: median %.3f %%, end %.3f %%; "
+                 "inventory error at its end %.4f %%\n",
+                 cs.cycle, cs.r_film_err_median_pct, cs.r_film_err_end_pct, cs.inventory_err_end_pct);
+  if (std::isfinite(r.growth_err_pct)) std::fprintf(stderr, "estimate: growth_err_pct %.2f %%\n", r.growth_err_pct);
+  std::fprintf(stderr, "estimate: %zu ticks in %.2f s wall -> %s\n", r.rows.size(), r.wall_s,
+               (destination / "estimates.csv").c_str());
+}
+
+int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
+  c.o.mesh.n_sep = c.o.mesh.n_pos = c.o.mesh.n_neg;
+  const auto given = [&sub](const char* flag) { return sub.count(flag) > 0; };
+  if (c.beyond) {
+    if (given("--settings")) throw InputError("--beyond-paper is the session-5 profile; give it or --settings, not both");
+    c.o.settings = "beyond-paper";
+    apply_beyond_paper(c.o, given);
+  } else {
+    apply_settings(c.o, given);
+  }
+  for (const auto& e : c.model_effects) add_model_effect(c.o, e);
+  if (given("--r-film-init") && !(std::isfinite(c.o.r_film_init_ohm_m2) && c.o.r_film_init_ohm_m2 >= 0.0 &&
+                                  c.o.r_film_init_ohm_m2 <= 1.0))
+    throw InputError("--r-film-init: must be a finite film resistance in [0, 1] ohm m2");
+  const CellParameters cell = load_cell(c.cell);
+  c.o.ic = perturbed_initial_conditions(cell, c.ic_error_pct);
+  const CurrentSign sign = current_sign_option(c.current_sign);
+  const EstimateData data = read_estimate_data(c.data, sign);
+  const bool quiet = c.quiet;
+  auto progress = [quiet](std::size_t row, std::size_t rows) {
+    if (!quiet) std::fprintf(stderr, "estimate: %zu / %zu ticks\n", row, rows);
+  };
+  OutputFolder folder(c.out);
+  const EstimateResult r = run_estimate(data, cell, c.o, progress);
+  require_accepted_samples(r, c.data);
+  const std::filesystem::path dir = folder.staging();
+  write_estimates_csv(dir / "estimates.csv", r, data.has_truth());
+  const nlohmann::json summary = command_summary(r, c.o, data);
+  write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
+  folder.commit();
+  if (!quiet) print_scores(r, data, c.data, folder.destination());
+  return 0;
+}
+
 }  // namespace
 
+// A table of the command's option declarations (CLI11): one option per statement, read as a
+// list; cutting it in parts would only scatter the options of one command.
 Runner add_estimate(CLI::App& app) {
   auto* sub = app.add_subcommand(
       "estimate",
@@ -147,70 +224,7 @@ Runner add_estimate(CLI::App& app) {
   sub->add_flag("--quiet", c->quiet, "No progress lines");
   sub->footer("Example: bmssim simulate --cycles 5 --out out/sim && bmssim estimate --data out/sim/truth.csv "
               "--model reduced --out out/est");
-  return [c, sub]() {
-    c->o.mesh.n_sep = c->o.mesh.n_pos = c->o.mesh.n_neg;
-    const auto given = [sub](const char* flag) { return sub->count(flag) > 0; };
-    if (c->beyond) {
-      if (given("--settings")) throw InputError("--beyond-paper is the session-5 profile; give it or --settings, not both");
-      c->o.settings = "beyond-paper";
-      apply_beyond_paper(c->o, given);
-    } else {
-      apply_settings(c->o, given);
-    }
-    for (const auto& e : c->model_effects) add_model_effect(c->o, e);
-    if (given("--r-film-init") && !(std::isfinite(c->o.r_film_init_ohm_m2) && c->o.r_film_init_ohm_m2 >= 0.0 &&
-                                    c->o.r_film_init_ohm_m2 <= 1.0))
-      throw InputError("--r-film-init: must be a finite film resistance in [0, 1] ohm m2");
-    const CellParameters cell = load_cell(c->cell);
-    c->o.ic = perturbed_initial_conditions(cell, c->ic_error_pct);
-    const CurrentSign sign = current_sign_option(c->current_sign);
-    const EstimateData data = read_estimate_data(c->data, sign);
-    const bool quiet = c->quiet;
-    auto progress = [quiet](std::size_t row, std::size_t rows) {
-      if (!quiet) std::fprintf(stderr, "estimate: %zu / %zu ticks\n", row, rows);
-    };
-    OutputFolder folder(c->out);
-    const EstimateResult r = run_estimate(data, cell, c->o, progress);
-    require_accepted_samples(r, c->data);
-    const std::filesystem::path dir = folder.staging();
-    write_estimates_csv(dir / "estimates.csv", r, data.has_truth());
-    nlohmann::json summary = estimate_summary_json(r, c->o);
-    summary["truth"] = data.has_truth();
-    if (!data.has_truth()) {
-      // A measured file: what the estimator learned, and no error (there is nothing to compare with).
-      summary["note"] = "no truth in the data: the estimates are reported without errors";
-      for (auto& cy : summary["cycles"]) {
-        cy["r_film_err_median_pct"] = nullptr;
-        cy["r_film_err_end_pct"] = nullptr;
-        cy["r_film_true_end_ohm_m2"] = nullptr;
-        cy["inventory_err_end_pct"] = nullptr;
-      }
-      summary["data_layout"] = data.layout_note;
-    }
-    const auto& fx = c->o.model_effects;
-    summary["options"]["model_effects"] =
-        c->o.model_effects_on ? nlohmann::json{{"contact_resistance_ohm", fx.contact_resistance_ohm},
-                                               {"hysteresis_v", fx.hysteresis_v},
-                                               {"current_offset_a", fx.current_offset_a},
-                                               {"current_gain", fx.current_gain}}
-                              : nlohmann::json::object();
-    write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
-    folder.commit();
-    if (!quiet) {
-      if (!data.has_truth())
-        std::fprintf(stderr, "estimate: no truth in %s (%s): estimates without errors\n", c->data.c_str(),
-                     data.layout_note.c_str());
-      for (const auto& cs : r.cycles)
-        if (data.has_truth()) std::fprintf(stderr,
-                     "estimate: cycle %d: film-resistance error in CC charge: median %.3f %%, end %.3f %%; "
-                     "inventory error at its end %.4f %%\n",
-                     cs.cycle, cs.r_film_err_median_pct, cs.r_film_err_end_pct, cs.inventory_err_end_pct);
-      if (std::isfinite(r.growth_err_pct)) std::fprintf(stderr, "estimate: growth_err_pct %.2f %%\n", r.growth_err_pct);
-      std::fprintf(stderr, "estimate: %zu ticks in %.2f s wall -> %s\n", r.rows.size(), r.wall_s,
-                   (folder.destination() / "estimates.csv").c_str());
-    }
-    return 0;
-  };
+  return [c, sub]() { return run_estimate_command(*c, *sub); };
 }
 
 }  // namespace bms::app

@@ -71,6 +71,99 @@ int collect_and_report(const fs::path& dir, const nlohmann::json& options, const
   return 0;
 }
 
+int run_blind(const StudyCli& c, const CLI::App& sub) {
+  BlindStudyOptions b;
+  b.seeds = sub.count("--seeds") ? c.o.seeds : (c.o.quick ? 2 : 10);
+  b.cycles = c.o.quick && sub.count("--cycles") == 0 ? 3 : c.blind_cycles;
+  b.sets = c.o.quick && sub.count("--sets") == 0 ? "1" : c.blind_sets;
+  b.jobs = c.jobs > 0 ? c.jobs : static_cast<int>(std::max(1L, sysconf(_SC_NPROCESSORS_ONLN)));
+  b.out = c.out;
+  const std::string command = fmt::format("bmssim study blind --seeds {} --cycles {} --sets {} --out {}", b.seeds,
+                                          b.cycles, b.sets, c.out);
+  const int failed = run_blind_study(b, command);
+  if (failed > 0) std::fprintf(stderr, "study blind: %d truth(s) could not be simulated (summary.json: truth_failures)\n", failed);
+  return failed > 0 ? 1 : 0;
+}
+
+// --quick's smaller plan, and the full plan's seeds, where the options were not given.
+void apply_plan_defaults(StudyCli& c, const CLI::App& sub, CLI::App& root) {
+  if (c.o.quick) {
+    if (sub.count("--seeds") == 0) c.o.seeds = 2;
+    if (sub.count("--models") == 0) c.o.models = {"reduced"};
+    if (sub.count("--arms") == 0)
+      for (const auto& m : c.o.models) c.o.arms.insert(c.o.arms.end(), {m + "-paper", m + "-best"});
+    if (sub.count("--arms") == 0 && std::count(c.o.models.begin(), c.o.models.end(), "reduced"))
+      c.o.arms.push_back("reduced-beyond");
+  } else if (sub.count("--seeds") == 0) {
+    c.o.seeds = 10;
+  }
+  try {
+    c.o.baselines_available = root.get_subcommand("baseline") != nullptr;
+  } catch (const CLI::OptionNotFound&) {
+    c.o.baselines_available = false;
+  }
+}
+
+void print_case_commands(const StudyCli& c, const std::vector<study::CaseSpec>& cases, const fs::path& exe,
+                         const fs::path& out) {
+  for (const auto& cs : cases) {
+    std::string line = shell_quote(exe.string());
+    for (const auto& a : case_argv(c, out.string(), cs.name)) line += " " + shell_quote(a);
+    std::printf("%s\n", line.c_str());
+  }
+  std::fprintf(stderr, "study: %zu cases; afterwards: %s study %s --collect %s\n", cases.size(),
+               shell_quote(exe.string()).c_str(), c.o.mode.c_str(), shell_quote(out.string()).c_str());
+}
+
+int run_all_cases(const StudyCli& c, const std::vector<study::CaseSpec>& cases, const fs::path& self,
+                  const fs::path& out) {
+  const long cores = sysconf(_SC_NPROCESSORS_ONLN);
+  const int jobs = c.jobs > 0 ? c.jobs : static_cast<int>(std::max(1L, cores));
+  fs::create_directories(out);
+  std::fprintf(stderr, "study: %zu cases, %d at once -> %s\n", cases.size(), jobs, out.c_str());
+  const int failed = study::run_cases(self, out, cases, jobs, [&](const study::CaseSpec& cs) {
+    return case_argv(c, out.string(), cs.name);
+  });
+  std::string command = "bmssim study " + c.o.mode + fmt::format(" --seeds {}", c.o.seeds) +
+                        (c.o.quick ? " --quick" : "") + " --models " + join(c.o.models, ",") +
+                        (c.o.arms.empty() ? "" : " --arms " + join(c.o.arms, ",")) + " --out " + c.out;
+  const nlohmann::json options = {{"mode", c.o.mode},   {"seeds", c.o.seeds}, {"quick", c.o.quick},
+                                  {"models", c.o.models}, {"arms", c.o.arms},   {"jobs", jobs},
+                                  {"cases", cases.size()}, {"failed_cases", failed}};
+  collect_and_report(out, options, command);
+  if (failed > 0) {
+    std::fprintf(stderr, "study: %d case(s) failed (see cases/<case>/log.txt); summary has what completed\n", failed);
+    return 1;
+  }
+  return 0;
+}
+
+int run_study(StudyCli& c, const CLI::App& sub, CLI::App& root) {
+  if (!c.collect_dir.empty()) {
+    const fs::path dir = fs::absolute(c.collect_dir);
+    if (!fs::is_directory(dir)) throw InputError("--collect: " + dir.string() + " is not a folder");
+    return collect_and_report(dir, {{"collected_only", true}}, "bmssim study " + c.o.mode + " --collect " + c.collect_dir);
+  }
+  if (c.out.empty()) throw InputError("--out: required (or --collect DIR)");
+  if (c.o.mode == "blind") return run_blind(c, sub);
+  apply_plan_defaults(c, sub, root);
+  const std::vector<study::CaseSpec> cases = study::plan_cases(c.o);
+  // Children run /proc/self/exe: the same image even if the file is rebuilt during a long study.
+  const fs::path self = "/proc/self/exe";
+  const fs::path exe = fs::read_symlink(self);
+  const fs::path out = fs::absolute(c.out);
+  if (c.list_cases) {
+    print_case_commands(c, cases, exe, out);
+    return 0;
+  }
+  if (!c.one_case.empty()) {
+    const auto it = std::find_if(cases.begin(), cases.end(), [&](const auto& cs) { return cs.name == c.one_case; });
+    if (it == cases.end()) throw InputError("--case: no case '" + c.one_case + "' in this plan (see --list-cases)");
+    return study::run_case(self, out, *it) == 0 ? 0 : 1;
+  }
+  return run_all_cases(c, cases, self, out);
+}
+
 }  // namespace
 
 Runner add_study(CLI::App& app) {
@@ -115,81 +208,7 @@ Runner add_study(CLI::App& app) {
       "  bmssim study noise --quick --out out/study-quick      # a few minutes\n"
       "  bmssim study all --out out/s --list-cases | parallel -j 8 && bmssim study all --collect out/s");
   CLI::App* root = &app;
-  return [c, sub, root]() {
-    if (!c->collect_dir.empty()) {
-      const fs::path dir = fs::absolute(c->collect_dir);
-      if (!fs::is_directory(dir)) throw InputError("--collect: " + dir.string() + " is not a folder");
-      return collect_and_report(dir, {{"collected_only", true}}, "bmssim study " + c->o.mode + " --collect " + c->collect_dir);
-    }
-    if (c->out.empty()) throw InputError("--out: required (or --collect DIR)");
-    if (c->o.mode == "blind") {
-      BlindStudyOptions b;
-      b.seeds = sub->count("--seeds") ? c->o.seeds : (c->o.quick ? 2 : 10);
-      b.cycles = c->o.quick && sub->count("--cycles") == 0 ? 3 : c->blind_cycles;
-      b.sets = c->o.quick && sub->count("--sets") == 0 ? "1" : c->blind_sets;
-      b.jobs = c->jobs > 0 ? c->jobs : static_cast<int>(std::max(1L, sysconf(_SC_NPROCESSORS_ONLN)));
-      b.out = c->out;
-      const std::string command = fmt::format("bmssim study blind --seeds {} --cycles {} --sets {} --out {}", b.seeds,
-                                              b.cycles, b.sets, c->out);
-      const int failed = run_blind_study(b, command);
-      if (failed > 0) std::fprintf(stderr, "study blind: %d truth(s) could not be simulated (summary.json: truth_failures)\n", failed);
-      return failed > 0 ? 1 : 0;
-    }
-    if (c->o.quick) {
-      if (sub->count("--seeds") == 0) c->o.seeds = 2;
-      if (sub->count("--models") == 0) c->o.models = {"reduced"};
-      if (sub->count("--arms") == 0)
-        for (const auto& m : c->o.models) c->o.arms.insert(c->o.arms.end(), {m + "-paper", m + "-best"});
-      if (sub->count("--arms") == 0 && std::count(c->o.models.begin(), c->o.models.end(), "reduced"))
-        c->o.arms.push_back("reduced-beyond");
-    } else if (sub->count("--seeds") == 0) {
-      c->o.seeds = 10;
-    }
-    try {
-      c->o.baselines_available = root->get_subcommand("baseline") != nullptr;
-    } catch (const CLI::OptionNotFound&) {
-      c->o.baselines_available = false;
-    }
-    const std::vector<study::CaseSpec> cases = study::plan_cases(c->o);
-    // Children run /proc/self/exe: the same image even if the file is rebuilt during a long study.
-    const fs::path self = "/proc/self/exe";
-    const fs::path exe = fs::read_symlink(self);
-    const fs::path out = fs::absolute(c->out);
-    if (c->list_cases) {
-      for (const auto& cs : cases) {
-        std::string line = shell_quote(exe.string());
-        for (const auto& a : case_argv(*c, out.string(), cs.name)) line += " " + shell_quote(a);
-        std::printf("%s\n", line.c_str());
-      }
-      std::fprintf(stderr, "study: %zu cases; afterwards: %s study %s --collect %s\n", cases.size(),
-                   shell_quote(exe.string()).c_str(), c->o.mode.c_str(), shell_quote(out.string()).c_str());
-      return 0;
-    }
-    if (!c->one_case.empty()) {
-      const auto it = std::find_if(cases.begin(), cases.end(), [&](const auto& cs) { return cs.name == c->one_case; });
-      if (it == cases.end()) throw InputError("--case: no case '" + c->one_case + "' in this plan (see --list-cases)");
-      return study::run_case(self, out, *it) == 0 ? 0 : 1;
-    }
-    const long cores = sysconf(_SC_NPROCESSORS_ONLN);
-    const int jobs = c->jobs > 0 ? c->jobs : static_cast<int>(std::max(1L, cores));
-    fs::create_directories(out);
-    std::fprintf(stderr, "study: %zu cases, %d at once -> %s\n", cases.size(), jobs, out.c_str());
-    const int failed = study::run_cases(self, out, cases, jobs, [&](const study::CaseSpec& cs) {
-      return case_argv(*c, out.string(), cs.name);
-    });
-    std::string command = "bmssim study " + c->o.mode + fmt::format(" --seeds {}", c->o.seeds) +
-                          (c->o.quick ? " --quick" : "") + " --models " + join(c->o.models, ",") +
-                          (c->o.arms.empty() ? "" : " --arms " + join(c->o.arms, ",")) + " --out " + c->out;
-    const nlohmann::json options = {{"mode", c->o.mode},   {"seeds", c->o.seeds}, {"quick", c->o.quick},
-                                    {"models", c->o.models}, {"arms", c->o.arms},   {"jobs", jobs},
-                                    {"cases", cases.size()}, {"failed_cases", failed}};
-    collect_and_report(out, options, command);
-    if (failed > 0) {
-      std::fprintf(stderr, "study: %d case(s) failed (see cases/<case>/log.txt); summary has what completed\n", failed);
-      return 1;
-    }
-    return 0;
-  };
+  return [c, sub, root]() { return run_study(*c, *sub, *root); };
 }
 
 }  // namespace bms::app

@@ -20,6 +20,7 @@
 #include "baselines/baseline_run.hpp"
 #include "estimation/estimate_run.hpp"
 #include "estimation/film_bound.hpp"
+#include "io/gnuplot.hpp"
 #include "io/input_error.hpp"
 #include "io/text_file.hpp"
 #include "sim/cell_catalog.hpp"
@@ -339,7 +340,9 @@ int draw_figures(const fs::path& dir, const std::vector<json>& cases) {
       "2 with lines dt 2 lc rgb 'black' title '2 % target'\n",
       fig.string());
   write_file_atomically(fig / "figures.gp", gp);
-  return study::run_gnuplot(fig / "figures.gp", fig / "gnuplot.log") == 0 ? 2 : 0;
+  GnuplotOptions gnuplot;
+  gnuplot.log = fig / "gnuplot.log";
+  return run_gnuplot(fig / "figures.gp", gnuplot) == 0 ? 2 : 0;
 }
 
 void write_report(const fs::path& dir, const json& summary, int drawn) {

@@ -55,102 +55,113 @@ void AugmentedEkf::unpack(const Vec& x, Cell::State& s) const {
   for (int i = 0; i < Cell::kNx; ++i, ++k) s.ce_mol_m3[i] = x(k) * scale_(k);
 }
 
-EkfTick AugmentedEkf::tick(const Track& t, std::size_t i, bool update) {
-  const double u = t.input(i);
-  const bool by_voltage = t.voltage_driven[i] != 0;
-  update = update && !by_voltage;
-  const Cell::State s0 = cell_.state();
-  const Vec x0 = pack(s0);
-
-  Cell base = cell_;
-  const auto r0 = step(base, t, i, r_film_);
-  const Vec x1 = pack(base.state());
-
-  // Linearisation of the step (columns of F, entries of H) by forward differences.
+// The tick's step without a correction and its derivatives, by forward differences on copies
+// of the model.
+struct AugmentedEkf::Linearisation {
+  explicit Linearisation(const Cell& cell) : s0(cell.state()), base(cell) {}
+  Cell::State s0;
+  Vec x0;
+  Cell base;  // the model stepped without a correction
+  fw::ModelTickResult<double> r0{};
   Mat f = Mat::Zero();
   Eigen::Matrix<double, 1, kN> h;
+  Vec b;
+  double dv_du = 0.0;
+};
+
+AugmentedEkf::Linearisation AugmentedEkf::linearise(const Track& t, std::size_t i, double u, bool by_voltage) const {
+  Linearisation lin(cell_);
+  lin.x0 = pack(lin.s0);
+  lin.r0 = step(lin.base, t, i, r_film_);
+  const Vec x1 = pack(lin.base.state());
+  // Linearisation of the step (columns of F, entries of H) by forward differences.
   for (int j = 0; j < kConc; ++j) {
-    Vec xp = x0;
+    Vec xp = lin.x0;
     xp(j) += kStateStep;
-    Cell::State sp = s0;
+    Cell::State sp = lin.s0;
     unpack(xp, sp);
     Cell c = cell_;
     c.restore(sp);
     const auto rj = step_with_input(c, t, i, u, r_film_);
-    f.col(j) = (pack(c.state()) - x1) / kStateStep;
-    h(j) = (rj.voltage_v - r0.voltage_v) / kStateStep;
+    lin.f.col(j) = (pack(c.state()) - x1) / kStateStep;
+    lin.h(j) = (rj.voltage_v - lin.r0.voltage_v) / kStateStep;
   }
   {
     Cell c = cell_;
     const double dr = kStateStep * scale_(kR);
     const auto rr = step_with_input(c, t, i, u, r_film_ + dr);
-    f.col(kR) = (pack(c.state()) - x1) / kStateStep;
-    f(kR, kR) = 1.0;
-    h(kR) = (rr.voltage_v - r0.voltage_v) / kStateStep;
+    lin.f.col(kR) = (pack(c.state()) - x1) / kStateStep;
+    lin.f(kR, kR) = 1.0;
+    lin.h(kR) = (rr.voltage_v - lin.r0.voltage_v) / kStateStep;
   }
   const double du = by_voltage ? kVoltageStepV : kCurrentStepA;
-  Vec b;
-  double dv_du = 0.0;
-  {
-    Cell c = cell_;
-    const auto ru = step_with_input(c, t, i, u + du, r_film_);
-    b = (pack(c.state()) - x1) / du;
-    dv_du = (ru.voltage_v - r0.voltage_v) / du;
-  }
+  Cell c = cell_;
+  const auto ru = step_with_input(c, t, i, u + du, r_film_);
+  lin.b = (pack(c.state()) - x1) / du;
+  lin.dv_du = (ru.voltage_v - lin.r0.voltage_v) / du;
+  return lin;
+}
 
-  EkfTick out{r_film_, 0.0, r0.voltage_v, 0.0, false, false};
+// The measurement update with out.innovation_v; false (nothing changed) when the corrected
+// state is one the model cannot take.
+bool AugmentedEkf::correct(const Track& t, std::size_t i, double u, const Linearisation& lin, EkfTick& out) {
+  const double innovation = out.innovation_v;
+  const double r_var = noise_.sigma_v_v * noise_.sigma_v_v + config_.model_error_v * config_.model_error_v +
+                       noise_.sigma_i_a * noise_.sigma_i_a * lin.dv_du * lin.dv_du;
+  const Vec ph = p_ * lin.h.transpose();
+  const double s = (lin.h * ph)(0) + r_var;
+  const Vec k = ph / s;
+  Vec xc = lin.x0 + k * innovation;
+  Cell::State sc = lin.s0;
+  unpack(xc, sc);
+  Cell corrected = cell_;
+  const double r_corr = r_film_ + k(kR) * innovation * scale_(kR);
+  bool ok = corrected.restore(sc);
+  fw::ModelTickResult<double> rc{};
+  if (ok) {
+    rc = step_with_input(corrected, t, i, u, r_corr);
+    ok = rc.valid;
+  }
+  if (!ok) return false;
+  const Mat a = Mat::Identity() - k * lin.h;
+  p_ = a * p_ * a.transpose() + (k * k.transpose()) * r_var;
+  r_film_ = r_corr;
+  cell_ = corrected;
+  out = {r_film_, r_sigma_ohm_m2(), rc.voltage_v, innovation, true, false};
+  return true;
+}
+
+EkfTick AugmentedEkf::tick(const Track& t, std::size_t i, bool update) {
+  const double u = t.input(i);
+  const bool by_voltage = t.voltage_driven[i] != 0;
+  update = update && !by_voltage;
+  const Linearisation lin = linearise(t, i, u, by_voltage);
+
+  EkfTick out{r_film_, 0.0, lin.r0.voltage_v, 0.0, false, false};
   if (update) {
     const double y = t.data->voltage_v[i];
     const double r_var = noise_.sigma_v_v * noise_.sigma_v_v + config_.model_error_v * config_.model_error_v +
-                         noise_.sigma_i_a * noise_.sigma_i_a * dv_du * dv_du;
-    const double innovation = y - r0.voltage_v;
-    const Vec ph = p_ * h.transpose();
-    const double s = (h * ph)(0) + r_var;
+                         noise_.sigma_i_a * noise_.sigma_i_a * lin.dv_du * lin.dv_du;
+    const double innovation = y - lin.r0.voltage_v;
+    const Vec ph = p_ * lin.h.transpose();
+    const double s = (lin.h * ph)(0) + r_var;
     out.innovation_v = innovation;
     if (config_.gate_sigmas > 0.0 && innovation * innovation > config_.gate_sigmas * config_.gate_sigmas * s) {
       update = false;
       out.gated = true;
     }
   }
-  if (update) {
-    const double innovation = out.innovation_v;
-    const double r_var = noise_.sigma_v_v * noise_.sigma_v_v + config_.model_error_v * config_.model_error_v +
-                         noise_.sigma_i_a * noise_.sigma_i_a * dv_du * dv_du;
-    const Vec ph = p_ * h.transpose();
-    const double s = (h * ph)(0) + r_var;
-    const Vec k = ph / s;
-    Vec xc = x0 + k * innovation;
-    Cell::State sc = s0;
-    unpack(xc, sc);
-    Cell corrected = cell_;
-    const double r_corr = r_film_ + k(kR) * innovation * scale_(kR);
-    bool ok = corrected.restore(sc);
-    fw::ModelTickResult<double> rc{};
-    if (ok) {
-      rc = step_with_input(corrected, t, i, u, r_corr);
-      ok = rc.valid;
-    }
-    if (ok) {
-      const Mat a = Mat::Identity() - k * h;
-      p_ = a * p_ * a.transpose() + (k * k.transpose()) * r_var;
-      r_film_ = r_corr;
-      cell_ = corrected;
-      out = {r_film_, r_sigma_ohm_m2(), rc.voltage_v, innovation, true, false};
-    } else {
-      cell_ = base;  // a correction the model cannot take is dropped, not forced
-    }
-  } else {
-    cell_ = base;
-  }
+  // A correction the model cannot take is dropped, not forced.
+  if (!update || !correct(t, i, u, lin, out)) cell_ = lin.base;
   if (!out.updated) out.r_sigma_ohm_m2 = r_sigma_ohm_m2();
 
   const double sigma_u = by_voltage ? noise_.sigma_v_v : noise_.sigma_i_a;
-  Mat q = (b * b.transpose()) * (sigma_u * sigma_u);
+  Mat q = (lin.b * lin.b.transpose()) * (sigma_u * sigma_u);
   const double qc = config_.q_conc_rel_per_sqrt_s * config_.q_conc_rel_per_sqrt_s * t.dt_s;
   for (int j = 0; j < kConc; ++j) q(j, j) += qc;
   const double qr = config_.q_r_ohm_m2_per_sqrt_s / scale_(kR);
   q(kR, kR) += qr * qr * t.dt_s;
-  p_ = f * p_ * f.transpose() + q;
+  p_ = lin.f * p_ * lin.f.transpose() + q;
   p_ = 0.5 * (p_ + p_.transpose());  // keep it symmetric against round-off drift
   return out;
 }

@@ -79,6 +79,9 @@ class AugmentedEkf {
   const Cell& model() const { return cell_; }
 
  private:
+  struct Linearisation;
+  Linearisation linearise(const Track& t, std::size_t i, double u, bool by_voltage) const;
+  bool correct(const Track& t, std::size_t i, double u, const Linearisation& lin, EkfTick& out);
   Vec pack(const Cell::State& s) const;            // scaled concentrations, R_film slot = 0
   void unpack(const Vec& x, Cell::State& s) const;  // concentrations only
 

@@ -28,6 +28,59 @@ std::vector<double> window_voltage(const Cell& at_start, const Track& t, const W
   return v;
 }
 
+// Weights from the tick's own current sensitivity (barely depends on R_film), on a copy of the
+// model at the window start; 0 outside CC charge.
+std::vector<double> window_weights(const Cell& at_start, const Track& t, const Window& w, double r_hold, double var_v,
+                                   double var_i) {
+  std::vector<double> weight(w.last - w.first, 0.0);
+  Cell c = at_start;
+  for (std::size_t i = w.first; i < w.last; ++i) {
+    if (t.mode[i] == fw::Mode::cc_charge) {
+      const OutputSensitivity s = output_sensitivity(c, t, i, r_hold);
+      weight[i - w.first] = 1.0 / (var_v + var_i * s.dv_di_v_per_a * s.dv_di_v_per_a);
+    }
+    step(c, t, i, r_hold);
+  }
+  return weight;
+}
+
+// Gauss-Newton on the window's weighted voltage error, from p (updated in place); np = 1 holds
+// the slope at 0. Returns the last normal matrix (its inverse is the parameters' covariance).
+Eigen::Matrix2d fit_window(const Cell& cell, const Track& t, const Window& w, const std::vector<double>& weight, int np,
+                           int max_iterations, Eigen::Vector2d& p, int& iterations) {
+  const EstimateData& d = *t.data;
+  Eigen::Matrix2d normal = Eigen::Matrix2d::Identity();
+  std::vector<double> v;
+  for (int it = 0; it < max_iterations; ++it) {
+    v = window_voltage(cell, t, w, p);
+    std::vector<double> jac[2];
+    for (int k = 0; k < np; ++k) {
+      Eigen::Vector2d pk = p;
+      pk(k) += kFilmStepOhmM2;
+      jac[k] = window_voltage(cell, t, w, pk);
+      for (std::size_t n = 0; n < v.size(); ++n) jac[k][n] = (jac[k][n] - v[n]) / kFilmStepOhmM2;
+    }
+    normal.setZero();
+    Eigen::Vector2d grad = Eigen::Vector2d::Zero();
+    for (std::size_t n = 0; n < v.size(); ++n) {
+      const double wn = weight[n];
+      if (wn == 0.0) continue;
+      const double e = v[n] - d.voltage_v[w.first + n];
+      for (int a = 0; a < np; ++a) {
+        grad(a) += wn * jac[a][n] * e;
+        for (int b = 0; b < np; ++b) normal(a, b) += wn * jac[a][n] * jac[b][n];
+      }
+    }
+    if (np == 1) normal(1, 1) = 1.0;  // the slope stays 0
+    const Eigen::Vector2d delta = -normal.ldlt().solve(grad);
+    p += delta;
+    iterations = it + 1;
+    const double sigma_a = 1.0 / std::sqrt(normal(0, 0));
+    if (std::abs(delta(0)) < 1e-3 * sigma_a && std::abs(delta(1)) < 1e-3 * sigma_a) break;
+  }
+  return normal;
+}
+
 }  // namespace
 
 BatchRun run_batch(const Track& t, const NoiseLevels& noise, const BatchConfig& config, Cell cell,
@@ -66,51 +119,11 @@ BatchRun run_batch(const Track& t, const NoiseLevels& noise, const BatchConfig& 
     w.t_mid_s = 0.5 * (d.t_s[w.first] + d.t_s[w.last - 1]);
     w.half_span_s = std::max(0.5 * (d.t_s[w.last - 1] - d.t_s[w.first]), t.dt_s);
 
-    // Weights from the tick's own current sensitivity (barely depends on R_film).
-    std::vector<double> weight(w.last - w.first, 0.0);
-    {
-      Cell c = cell;
-      for (std::size_t i = w.first; i < w.last; ++i) {
-        if (t.mode[i] == fw::Mode::cc_charge) {
-          const OutputSensitivity s = output_sensitivity(c, t, i, r_hold);
-          weight[i - w.first] = 1.0 / (var_v + var_i * s.dv_di_v_per_a * s.dv_di_v_per_a);
-        }
-        step(c, t, i, r_hold);
-      }
-    }
-
+    const std::vector<double> weight = window_weights(cell, t, w, r_hold, var_v, var_i);
     Eigen::Vector2d p(r_hold, 0.0);
-    Eigen::Matrix2d normal = Eigen::Matrix2d::Identity();
     BatchCycle bc;
     bc.cycle = d.cycle[first];
-    std::vector<double> v;
-    for (int it = 0; it < config.max_iterations; ++it) {
-      v = window_voltage(cell, t, w, p);
-      std::vector<double> jac[2];
-      for (int k = 0; k < np; ++k) {
-        Eigen::Vector2d pk = p;
-        pk(k) += kFilmStepOhmM2;
-        jac[k] = window_voltage(cell, t, w, pk);
-        for (std::size_t n = 0; n < v.size(); ++n) jac[k][n] = (jac[k][n] - v[n]) / kFilmStepOhmM2;
-      }
-      normal.setZero();
-      Eigen::Vector2d grad = Eigen::Vector2d::Zero();
-      for (std::size_t n = 0; n < v.size(); ++n) {
-        const double wn = weight[n];
-        if (wn == 0.0) continue;
-        const double e = v[n] - d.voltage_v[w.first + n];
-        for (int a = 0; a < np; ++a) {
-          grad(a) += wn * jac[a][n] * e;
-          for (int b = 0; b < np; ++b) normal(a, b) += wn * jac[a][n] * jac[b][n];
-        }
-      }
-      if (np == 1) normal(1, 1) = 1.0;  // the slope stays 0
-      const Eigen::Vector2d delta = -normal.ldlt().solve(grad);
-      p += delta;
-      bc.iterations = it + 1;
-      const double sigma_a = 1.0 / std::sqrt(normal(0, 0));
-      if (std::abs(delta(0)) < 1e-3 * sigma_a && std::abs(delta(1)) < 1e-3 * sigma_a) break;
-    }
+    const Eigen::Matrix2d normal = fit_window(cell, t, w, weight, np, config.max_iterations, p, bc.iterations);
     const Eigen::Matrix2d cov = normal.inverse();
 
     // Commit the fit: residual statistics and the state carried on.

@@ -55,13 +55,8 @@ using fw::log;
 using fw::sinh;
 using fw::sqrt;
 
-}  // namespace
-
-DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double temperature_k,
-                   const ModelEffects& effects)
-    : cell_(cell), mesh_(mesh), temperature_k_(temperature_k), effects_(effects) {
-  if (mesh.n_neg < 2 || mesh.n_sep < 1 || mesh.n_pos < 2 || mesh.n_r < 3)
-    throw std::invalid_argument("DfnMesh: need at least 2 cells per electrode, 1 in the separator, 3 radial");
+// Physical ranges of the effects and of the cell fields they need; InputError naming the effect.
+void check_effects(const CellParameters& cell, const ModelEffects& effects, double temperature_k) {
   const auto bad = [](const std::string& what) { throw InputError("effect " + what); };
   // Physical ranges, generous: a cell's contact resistance is milliohms (1 ohm drops 2.5 V at
   // 2.5 A); an 18650's loss to ambient is 0.01-1 W/K, and 1e5 W/K holds a cell at ambient.
@@ -91,12 +86,23 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
     bad("temperature " + std::to_string(temperature_k) + " K: outside 150-500 K");
   if (effects.hysteresis_on() && !(cell.nominal_capacity_ah > 0.0))
     bad("hysteresis: cell '" + cell.name + "' has no nominal capacity to scale the rate");
+}
+
+}  // namespace
+
+DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double temperature_k,
+                   const ModelEffects& effects)
+    : cell_(cell), mesh_(mesh), temperature_k_(temperature_k), effects_(effects) {
+  if (mesh.n_neg < 2 || mesh.n_sep < 1 || mesh.n_pos < 2 || mesh.n_r < 3)
+    throw std::invalid_argument("DfnMesh: need at least 2 cells per electrode, 1 in the separator, 3 radial");
+  check_effects(cell, effects, temperature_k);
   if (effects.thermal_on()) {
     const auto& th = cell.thermal;
     heat_capacity_j_k_ = th.specific_heat_j_kg_k * th.density_kg_m3 * th.volume_m3;
     if (!(heat_capacity_j_k_ > 0.0))
-      bad("thermal: cell '" + cell.name + "' has no heat capacity (BPX Cell: 'Specific heat capacity [J.K-1.kg-1]', "
-          "'Density [kg.m-3]', 'Volume [m3]')");
+      throw InputError("effect thermal: cell '" + cell.name +
+                       "' has no heat capacity (BPX Cell: 'Specific heat capacity [J.K-1.kg-1]', "
+                       "'Density [kg.m-3]', 'Volume [m3]')");
   }
   temperature_dependent_ = effects.thermal_on() || temperature_k != cell.thermal.reference_temperature_k;
   f_rt_ = kFaradayC_mol / (kGas_j_mol_k * temperature_k_);
@@ -111,12 +117,20 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
     n_ += nx_;
     idx_temp_ = n_++;
   }
-  nodes_[0] = mesh.n_neg;
-  nodes_[1] = mesh.n_pos;
+  layout_populations();
+  layout_regions();
+  layout_shells();
+  set_masses_and_scales();
+}
+
+// Particle-size populations: Gauss-Hermite radius scales and weights, and their extra states.
+void DfnModel::layout_populations() {
+  nodes_[0] = mesh_.n_neg;
+  nodes_[1] = mesh_.n_pos;
   for (int side = 0; side < 2; ++side) {
     pop_scale_[side] = {1.0};
     pop_weight_[side] = {1.0};
-    const double sigma = side == 0 ? effects.particle_size_negative_sigma : effects.particle_size_sigma;
+    const double sigma = side == 0 ? effects_.particle_size_negative_sigma : effects_.particle_size_sigma;
     if (!(sigma > 0.0)) continue;
     // Probabilists' Gauss-Hermite nodes z and weights w (sum 1) for a standard normal in
     // ln(radius); node 0 is the centre, so population 0 is the plain model's particle moved.
@@ -126,7 +140,7 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
                                      2.8569700138728056};
     static constexpr double k5w[] = {0.53333333333333333, 0.22207592200561265, 0.22207592200561265,
                                      0.011257411327720691, 0.011257411327720691};
-    const int n_pop = effects.particle_size_populations;
+    const int n_pop = effects_.particle_size_populations;
     const double* z = n_pop == 3 ? k3z : k5z;
     const double* w = n_pop == 3 ? k3w : k5w;
     // Median so that sum w / R_p = 1 / R (Sauter mean = R): the total area is the cell's.
@@ -140,44 +154,51 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
     }
     n_pop_[side] = n_pop;
     pop_cs0_[side] = n_;
-    n_ += (n_pop - 1) * nodes_[side] * mesh.n_r;
+    n_ += (n_pop - 1) * nodes_[side] * mesh_.n_r;
     pop_j0_[side] = n_;
     n_ += (n_pop - 1) * nodes_[side];
   }
 
+}
+
+// Cell widths, porosities, transport efficiencies and surface areas per x cell and population.
+void DfnModel::layout_regions() {
   dx_.resize(nx_);
   eps_.resize(nx_);
   te_.resize(nx_);
   a_.resize(nx_);
   for (int k = 0; k < nx_; ++k) {
-    if (k < mesh.n_neg) {
-      dx_[k] = cell.negative.thickness_m / mesh.n_neg;
-      eps_[k] = cell.negative.porosity;
-      te_[k] = cell.negative.transport_efficiency;
-      a_[k] = cell.negative.surface_area_per_volume_m();
-    } else if (k < mesh.n_neg + mesh.n_sep) {
-      dx_[k] = cell.separator.thickness_m / mesh.n_sep;
-      eps_[k] = cell.separator.porosity;
-      te_[k] = cell.separator.transport_efficiency;
+    if (k < mesh_.n_neg) {
+      dx_[k] = cell_.negative.thickness_m / mesh_.n_neg;
+      eps_[k] = cell_.negative.porosity;
+      te_[k] = cell_.negative.transport_efficiency;
+      a_[k] = cell_.negative.surface_area_per_volume_m();
+    } else if (k < mesh_.n_neg + mesh_.n_sep) {
+      dx_[k] = cell_.separator.thickness_m / mesh_.n_sep;
+      eps_[k] = cell_.separator.porosity;
+      te_[k] = cell_.separator.transport_efficiency;
       a_[k] = 0.0;
     } else {
-      dx_[k] = cell.positive.thickness_m / mesh.n_pos;
-      eps_[k] = cell.positive.porosity;
-      te_[k] = cell.positive.transport_efficiency;
-      a_[k] = cell.positive.surface_area_per_volume_m();
+      dx_[k] = cell_.positive.thickness_m / mesh_.n_pos;
+      eps_[k] = cell_.positive.porosity;
+      te_[k] = cell_.positive.transport_efficiency;
+      a_[k] = cell_.positive.surface_area_per_volume_m();
     }
   }
   for (int side = 0; side < 2; ++side) {
-    const ElectrodeParameters& el = side == 0 ? cell.negative : cell.positive;
+    const ElectrodeParameters& el = side == 0 ? cell_.negative : cell_.positive;
     a_pop_[side].assign(n_pop_[side], 0.0);
     for (int p = 0; p < n_pop_[side]; ++p)
       a_pop_[side][p] = 3.0 * el.solid_fraction * pop_weight_[side][p] / (el.particle_radius_m * pop_scale_[side][p]);
     if (n_pop_[side] > 1) {  // a_ of the electrode's cells becomes population 0's
-      const int k0 = side == 0 ? 0 : mesh.n_neg + mesh.n_sep, k1 = side == 0 ? mesh.n_neg : nx_;
+      const int k0 = side == 0 ? 0 : mesh_.n_neg + mesh_.n_sep, k1 = side == 0 ? mesh_.n_neg : nx_;
       for (int k = k0; k < k1; ++k) a_[k] = a_pop_[side][0];
     }
   }
-  const int nr = mesh.n_r;
+}
+
+void DfnModel::layout_shells() {
+  const int nr = mesh_.n_r;
   const int n_geom = n_pop_[0] + n_pop_[1];
   shell_vol_.resize(n_geom * nr);
   face_r2_.resize(n_geom * (nr + 1));
@@ -188,8 +209,8 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
   center_dist_.resize(n_geom * (nr - 1));
   surface_half_.resize(n_geom);
   for (int side = 0; side < n_geom; ++side) {
-    const double radius = side < n_pop_[0] ? cell.negative.particle_radius_m * pop_scale_[0][side]
-                                           : cell.positive.particle_radius_m * pop_scale_[1][side - n_pop_[0]];
+    const double radius = side < n_pop_[0] ? cell_.negative.particle_radius_m * pop_scale_[0][side]
+                                           : cell_.positive.particle_radius_m * pop_scale_[1][side - n_pop_[0]];
     std::vector<double> face(nr + 1);
     for (int i = 0; i <= nr; ++i) {
       const double u = static_cast<double>(i) / nr;
@@ -202,16 +223,20 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
       center_dist_[side * (nr - 1) + i] = 0.5 * (face[i + 2] - face[i]);
     surface_half_[side] = 0.5 * (face[nr] - face[nr - 1]);
   }
+}
 
+// The residual's mass-matrix diagonal and the absolute-tolerance scale of each state.
+void DfnModel::set_masses_and_scales() {
+  const int nr = mesh_.n_r;
   mass_.assign(n_, 0.0);
   atol_scale_.assign(n_, 1.0);
   for (int k = 0; k < nx_; ++k) {
     mass_[idx_ce(k)] = eps_[k] * dx_[k];
-    atol_scale_[idx_ce(k)] = cell.initial_electrolyte_mol_m3;
+    atol_scale_[idx_ce(k)] = cell_.initial_electrolyte_mol_m3;
   }
   for (int e = 0; e < ne_; ++e) {
     const double cmax =
-        e < mesh.n_neg ? cell.negative.max_concentration_mol_m3 : cell.positive.max_concentration_mol_m3;
+        e < mesh_.n_neg ? cell_.negative.max_concentration_mol_m3 : cell_.positive.max_concentration_mol_m3;
     for (int p = 0; p < n_populations(e); ++p) {
       const int side = geom(e, p);
       for (int r = 0; r < nr; ++r) {
@@ -221,9 +246,9 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
     }
   }
   mass_[idx_film()] = 1.0;
-  atol_scale_[idx_film()] = std::max(cell.side.initial_film_resistance_ohm_m2, 1e-3);
+  atol_scale_[idx_film()] = std::max(cell_.side.initial_film_resistance_ohm_m2, 1e-3);
   mass_[idx_charge()] = 1.0;
-  atol_scale_[idx_charge()] = std::max(cell.nominal_capacity_ah, 1.0);
+  atol_scale_[idx_charge()] = std::max(cell_.nominal_capacity_ah, 1.0);
   if (idx_hyst_ >= 0) {
     mass_[idx_hyst_] = 1.0;
     atol_scale_[idx_hyst_] = 1e-2;  // resolves 0.1 uV at atol 1e-8 (V scale of the gap)
@@ -306,216 +331,269 @@ T DfnModel::side_current(const T& phis, const T& phie, const T& j, const T& r, c
   return -s.exchange_current_a_m2 * exp(clamp_between(minus_alpha_f * eta_s, -60.0, 60.0));
 }
 
+// One evaluation of the residual g(t, y): the temperature terms shared by its rows, the heat
+// sums, and one member per group of rows, in the order eval_g calls them.
 template <typename T>
-void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
-  const int nn = mesh_.n_neg, ns = mesh_.n_sep, nr = mesh_.n_r;
-  const double area = cell_.electrode_area_m2;
-  const double tplus = cell_.electrolyte.transference_number;
-  const T current = y[idx_current()];
-  const T i_app = current / area;  // A/m2, positive = discharge
-  const T r_film = y[idx_film()];
-  const bool side_on = cell_.side.enabled;
-  // Temperature terms are evaluated only when they can differ from the reference; otherwise
-  // every expression below is the isothermal model's own (bit-for-bit the same residual).
-  const bool temp_dep = temperature_dependent_;
-  const bool thermal = idx_temp_ >= 0;
-  const bool want_heat = thermal || heat != nullptr;
-  const T temp = thermal ? y[idx_temp_] : T(temperature_k_);
-  const T f_rt = temp_dep ? T(kFaradayC_mol / kGas_j_mol_k) / temp : T(f_rt_);
-  const T nu = temp_dep ? T(2.0 * (1.0 - tplus)) / f_rt : T(2.0 * (1.0 - tplus) / f_rt_);  // V, without the TDF
-  const T half_f = temp_dep ? T(0.5) * f_rt : T(0.5 * f_rt_);
-  const T minus_alpha_f_side =
-      temp_dep ? T(-cell_.side.transfer_coefficient) * f_rt : T(-cell_.side.transfer_coefficient * f_rt_);
-  const auto& el = cell_.electrolyte;
+struct DfnResidual {
+  const DfnModel& m;
+  const T* y;
+  T* g;
+  const bool report_heat;
+  const T current, i_app, r_film;
+  const bool side_on, temp_dep, thermal, want_heat;
+  const T temp;
+  T f_rt{}, nu{}, half_f{}, minus_alpha_f_side{};
   T arr_de = T(1.0), arr_ke = T(1.0);
-  if (temp_dep) {
-    arr_de = arrhenius(el.diffusivity_activation_j_mol, temp);
-    arr_ke = arrhenius(el.conductivity_activation_j_mol, temp);
-  }
-  const auto d_eff = [&](const T& ce, int k) {
-    const T d = apply(*el.diffusivity_m2_s, ce) * te_[k];
-    return temp_dep ? d * arr_de : d;
-  };
-  const auto kappa_eff = [&](const T& ce, int k) {
-    const T kap = apply(*el.conductivity_s_m, ce) * te_[k];
-    return temp_dep ? kap * arr_ke : kap;
-  };
-  // Heat rows: running sum S_k = S_(k-1) + q_k, with q_k subtracted below as it is found.
-  if (thermal)
-    for (int k = 0; k < nx_; ++k) g[idx_heat_sum(k)] = y[idx_heat_sum(k)] - (k > 0 ? y[idx_heat_sum(k - 1)] : T(0.0));
   T q_joule = T(0.0), q_reaction = T(0.0), q_reversible = T(0.0), p_chemical = T(0.0);  // W/m2
-  const auto add_heat = [&](int k, const T& q, T& total) {
-    if (thermal) g[idx_heat_sum(k)] = g[idx_heat_sum(k)] - q;
-    if (heat) total = total + q;
-  };
+  T js_weighted_sum = T(0.0);
 
-  // Electrolyte: concentration flux and ionic current on the internal faces.
+  // Temperature terms are evaluated only when they can differ from the reference; otherwise
+  // every expression is the isothermal model's own (bit-for-bit the same residual).
+  DfnResidual(const DfnModel& model, const T* y_in, T* g_out, bool heat_wanted)
+      : m(model), y(y_in), g(g_out), report_heat(heat_wanted), current(y_in[model.idx_current()]),
+        i_app(current / model.cell_.electrode_area_m2),  // A/m2, positive = discharge
+        r_film(y_in[model.idx_film()]), side_on(model.cell_.side.enabled), temp_dep(model.temperature_dependent_),
+        thermal(model.idx_temp_ >= 0), want_heat(thermal || heat_wanted),
+        temp(thermal ? y_in[model.idx_temp_] : T(model.temperature_k_)) {
+    const double tplus = m.cell_.electrolyte.transference_number;
+    const double f_rt_ref = m.f_rt_;
+    f_rt = temp_dep ? T(kFaradayC_mol / kGas_j_mol_k) / temp : T(f_rt_ref);
+    nu = temp_dep ? T(2.0 * (1.0 - tplus)) / f_rt : T(2.0 * (1.0 - tplus) / f_rt_ref);  // V, without the TDF
+    half_f = temp_dep ? T(0.5) * f_rt : T(0.5 * f_rt_ref);
+    minus_alpha_f_side =
+        temp_dep ? T(-m.cell_.side.transfer_coefficient) * f_rt : T(-m.cell_.side.transfer_coefficient * f_rt_ref);
+    if (temp_dep) {
+      arr_de = m.arrhenius(m.cell_.electrolyte.diffusivity_activation_j_mol, temp);
+      arr_ke = m.arrhenius(m.cell_.electrolyte.conductivity_activation_j_mol, temp);
+    }
+  }
+
+  T d_eff(const T& ce, int k) const {
+    const T d = apply(*m.cell_.electrolyte.diffusivity_m2_s, ce) * m.te_[k];
+    return temp_dep ? d * arr_de : d;
+  }
+  T kappa_eff(const T& ce, int k) const {
+    const T kap = apply(*m.cell_.electrolyte.conductivity_s_m, ce) * m.te_[k];
+    return temp_dep ? kap * arr_ke : kap;
+  }
+  void add_heat(int k, const T& q, T& total) {
+    if (thermal) g[m.idx_heat_sum(k)] = g[m.idx_heat_sum(k)] - q;
+    if (report_heat) total = total + q;
+  }
+
+  // Heat rows: running sum S_k = S_(k-1) + q_k, with q_k subtracted as it is found.
+  void heat_rows() {
+    if (thermal)
+      for (int k = 0; k < m.nx_; ++k)
+        g[m.idx_heat_sum(k)] = y[m.idx_heat_sum(k)] - (k > 0 ? y[m.idx_heat_sum(k - 1)] : T(0.0));
+  }
+  void electrolyte();
+  void electrode(int e);
+  void particle(int e, int pop, const T& j, const T& phis, const T& phie, const T& ce, const T& arr_ds);
+  void closing_rows(double t, HeatRates* heat);
+};
+
+// Electrolyte: concentration flux and ionic current on the internal faces.
+template <typename T>
+void DfnResidual<T>::electrolyte() {
+  const int nn = m.mesh_.n_neg, ns = m.mesh_.n_sep, nx = m.nx_;
+  const double tplus = m.cell_.electrolyte.transference_number;
   T flux_left = T(0.0), ie_left = T(0.0);
-  T ce_k = clamp_above(y[idx_ce(0)], 1e-3);
+  T ce_k = clamp_above(y[m.idx_ce(0)], 1e-3);
   T d_k = d_eff(ce_k, 0);
   T kap_k = kappa_eff(ce_k, 0);
   // Ideal solution (no thermodynamic factor): i_e = -kappa grad(phi_e - nu ln c_e), written
   // with the potential psi = phi_e - nu ln c_e. With a factor TDF(c_e) the diffusion term is
   // nu TDF grad ln c_e, TDF taken on each face as the mean of its two cells (exact for a
   // constant factor).
-  const ScalarFunction* tdf = el.thermodynamic_factor.get();
+  const ScalarFunction* tdf = m.cell_.electrolyte.thermodynamic_factor.get();
   T lnc_k = log(ce_k);
   T tdf_k = tdf ? apply(*tdf, ce_k) : T(1.0);
-  T psi_k = y[idx_phie(0)] - nu * lnc_k;
-  for (int k = 0; k < nx_; ++k) {
+  T psi_k = y[m.idx_phie(0)] - nu * lnc_k;
+  const auto& dx = m.dx_;
+  for (int k = 0; k < nx; ++k) {
     T flux_right = T(0.0), ie_right = T(0.0);
     T ce_n{}, d_n{}, kap_n{}, psi_n{}, lnc_n{}, tdf_n{};
-    if (k + 1 < nx_) {
-      ce_n = clamp_above(y[idx_ce(k + 1)], 1e-3);
+    if (k + 1 < nx) {
+      ce_n = clamp_above(y[m.idx_ce(k + 1)], 1e-3);
       d_n = d_eff(ce_n, k + 1);
       kap_n = kappa_eff(ce_n, k + 1);
       lnc_n = log(ce_n);
-      psi_n = y[idx_phie(k + 1)] - nu * lnc_n;
+      psi_n = y[m.idx_phie(k + 1)] - nu * lnc_n;
       // Series resistance of the two half cells: exact at region interfaces.
-      const T rd = dx_[k] / (2.0 * d_k) + dx_[k + 1] / (2.0 * d_n);
-      const T rk = dx_[k] / (2.0 * kap_k) + dx_[k + 1] / (2.0 * kap_n);
-      flux_right = (y[idx_ce(k + 1)] - y[idx_ce(k)]) / rd;
+      const T rd = dx[k] / (2.0 * d_k) + dx[k + 1] / (2.0 * d_n);
+      const T rk = dx[k] / (2.0 * kap_k) + dx[k + 1] / (2.0 * kap_n);
+      flux_right = (y[m.idx_ce(k + 1)] - y[m.idx_ce(k)]) / rd;
       if (tdf) {
         tdf_n = apply(*tdf, ce_n);
         const T diffusion_v = nu * (0.5 * (tdf_k + tdf_n)) * (lnc_n - lnc_k);
-        ie_right = -((y[idx_phie(k + 1)] - y[idx_phie(k)]) - diffusion_v) / rk;
+        ie_right = -((y[m.idx_phie(k + 1)] - y[m.idx_phie(k)]) - diffusion_v) / rk;
       } else {
         ie_right = -(psi_n - psi_k) / rk;
       }
       // Ohmic heat of the ionic current, -i_e grad(phi_e), including the diffusion potential.
-      if (want_heat) add_heat(k, ie_right * (y[idx_phie(k)] - y[idx_phie(k + 1)]), q_joule);
+      if (want_heat) add_heat(k, ie_right * (y[m.idx_phie(k)] - y[m.idx_phie(k + 1)]), q_joule);
     }
     T source = T(0.0);  // volumetric reaction current J (A/m3) times dx
-    if (a_[k] > 0.0) {
+    if (m.a_[k] > 0.0) {
       const int e = k < nn ? k : k - ns;
-      T a_j = a_[k] * y[idx_j(e)];
-      for (int pop = 1; pop < n_populations(e); ++pop) a_j = a_j + a_pop_[side_of(e)][pop] * y[idx_j_pop(e, pop)];
-      source = a_j * dx_[k];
+      T a_j = m.a_[k] * y[m.idx_j(e)];
+      for (int pop = 1; pop < m.n_populations(e); ++pop) a_j = a_j + m.a_pop_[m.side_of(e)][pop] * y[m.idx_j_pop(e, pop)];
+      source = a_j * dx[k];
     }
-    g[idx_ce(k)] = flux_right - flux_left + (1.0 - tplus) / kFaradayC_mol * source;
-    g[idx_phie(k)] = ie_right - ie_left - source;
+    g[m.idx_ce(k)] = flux_right - flux_left + (1.0 - tplus) / kFaradayC_mol * source;
+    g[m.idx_phie(k)] = ie_right - ie_left - source;
     flux_left = flux_right;
     ie_left = ie_right;
-    if (k + 1 < nx_) {
+    if (k + 1 < nx) {
       ce_k = ce_n; d_k = d_n; kap_k = kap_n; psi_k = psi_n; lnc_k = lnc_n; tdf_k = tdf_n;
     }
   }
+}
 
-  // Electrodes: solid potential, kinetics, particles.
-  T js_weighted_sum = T(0.0);
-  for (int e = 0; e < ne_; ++e) {
-    const bool neg = e < nn;
-    const int k = neg ? e : e + ns;
-    const ElectrodeParameters& p = neg ? cell_.negative : cell_.positive;
-    const int first = neg ? 0 : nn, last = neg ? nn - 1 : ne_ - 1;
-    const double sigma = p.conductivity_eff_s_m;
-    const double h = dx_[k];
-    // Solid current on the faces (positive in +x): I/A at the current collectors, 0 at the separator.
-    const T is_left = e == first ? (neg ? i_app : T(0.0)) : -sigma * (y[idx_phis(e)] - y[idx_phis(e - 1)]) / h;
-    const T is_right = e == last ? (neg ? T(0.0) : i_app) : -sigma * (y[idx_phis(e + 1)] - y[idx_phis(e)]) / h;
-    const T j = y[idx_j(e)];
-    T a_j = a_[k] * j;  // reaction current per volume (A/m3), all populations
-    for (int pop = 1; pop < n_populations(e); ++pop) a_j = a_j + a_pop_[side_of(e)][pop] * y[idx_j_pop(e, pop)];
-    g[idx_phis(e)] = is_right - is_left + a_j * h;
-    if (want_heat && e != last) add_heat(k, is_right * (y[idx_phis(e)] - y[idx_phis(e + 1)]), q_joule);
+// Electrode node e: solid potential, kinetics, particles.
+template <typename T>
+void DfnResidual<T>::electrode(int e) {
+  const int nn = m.mesh_.n_neg, ns = m.mesh_.n_sep;
+  const bool neg = e < nn;
+  const int k = neg ? e : e + ns;
+  const ElectrodeParameters& p = neg ? m.cell_.negative : m.cell_.positive;
+  const int first = neg ? 0 : nn, last = neg ? nn - 1 : m.ne_ - 1;
+  const double sigma = p.conductivity_eff_s_m;
+  const double h = m.dx_[k];
+  // Solid current on the faces (positive in +x): I/A at the current collectors, 0 at the separator.
+  const T is_left = e == first ? (neg ? i_app : T(0.0)) : -sigma * (y[m.idx_phis(e)] - y[m.idx_phis(e - 1)]) / h;
+  const T is_right = e == last ? (neg ? T(0.0) : i_app) : -sigma * (y[m.idx_phis(e + 1)] - y[m.idx_phis(e)]) / h;
+  const T j = y[m.idx_j(e)];
+  T a_j = m.a_[k] * j;  // reaction current per volume (A/m3), all populations
+  for (int pop = 1; pop < m.n_populations(e); ++pop) a_j = a_j + m.a_pop_[m.side_of(e)][pop] * y[m.idx_j_pop(e, pop)];
+  g[m.idx_phis(e)] = is_right - is_left + a_j * h;
+  if (want_heat && e != last) add_heat(k, is_right * (y[m.idx_phis(e)] - y[m.idx_phis(e + 1)]), q_joule);
 
-    const double ds = p.solid_diffusivity_m2_s;
-    const T arr_ds = temp_dep ? arrhenius(p.diffusivity_activation_j_mol, temp) : T(1.0);
-    const T phis = y[idx_phis(e)], phie = y[idx_phie(k)];
-    const T ce = clamp_above(y[idx_ce(k)], 1e-3);
-    for (int pop = 0; pop < n_populations(e); ++pop) {
-      // Particle: finite volumes in r; molar flux out of the surface from the intercalation part.
-      const int side = geom(e, pop);
-      const T jp = pop == 0 ? j : y[idx_j_pop(e, pop)];
-      T js = T(0.0);
-      if (neg && side_on) js = side_current(phis, phie, jp, r_film, minus_alpha_f_side);
-      const T flux_out = (jp - js) / kFaradayC_mol;
-      for (int r = 0; r < nr; ++r) {
-        const T c = y[idx_cs_pop(e, pop, r)];
-        T in_right = r + 1 < nr ? face_r2_[side * (nr + 1) + r + 1] * ds * (y[idx_cs_pop(e, pop, r + 1)] - c) /
-                                      center_dist_[side * (nr - 1) + r]
-                                : -face_r2_[side * (nr + 1) + nr] * flux_out;
-        T in_left = r > 0 ? face_r2_[side * (nr + 1) + r] * ds * (c - y[idx_cs_pop(e, pop, r - 1)]) /
-                                center_dist_[side * (nr - 1) + r - 1]
-                          : T(0.0);
-        if (temp_dep) {  // diffusive faces only: the surface flux is set by the reaction
-          if (r + 1 < nr) in_right = in_right * arr_ds;
-          if (r > 0) in_left = in_left * arr_ds;
-        }
-        g[idx_cs_pop(e, pop, r)] = in_right - in_left;
-      }
-      const double cmax = p.max_concentration_mol_m3;
-      const T surface_drop =
-          temp_dep ? surface_half_[side] * flux_out / (ds * arr_ds) : surface_half_[side] * flux_out / ds;
-      const T c_surf = clamp_between(y[idx_cs_pop(e, pop, nr - 1)] - surface_drop, 1e-6 * cmax, (1.0 - 1e-6) * cmax);
-      T i0 = p.i0_coefficient * sqrt(ce * c_surf * (cmax - c_surf));
-      if (temp_dep) i0 = i0 * arrhenius(p.rate_activation_j_mol, temp);
-      T ocp = apply(*p.ocp_v, c_surf / cmax);
-      T dudt = T(0.0);
-      if ((temp_dep || want_heat) && p.entropic_v_k) dudt = apply(*p.entropic_v_k, c_surf / cmax);
-      if (temp_dep && p.entropic_v_k) ocp = ocp + (temp - cell_.thermal.reference_temperature_k) * dudt;
-      T eta = phis - phie - ocp;
-      if (neg) eta = eta - jp * r_film;
-      // Saturating the exponent keeps wild Newton trial states (consistent initialisation after
-      // a large current step) finite; converged states are far inside the limit.
-      g[idx_j_pop(e, pop)] = jp - (2.0 * i0 * sinh(clamp_between(half_f * eta, -60.0, 60.0)) + js);
-      if (neg) js_weighted_sum = js_weighted_sum + js * h;
-      if (want_heat) {
-        // Irreversible: the whole drop phi_s - phi_e - U (kinetics and film); reversible: j T dU/dT.
-        const T ajh = (pop == 0 ? a_[k] : a_pop_[side_of(e)][pop]) * h * jp;
-        add_heat(k, ajh * (phis - phie - ocp), q_reaction);
-        if (p.entropic_v_k) add_heat(k, ajh * temp * dudt, q_reversible);
-        if (heat) p_chemical = p_chemical - ajh * ocp;
-      }
+  const T arr_ds = temp_dep ? m.arrhenius(p.diffusivity_activation_j_mol, temp) : T(1.0);
+  const T phis = y[m.idx_phis(e)], phie = y[m.idx_phie(k)];
+  const T ce = clamp_above(y[m.idx_ce(k)], 1e-3);
+  for (int pop = 0; pop < m.n_populations(e); ++pop) particle(e, pop, j, phis, phie, ce, arr_ds);
+}
+
+// Population pop of node e's particles: finite volumes in r, the molar flux out of the surface
+// from the intercalation part, and the kinetics at the surface.
+template <typename T>
+void DfnResidual<T>::particle(int e, int pop, const T& j, const T& phis, const T& phie, const T& ce,
+                              const T& arr_ds) {
+  const int nr = m.mesh_.n_r;
+  const bool neg = e < m.mesh_.n_neg;
+  const int k = neg ? e : e + m.mesh_.n_sep;
+  const ElectrodeParameters& p = neg ? m.cell_.negative : m.cell_.positive;
+  const double h = m.dx_[k];
+  const double ds = p.solid_diffusivity_m2_s;
+  const int side = m.geom(e, pop);
+  const T jp = pop == 0 ? j : y[m.idx_j_pop(e, pop)];
+  T js = T(0.0);
+  if (neg && side_on) js = m.side_current(phis, phie, jp, r_film, minus_alpha_f_side);
+  const T flux_out = (jp - js) / kFaradayC_mol;
+  const auto& face_r2 = m.face_r2_;
+  const auto& center_dist = m.center_dist_;
+  for (int r = 0; r < nr; ++r) {
+    const T c = y[m.idx_cs_pop(e, pop, r)];
+    T in_right = r + 1 < nr ? face_r2[side * (nr + 1) + r + 1] * ds * (y[m.idx_cs_pop(e, pop, r + 1)] - c) /
+                                  center_dist[side * (nr - 1) + r]
+                            : -face_r2[side * (nr + 1) + nr] * flux_out;
+    T in_left = r > 0 ? face_r2[side * (nr + 1) + r] * ds * (c - y[m.idx_cs_pop(e, pop, r - 1)]) /
+                            center_dist[side * (nr - 1) + r - 1]
+                      : T(0.0);
+    if (temp_dep) {  // diffusive faces only: the surface flux is set by the reaction
+      if (r + 1 < nr) in_right = in_right * arr_ds;
+      if (r > 0) in_left = in_left * arr_ds;
     }
+    g[m.idx_cs_pop(e, pop, r)] = in_right - in_left;
   }
+  const double cmax = p.max_concentration_mol_m3;
+  const double surface_half = m.surface_half_[side];
+  const T surface_drop = temp_dep ? surface_half * flux_out / (ds * arr_ds) : surface_half * flux_out / ds;
+  const T c_surf = clamp_between(y[m.idx_cs_pop(e, pop, nr - 1)] - surface_drop, 1e-6 * cmax, (1.0 - 1e-6) * cmax);
+  T i0 = p.i0_coefficient * sqrt(ce * c_surf * (cmax - c_surf));
+  if (temp_dep) i0 = i0 * m.arrhenius(p.rate_activation_j_mol, temp);
+  T ocp = apply(*p.ocp_v, c_surf / cmax);
+  T dudt = T(0.0);
+  if ((temp_dep || want_heat) && p.entropic_v_k) dudt = apply(*p.entropic_v_k, c_surf / cmax);
+  if (temp_dep && p.entropic_v_k) ocp = ocp + (temp - m.cell_.thermal.reference_temperature_k) * dudt;
+  T eta = phis - phie - ocp;
+  if (neg) eta = eta - jp * r_film;
+  // Saturating the exponent keeps wild Newton trial states (consistent initialisation after
+  // a large current step) finite; converged states are far inside the limit.
+  g[m.idx_j_pop(e, pop)] = jp - (2.0 * i0 * sinh(clamp_between(half_f * eta, -60.0, 60.0)) + js);
+  if (neg) js_weighted_sum = js_weighted_sum + js * h;
+  if (want_heat) {
+    // Irreversible: the whole drop phi_s - phi_e - U (kinetics and film); reversible: j T dU/dT.
+    const T ajh = (pop == 0 ? m.a_[k] : m.a_pop_[m.side_of(e)][pop]) * h * jp;
+    add_heat(k, ajh * (phis - phie - ocp), q_reaction);
+    if (p.entropic_v_k) add_heat(k, ajh * temp * dudt, q_reversible);
+    if (report_heat) p_chemical = p_chemical - ajh * ocp;
+  }
+}
 
+// Ground, current control, film, charge, hysteresis and temperature rows.
+template <typename T>
+void DfnResidual<T>::closing_rows(double t, HeatRates* heat) {
+  const auto& cell = m.cell_;
+  const auto& fx = m.effects_;
+  const int idx_hyst = m.idx_hyst_;
   // Ground: the negative current collector is at 0 V (replaces one redundant charge balance).
-  const double h_n = dx_[0], h_p = dx_[nx_ - 1];
-  g[idx_phie(0)] = y[idx_phis(0)] + i_app * (0.5 * h_n / cell_.negative.conductivity_eff_s_m);
+  const double h_n = m.dx_[0], h_p = m.dx_[m.nx_ - 1];
+  g[m.idx_phie(0)] = y[m.idx_phis(0)] + i_app * (0.5 * h_n / cell.negative.conductivity_eff_s_m);
 
-  T v_terminal = y[idx_phis(ne_ - 1)] - i_app * (0.5 * h_p / cell_.positive.conductivity_eff_s_m) -
-                 y[idx_phis(0)] - i_app * (0.5 * h_n / cell_.negative.conductivity_eff_s_m) -
-                 effects_.contact_resistance_ohm * current;
-  if (idx_hyst_ >= 0) v_terminal = v_terminal + y[idx_hyst_];
-  switch (control_.kind) {
+  T v_terminal = y[m.idx_phis(m.ne_ - 1)] - i_app * (0.5 * h_p / cell.positive.conductivity_eff_s_m) -
+                 y[m.idx_phis(0)] - i_app * (0.5 * h_n / cell.negative.conductivity_eff_s_m) -
+                 fx.contact_resistance_ohm * current;
+  if (idx_hyst >= 0) v_terminal = v_terminal + y[idx_hyst];
+  switch (m.control_.kind) {
     case ControlKind::current:
     case ControlKind::profile:
-      g[idx_current()] = current - current_setpoint_a(t);
+      g[m.idx_current()] = current - m.current_setpoint_a(t);
       break;
     case ControlKind::voltage:
-      g[idx_current()] = v_terminal - control_.value;
+      g[m.idx_current()] = v_terminal - m.control_.value;
       break;
   }
-  const T mean_js = js_weighted_sum / cell_.negative.thickness_m;
-  g[idx_film()] = film_frozen_ || !side_on ? T(0.0) : -film_growth_factor() * mean_js;
-  g[idx_charge()] = current / 3600.0;
+  const T mean_js = js_weighted_sum / cell.negative.thickness_m;
+  g[m.idx_film()] = m.film_frozen_ || !side_on ? T(0.0) : -m.film_growth_factor() * mean_js;
+  g[m.idx_charge()] = current / 3600.0;
 
-  if (idx_hyst_ >= 0) {
+  if (idx_hyst >= 0) {
     // dh/dt = -(kappa |I| / Q) (h + H sign(I)): h follows the charge moved, not the time.
     const T abs_i = fw::value_of(current) < 0.0 ? -current : current;
-    const double rate = effects_.hysteresis_rate_per_soc / (3600.0 * cell_.nominal_capacity_ah);
-    g[idx_hyst_] = -rate * (effects_.hysteresis_v * current + abs_i * y[idx_hyst_]);
+    const double rate = fx.hysteresis_rate_per_soc / (3600.0 * cell.nominal_capacity_ah);
+    g[idx_hyst] = -rate * (fx.hysteresis_v * current + abs_i * y[idx_hyst]);
   }
-  if (want_heat) {
-    const double r_collector = 0.5 * h_n / cell_.negative.conductivity_eff_s_m +
-                               0.5 * h_p / cell_.positive.conductivity_eff_s_m;  // ohm m2
-    const T q_lumped = area * r_collector * i_app * i_app + effects_.contact_resistance_ohm * current * current;  // W
-    const T q_hyst = idx_hyst_ >= 0 ? -current * y[idx_hyst_] : T(0.0);
-    if (thermal)
-      g[idx_temp_] = area * y[idx_heat_sum(nx_ - 1)] + q_lumped + q_hyst -
-                     effects_.thermal_h_w_per_k * (temp - temperature_k_);
-    if constexpr (std::is_same_v<T, double>) {
-      if (heat) {
-        heat->joule_w = area * q_joule + q_lumped;
-        heat->reaction_w = area * q_reaction;
-        heat->reversible_w = area * q_reversible;
-        heat->hysteresis_w = q_hyst;
-        heat->chemical_power_w = area * p_chemical;
-        heat->electrical_power_w = current * v_terminal;
-      }
+  if (!want_heat) return;
+  const double area = cell.electrode_area_m2;
+  const double r_collector = 0.5 * h_n / cell.negative.conductivity_eff_s_m +
+                             0.5 * h_p / cell.positive.conductivity_eff_s_m;  // ohm m2
+  const T q_lumped = area * r_collector * i_app * i_app + fx.contact_resistance_ohm * current * current;  // W
+  const T q_hyst = idx_hyst >= 0 ? -current * y[idx_hyst] : T(0.0);
+  if (thermal)
+    g[m.idx_temp_] = area * y[m.idx_heat_sum(m.nx_ - 1)] + q_lumped + q_hyst -
+                     fx.thermal_h_w_per_k * (temp - m.temperature_k_);
+  if constexpr (std::is_same_v<T, double>) {
+    if (heat) {
+      heat->joule_w = area * q_joule + q_lumped;
+      heat->reaction_w = area * q_reaction;
+      heat->reversible_w = area * q_reversible;
+      heat->hysteresis_w = q_hyst;
+      heat->chemical_power_w = area * p_chemical;
+      heat->electrical_power_w = current * v_terminal;
     }
   }
+}
+
+template <typename T>
+void DfnModel::eval_g(double t, const T* y, T* g, HeatRates* heat) const {
+  DfnResidual<T> r(*this, y, g, heat != nullptr);
+  r.heat_rows();
+  r.electrolyte();
+  for (int e = 0; e < ne_; ++e) r.electrode(e);
+  r.closing_rows(t, heat);
 }
 
 double DfnModel::terminal_voltage_v(const double* y) const {

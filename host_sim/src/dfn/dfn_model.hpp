@@ -77,6 +77,9 @@ struct HeatRates {
   double electrical_power_w = 0.0;  // I V at the terminals
 };
 
+template <typename T>
+struct DfnResidual;  // one evaluation of DfnModel::eval_g (dfn_model.cpp)
+
 class DfnModel {
  public:
   // temperature_k: the cell's temperature when isothermal; with the thermal effect, the
@@ -166,6 +169,12 @@ class DfnModel {
   static double film_growth_factor(const SideReactionParameters& s);
 
  private:
+  template <typename T> friend struct DfnResidual;
+  // The constructor's steps, in this order: each uses what the ones before it laid out.
+  void layout_populations();
+  void layout_regions();
+  void layout_shells();
+  void set_masses_and_scales();
   template <typename T>
   T side_current(const T& phis, const T& phie, const T& j, const T& r, const T& minus_alpha_f) const;
   double arrhenius(double activation_j_mol, double temperature_k) const;

@@ -589,37 +589,9 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
     realtype tret = im.tn;
     const int flag = IDASolve(im.ida, tout, &tret, im.y, im.yp, IDA_ONE_STEP);
     if (flag < 0) {
-      // IDA could not take a step even after cutting it (repeated error-test or Newton
-      // failures): it returns its last accepted state, at tret. Restart there, as after a
-      // discontinuity (consistent algebraic variables, order 1) with a first step far below the
-      // last one, at most kMaxStepRestarts times in one call (not reset by a later step: a
-      // state IDA can only leave by tiny steps is a failure, not a reason to crawl on).
-      const std::string ida_message = last_ida_message;
-      last_ida_message.clear();
-      realtype h_last = 0.0;
-      IDAGetLastStep(im.ida, &h_last);
-      if (++restarts <= kMaxStepRestarts && tret >= im.tn && tret < tout) {
-        const double caller_t = t_;
-        const std::vector<double> caller_y = y_;
-        t_ = im.tn = tret;  // im.y holds IDA's state at tret
-        for (int i = 0; i < n; ++i) y_[i] = NV_Ith_S(im.y, i);
-        const double h0 = std::abs(h_last) > 0.0 ? 1e-3 * std::abs(h_last) : 1e-6;
-        check(IDASetInitStep(im.ida, std::min(h0, 0.5 * (tout - tret))), "IDASetInitStep");
-        small_first_step = true;
-        try {
-          consistent_init();  // also IDAReInit: the stop time (if any) stays set
-        } catch (const RuntimeFailure&) {
-          t_ = caller_t;
-          y_ = caller_y;
-          if (exact) IDASetStopTime(im.ida, 1e300);
-          IDASetInitStep(im.ida, 0.0);
-          throw;
-        }
-        continue;
-      }
-      if (exact) IDASetStopTime(im.ida, 1e300);
-      IDASetInitStep(im.ida, 0.0);
-      throw RuntimeFailure(step_failure_text(tret, tout, flag, h_last, restarts - 1, ida_message));
+      restart_after_failed_step(tret, tout, flag, exact, restarts);
+      small_first_step = true;
+      continue;
     }
     if (small_first_step) {  // back to IDA's own estimate for later re-initialisations
       check(IDASetInitStep(im.ida, 0.0), "IDASetInitStep");
@@ -647,6 +619,40 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
   t_ = tout;
   update_stats();
   return Result::reached;
+}
+
+// IDA could not take a step even after cutting it (repeated error-test or Newton failures):
+// it returns its last accepted state, at tret. Restart there, as after a discontinuity
+// (consistent algebraic variables, order 1) with a first step far below the last one, at most
+// kMaxStepRestarts times in one call (not reset by a later step: a state IDA can only leave by
+// tiny steps is a failure, not a reason to crawl on). Throws RuntimeFailure when it cannot.
+void DfnSolver::restart_after_failed_step(double tret, double tout, int flag, bool exact, int& restarts) {
+  Impl& im = *impl_;
+  const std::string ida_message = last_ida_message;
+  last_ida_message.clear();
+  realtype h_last = 0.0;
+  IDAGetLastStep(im.ida, &h_last);
+  if (++restarts <= kMaxStepRestarts && tret >= im.tn && tret < tout) {
+    const double caller_t = t_;
+    const std::vector<double> caller_y = y_;
+    t_ = im.tn = tret;  // im.y holds IDA's state at tret
+    for (int i = 0; i < model_.size(); ++i) y_[i] = NV_Ith_S(im.y, i);
+    const double h0 = std::abs(h_last) > 0.0 ? 1e-3 * std::abs(h_last) : 1e-6;
+    check(IDASetInitStep(im.ida, std::min(h0, 0.5 * (tout - tret))), "IDASetInitStep");
+    try {
+      consistent_init();  // also IDAReInit: the stop time (if any) stays set
+    } catch (const RuntimeFailure&) {
+      t_ = caller_t;
+      y_ = caller_y;
+      if (exact) IDASetStopTime(im.ida, 1e300);
+      IDASetInitStep(im.ida, 0.0);
+      throw;
+    }
+    return;
+  }
+  if (exact) IDASetStopTime(im.ida, 1e300);
+  IDASetInitStep(im.ida, 0.0);
+  throw RuntimeFailure(step_failure_text(tret, tout, flag, h_last, restarts - 1, ida_message));
 }
 
 std::string DfnSolver::step_failure_text(double tret, double tout, int flag, double h_last, int restarts,

@@ -110,6 +110,7 @@ class DfnSolver {
 
  private:
   Result advance(double tout, bool exact);
+  void restart_after_failed_step(double tret, double tout, int flag, bool exact, int& restarts);
   Result stop_at_root();
   std::string step_failure_text(double tret, double tout, int flag, double h_last, int restarts,
                                 const std::string& ida_message) const;

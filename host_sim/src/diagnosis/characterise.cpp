@@ -38,6 +38,44 @@ double quantile(std::vector<double> v, double q) {
   return v[k];
 }
 
+// Groups by |dV/dt| of the measured voltage, quartiles.
+void group_by_voltage_rate(const Record& r, const std::vector<double>& res, std::vector<ResidualGroup>& groups) {
+  const std::size_t n = res.size();
+  std::vector<double> rate(n, 0.0);
+  for (std::size_t k = 1; k < n; ++k)
+    rate[k] = 1e3 * std::abs(r.voltage_v[k] - r.voltage_v[k - 1]) / (r.t_s[k] - r.t_s[k - 1]);
+  rate[0] = n > 1 ? rate[1] : 0.0;
+  const double q1 = quantile(rate, 0.25), q2 = quantile(rate, 0.5), q3 = quantile(rate, 0.75);
+  const std::vector<std::string> labels{fmt::format("<= {:.3g} mV/s", q1), fmt::format("{:.3g}-{:.3g} mV/s", q1, q2),
+                                        fmt::format("{:.3g}-{:.3g} mV/s", q2, q3), fmt::format("> {:.3g} mV/s", q3)};
+  std::vector<Acc> acc(4);
+  for (std::size_t k = 0; k < n; ++k)
+    acc[rate[k] <= q1 ? 0 : rate[k] <= q2 ? 1 : rate[k] <= q3 ? 2 : 3].add(res[k]);
+  emit(groups, "dvdt", labels, acc);
+}
+
+// Signature: least squares of the residual on [1, I, sign(I)] outside rest.
+ResidualSignature current_signature(const Record& r, const std::vector<double>& res, double rest, const Excitation& ex) {
+  const std::size_t n = res.size();
+  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+  for (std::size_t k = 0; k < n; ++k) {
+    const double i = r.current_a[k];
+    if (std::abs(i) <= rest) continue;
+    const Eigen::Vector3d a(1.0, i, i > 0 ? 1.0 : -1.0);
+    ata += a * a.transpose();
+    atb += a * res[k];
+  }
+  // Needs both current signs and more than one level per sign to separate R from h.
+  Eigen::FullPivLU<Eigen::Matrix3d> lu(ata);
+  lu.setThreshold(1e-9);
+  if (ex.has_charge && ex.has_discharge && lu.rank() == 3) {
+    const Eigen::Vector3d x = lu.solve(atb);
+    return {x(0), x(1), x(2), true};
+  }
+  return {};
+}
+
 }  // namespace
 
 Characterisation characterise(const Record& r, const std::vector<double>& res, const std::vector<double>& soc) {
@@ -91,37 +129,8 @@ Characterisation characterise(const Record& r, const std::vector<double>& res, c
     }
     emit(c.groups, "since_step", labels, acc);
   }
-  {  // by |dV/dt| of the measured voltage, quartiles
-    std::vector<double> rate(n, 0.0);
-    for (std::size_t k = 1; k < n; ++k)
-      rate[k] = 1e3 * std::abs(r.voltage_v[k] - r.voltage_v[k - 1]) / (r.t_s[k] - r.t_s[k - 1]);
-    rate[0] = n > 1 ? rate[1] : 0.0;
-    const double q1 = quantile(rate, 0.25), q2 = quantile(rate, 0.5), q3 = quantile(rate, 0.75);
-    const std::vector<std::string> labels{fmt::format("<= {:.3g} mV/s", q1), fmt::format("{:.3g}-{:.3g} mV/s", q1, q2),
-                                          fmt::format("{:.3g}-{:.3g} mV/s", q2, q3), fmt::format("> {:.3g} mV/s", q3)};
-    std::vector<Acc> acc(4);
-    for (std::size_t k = 0; k < n; ++k)
-      acc[rate[k] <= q1 ? 0 : rate[k] <= q2 ? 1 : rate[k] <= q3 ? 2 : 3].add(res[k]);
-    emit(c.groups, "dvdt", labels, acc);
-  }
-  {  // signature: least squares on [1, I, sign(I)]
-    Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d atb = Eigen::Vector3d::Zero();
-    for (std::size_t k = 0; k < n; ++k) {
-      const double i = r.current_a[k];
-      if (std::abs(i) <= rest) continue;
-      const Eigen::Vector3d a(1.0, i, i > 0 ? 1.0 : -1.0);
-      ata += a * a.transpose();
-      atb += a * res[k];
-    }
-    // Needs both current signs and more than one level per sign to separate R from h.
-    Eigen::FullPivLU<Eigen::Matrix3d> lu(ata);
-    lu.setThreshold(1e-9);
-    if (ex.has_charge && ex.has_discharge && lu.rank() == 3) {
-      const Eigen::Vector3d x = lu.solve(atb);
-      c.signature = {x(0), x(1), x(2), true};
-    }
-  }
+  group_by_voltage_rate(r, res, c.groups);
+  c.signature = current_signature(r, res, rest, ex);
   return c;
 }
 

@@ -1,33 +1,13 @@
 #include "diagnosis/plots.hpp"
 
 #include <fmt/format.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <system_error>
 
 #include "io/atomic_file.hpp"
+#include "io/gnuplot.hpp"
 
 namespace bms::diagnosis {
-
-namespace {
-
-// Runs `gnuplot script` with dir as the working folder; the exit status, or -1 when it
-// could not be started.
-int run_gnuplot(const std::filesystem::path& dir, const std::string& script) {
-  const pid_t pid = fork();
-  if (pid < 0) return -1;
-  if (pid == 0) {
-    if (chdir(dir.c_str()) != 0) _exit(126);
-    execlp("gnuplot", "gnuplot", script.c_str(), static_cast<char*>(nullptr));
-    _exit(127);
-  }
-  int status = 0;
-  if (waitpid(pid, &status, 0) != pid) return -1;
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-}  // namespace
 
 PlotOutcome draw_residual_plots(const std::filesystem::path& dir, int cases, std::size_t samples) {
   PlotOutcome out;
@@ -67,9 +47,11 @@ PlotOutcome draw_residual_plots(const std::filesystem::path& dir, int cases, std
   AtomicFileWriter script(dir / "plots.gp");
   script.append(gp);
   script.commit();
-  const int rc = run_gnuplot(dir, "plots.gp");
+  GnuplotOptions gnuplot;
+  gnuplot.working_dir = dir;
+  const int rc = run_gnuplot("plots.gp", gnuplot);
   if (rc != 0) {
-    out.problem = rc == 127 ? "gnuplot is not installed (Debian package gnuplot-nox)"
+    out.problem = rc == kGnuplotMissing ? "gnuplot is not installed (Debian package gnuplot-nox)"
                             : fmt::format("gnuplot failed (exit status {})", rc);
     for (const char* n : names) {
       std::error_code ec;

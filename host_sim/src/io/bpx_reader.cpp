@@ -251,10 +251,8 @@ ElectrodeParameters read_electrode(const Section& s, double c_e0, bool negative)
   return e;
 }
 
-}  // namespace
-
-CellParameters read_bpx_text(std::string_view text, std::string_view name) {
-  const std::string file(name);
+// The file's JSON; InputError naming the file and the place for a syntax error.
+json parse_bpx_json(std::string_view text, const std::string& file) {
   json root;
   try {
     root = json::parse(text);
@@ -272,21 +270,11 @@ CellParameters read_bpx_text(std::string_view text, std::string_view name) {
     if (tag_end != std::string_view::npos) detail.remove_prefix(tag_end + 2);
     throw InputError(fmt::format("{}: not valid JSON: {}", file, detail));
   }
-  if (!root.is_object()) {
-    throw InputError(fmt::format("{}: not a BPX file: the top level must be a JSON object, not {}",
-                                 file, root.type_name()));
-  }
-  const Section top(root, "", file);
-  check_version(top.section("Header"));
-  const Section params = top.section("Parameterisation");
-  const Section cell = params.section("Cell");
-  const Section electrolyte = params.section("Electrolyte");
-  const Section separator = params.section("Separator");
+  return root;
+}
 
-  CellParameters p;
-  p.name = std::filesystem::path(file).stem().string();
-  p.source = file;
-
+// The 'Cell' section: geometry, voltage limits, capacity and thermal data.
+void read_cell_section(const Section& cell, CellParameters& p) {
   const double area = cell.number("Electrode area [m2]", kElectrodeArea);
   const std::string pairs_key = "Number of electrode pairs connected in parallel to make a cell";
   const double pairs = cell.number(pairs_key, {1.0, 1e4, false, false});
@@ -314,7 +302,9 @@ CellParameters read_bpx_text(std::string_view text, std::string_view name) {
   th.density_kg_m3 = cell.number_or("Density [kg.m-3]", kDensity, 0.0);
   th.volume_m3 = cell.number_or("Volume [m3]", kVolume, 0.0);
   th.external_area_m2 = cell.number_or("External surface area [m2]", kExternalArea, 0.0);
+}
 
+void read_electrolyte_section(const Section& electrolyte, CellParameters& p) {
   ElectrolyteParameters& el = p.electrolyte;
   el.initial_concentration_mol_m3 =
       electrolyte.number("Initial concentration [mol.m-3]", kElectrolyteConcentration);
@@ -338,7 +328,31 @@ CellParameters read_bpx_text(std::string_view text, std::string_view name) {
       electrolyte.number_or("Diffusivity activation energy [J.mol-1]", kActivation, 0.0);
   el.conductivity_activation_j_mol =
       electrolyte.number_or("Conductivity activation energy [J.mol-1]", kActivation, 0.0);
+}
 
+}  // namespace
+
+CellParameters read_bpx_text(std::string_view text, std::string_view name) {
+  const std::string file(name);
+  const json root = parse_bpx_json(text, file);
+  if (!root.is_object()) {
+    throw InputError(fmt::format("{}: not a BPX file: the top level must be a JSON object, not {}",
+                                 file, root.type_name()));
+  }
+  const Section top(root, "", file);
+  check_version(top.section("Header"));
+  const Section params = top.section("Parameterisation");
+  const Section cell = params.section("Cell");
+  const Section electrolyte = params.section("Electrolyte");
+  const Section separator = params.section("Separator");
+
+  CellParameters p;
+  p.name = std::filesystem::path(file).stem().string();
+  p.source = file;
+
+  read_cell_section(cell, p);
+  read_electrolyte_section(electrolyte, p);
+  const ElectrolyteParameters& el = p.electrolyte;
   p.negative =
       read_electrode(params.section("Negative electrode"), el.initial_concentration_mol_m3, true);
   p.positive =

@@ -83,6 +83,7 @@ pid_t spawn_process(const std::vector<std::string>& args, const SpawnOptions& op
     posix_spawn_file_actions_addopen(&fa, STDOUT_FILENO, options.log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
     posix_spawn_file_actions_adddup2(&fa, STDOUT_FILENO, STDERR_FILENO);
   }
+  if (!options.working_dir.empty()) posix_spawn_file_actions_addchdir_np(&fa, options.working_dir.c_str());
   posix_spawnattr_t attr;
   posix_spawnattr_init(&attr);
   posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP);

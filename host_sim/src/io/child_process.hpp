@@ -29,6 +29,7 @@ void throw_if_interrupted();
 struct SpawnOptions {
   std::filesystem::path log;  // stdout and stderr appended here; empty: inherited
   bool search_path = false;   // look argv[0] up in PATH
+  std::filesystem::path working_dir;  // the child's working folder; empty: inherited
 };
 
 // Starts argv (argv[0] = the program) in a process group of its own. RuntimeFailure when it

@@ -259,6 +259,88 @@ double chain(double df_du, double du) { return du == 0.0 ? 0.0 : df_du * du; }
 
 }  // namespace
 
+// One-argument operations on the top of the stack; false when op takes two arguments.
+bool ExpressionFunction::apply_unary(Op op, ValueAndDerivative& u) {
+  switch (op) {
+    case Op::negate:
+      u = {-u.value, -u.derivative};
+      return true;
+    case Op::exp: {
+      const double v = std::exp(u.value);
+      u = {v, chain(v, u.derivative)};
+      return true;
+    }
+    case Op::log:
+      u = {std::log(u.value), chain(1.0 / u.value, u.derivative)};
+      return true;
+    case Op::log10:
+      u = {std::log10(u.value), chain(1.0 / (u.value * kLn10), u.derivative)};
+      return true;
+    case Op::sqrt: {
+      const double v = std::sqrt(u.value);
+      u = {v, chain(0.5 / v, u.derivative)};
+      return true;
+    }
+    case Op::tanh: {
+      const double v = std::tanh(u.value);
+      u = {v, chain(1.0 - v * v, u.derivative)};
+      return true;
+    }
+    case Op::sinh:
+      u = {std::sinh(u.value), chain(std::cosh(u.value), u.derivative)};
+      return true;
+    case Op::cosh:
+      u = {std::cosh(u.value), chain(std::sinh(u.value), u.derivative)};
+      return true;
+    case Op::abs: {
+      const double sign = u.value > 0.0 ? 1.0 : (u.value < 0.0 ? -1.0 : 0.0);
+      u = {std::fabs(u.value), chain(sign, u.derivative)};
+      return true;
+    }
+    default:
+      return false;
+  }
+}
+
+// Two-argument operations: a = a op b.
+void ExpressionFunction::apply_binary(Op op, ValueAndDerivative& a, const ValueAndDerivative& b) {
+  switch (op) {
+    case Op::add:
+      a = {a.value + b.value, a.derivative + b.derivative};
+      break;
+    case Op::subtract:
+      a = {a.value - b.value, a.derivative - b.derivative};
+      break;
+    case Op::multiply:
+      a = {a.value * b.value, chain(b.value, a.derivative) + chain(a.value, b.derivative)};
+      break;
+    case Op::divide: {
+      const double q = a.value / b.value;
+      a = {q, (a.derivative - chain(q, b.derivative)) / b.value};
+      break;
+    }
+    case Op::power: {
+      // d(a^b) = b a^(b-1) a' + a^b ln(a) b'; the ln term only when the exponent varies,
+      // so x**2 stays defined for x <= 0.
+      double p, dp_da;
+      const double e = b.value;
+      if (b.derivative == 0.0 && (e == 2.0 || e == 3.0)) {  // common in BPX fits; pow is slow
+        const double a2 = a.value * a.value;
+        p = e == 2.0 ? a2 : a2 * a.value;
+        dp_da = e == 2.0 ? 2.0 * a.value : 3.0 * a2;
+      } else {
+        p = std::pow(a.value, e);
+        dp_da = a.value != 0.0 ? e * p / a.value : e * std::pow(a.value, e - 1.0);
+      }
+      const double d = chain(dp_da, a.derivative) + chain(p * std::log(a.value), b.derivative);
+      a = {p, d};
+      break;
+    }
+    default:
+      break;
+  }
+}
+
 ExpressionFunction::ValueAndDerivative ExpressionFunction::evaluate(double x) const {
   using D = ValueAndDerivative;
   std::array<D, kMaxStack> stack;
@@ -272,83 +354,9 @@ ExpressionFunction::ValueAndDerivative ExpressionFunction::evaluate(double x) co
       stack[top++] = {x, 1.0};
       continue;
     }
-    D& u = stack[top - 1];
-    switch (in.op) {
-      case Op::negate:
-        u = {-u.value, -u.derivative};
-        continue;
-      case Op::exp: {
-        const double v = std::exp(u.value);
-        u = {v, chain(v, u.derivative)};
-        continue;
-      }
-      case Op::log:
-        u = {std::log(u.value), chain(1.0 / u.value, u.derivative)};
-        continue;
-      case Op::log10:
-        u = {std::log10(u.value), chain(1.0 / (u.value * kLn10), u.derivative)};
-        continue;
-      case Op::sqrt: {
-        const double v = std::sqrt(u.value);
-        u = {v, chain(0.5 / v, u.derivative)};
-        continue;
-      }
-      case Op::tanh: {
-        const double v = std::tanh(u.value);
-        u = {v, chain(1.0 - v * v, u.derivative)};
-        continue;
-      }
-      case Op::sinh:
-        u = {std::sinh(u.value), chain(std::cosh(u.value), u.derivative)};
-        continue;
-      case Op::cosh:
-        u = {std::cosh(u.value), chain(std::sinh(u.value), u.derivative)};
-        continue;
-      case Op::abs: {
-        const double sign = u.value > 0.0 ? 1.0 : (u.value < 0.0 ? -1.0 : 0.0);
-        u = {std::fabs(u.value), chain(sign, u.derivative)};
-        continue;
-      }
-      default:
-        break;
-    }
+    if (apply_unary(in.op, stack[top - 1])) continue;
     const D b = stack[--top];
-    D& a = stack[top - 1];
-    switch (in.op) {
-      case Op::add:
-        a = {a.value + b.value, a.derivative + b.derivative};
-        break;
-      case Op::subtract:
-        a = {a.value - b.value, a.derivative - b.derivative};
-        break;
-      case Op::multiply:
-        a = {a.value * b.value, chain(b.value, a.derivative) + chain(a.value, b.derivative)};
-        break;
-      case Op::divide: {
-        const double q = a.value / b.value;
-        a = {q, (a.derivative - chain(q, b.derivative)) / b.value};
-        break;
-      }
-      case Op::power: {
-        // d(a^b) = b a^(b-1) a' + a^b ln(a) b'; the ln term only when the exponent varies,
-        // so x**2 stays defined for x <= 0.
-        double p, dp_da;
-        const double e = b.value;
-        if (b.derivative == 0.0 && (e == 2.0 || e == 3.0)) {  // common in BPX fits; pow is slow
-          const double a2 = a.value * a.value;
-          p = e == 2.0 ? a2 : a2 * a.value;
-          dp_da = e == 2.0 ? 2.0 * a.value : 3.0 * a2;
-        } else {
-          p = std::pow(a.value, e);
-          dp_da = a.value != 0.0 ? e * p / a.value : e * std::pow(a.value, e - 1.0);
-        }
-        const double d = chain(dp_da, a.derivative) + chain(p * std::log(a.value), b.derivative);
-        a = {p, d};
-        break;
-      }
-      default:
-        break;
-    }
+    apply_binary(in.op, stack[top - 1], b);
   }
   return stack[0];
 }

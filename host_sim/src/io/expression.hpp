@@ -61,6 +61,8 @@ class ExpressionFunction final : public ScalarFunction {
     Op op;
     double constant;  // used by Op::constant only
   };
+  static bool apply_unary(Op op, ValueAndDerivative& u);
+  static void apply_binary(Op op, ValueAndDerivative& a, const ValueAndDerivative& b);
   // The parser rejects programs needing more (far beyond kMaxDepth's reach), so evaluation
   // runs on a fixed array: no heap, no overflow.
   static constexpr std::size_t kMaxStack = 256;

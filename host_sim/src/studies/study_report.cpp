@@ -1,41 +1,17 @@
 #include "studies/study_report.hpp"
 
-#include <cerrno>
 #include <cmath>
 #include <cstring>
-#include <fcntl.h>
 #include <map>
 #include <fmt/format.h>
-#include <spawn.h>
-#include <sys/wait.h>
 
+#include "io/gnuplot.hpp"
 #include "sim/truth_output.hpp"
-
-extern char** environ;
 
 namespace bms::study {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-// gnuplot's exit code, or -1 when it cannot be started (not installed).
-int run_gnuplot(const fs::path& script, const fs::path& log) {
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, STDOUT_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-  posix_spawn_file_actions_adddup2(&fa, STDOUT_FILENO, STDERR_FILENO);
-  std::string prog = "gnuplot", arg = script.string();
-  char* argv[] = {prog.data(), arg.data(), nullptr};
-  pid_t pid = 0;
-  const int rc = posix_spawnp(&pid, "gnuplot", &fa, nullptr, argv, environ);
-  posix_spawn_file_actions_destroy(&fa);
-  if (rc != 0) return -1;
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0)
-    if (errno != EINTR) return -1;
-  if (WIFEXITED(status) && WEXITSTATUS(status) == 127) return -1;  // exec failed in the child
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
-}
 
 namespace {
 
@@ -157,11 +133,13 @@ std::string our_statement(const std::string& id, const json& s) {
 int draw_figures(const fs::path& out_dir, const Collected& c) {
   const fs::path dir = out_dir / "figures";
   int drawn = 0;
+  GnuplotOptions gnuplot;
+  gnuplot.log = dir / "gnuplot.log";
   for (const auto& f : c.figures) {
     const fs::path gp = dir / (f.id + ".gp");
     write_file_atomically(gp, gnuplot_script(f, dir));
-    const int rc = run_gnuplot(gp, dir / "gnuplot.log");
-    if (rc < 0) return 0;
+    const int rc = run_gnuplot(gp, gnuplot);
+    if (rc == kGnuplotMissing) return 0;
     if (rc == 0 && fs::exists(dir / (f.id + ".png"))) ++drawn;
   }
   return drawn;

@@ -8,10 +8,6 @@
 
 namespace bms::study {
 
-// Runs gnuplot on a script (its output appended to log): gnuplot's exit code, or -1 when it
-// cannot be started (not installed). The one gnuplot runner of the studies.
-int run_gnuplot(const std::filesystem::path& script, const std::filesystem::path& log);
-
 // Writes DIR/figures/*.gp and, when gnuplot is installed, DIR/figures/*.png. Returns the
 // number of figures drawn (0 without gnuplot: the report then says how to draw them).
 int draw_figures(const std::filesystem::path& out_dir, const Collected& c);
