@@ -32,5 +32,16 @@ if(BMS_TARGET_SCALAR STREQUAL "float")
             --image $<TARGET_FILE:bms_m4f_blind> --qemu ${BMS_QEMU_SYSTEM_ARM} --machine ${BMS_QEMU_MACHINE}
             --truths 1 --cycles 1 --max-ticks ${BMS_M4F_BLIND_TEST_TICKS} --limit-pct 0.5
             --out ${CMAKE_CURRENT_BINARY_DIR}/results/m4f-blind-test)
-  set_tests_properties(target_m4f_blind_vs_host PROPERTIES LABELS target TIMEOUT 600)
+  # The same comparison held to 0.001 %: the check must report the film's difference.
+  add_test(NAME target_m4f_blind_detects_difference
+    COMMAND ${BMS_PYTHON3} ${BMS_TARGET_TOOLS}/m4f_blind.py
+            --bmssim ${BMS_HOST_BUILD_DIR}/host_sim/bmssim
+            --host-exe ${BMS_HOST_BUILD_DIR}/target/bms_m4f_blind_host
+            --image $<TARGET_FILE:bms_m4f_blind> --qemu ${BMS_QEMU_SYSTEM_ARM} --machine ${BMS_QEMU_MACHINE}
+            --truths 1 --cycles 1 --max-ticks ${BMS_M4F_BLIND_TEST_TICKS} --limit-pct 0.001
+            --out ${CMAKE_CURRENT_BINARY_DIR}/results/m4f-blind-canary)
+  set_tests_properties(target_m4f_blind_detects_difference PROPERTIES
+    PASS_REGULAR_EXPRESSION "FAIL: film float vs double: median")
+  set_tests_properties(target_m4f_blind_vs_host target_m4f_blind_detects_difference PROPERTIES
+    LABELS target TIMEOUT 600 RESOURCE_LOCK target_qemu_m4f_blind)
 endif()
