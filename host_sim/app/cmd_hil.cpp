@@ -4,9 +4,6 @@
 // allows). Real time: one measurement every 0.2 s of wall time; the firmware's own timer
 // ticks. --fault injects bus faults into the measurement stream (host_sim/src/hil/fault_plan.hpp).
 // --bus uml re-runs this command inside a Linux kernel with vcan (scripts/vcan-run.sh).
-#include <fcntl.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -28,14 +25,13 @@
 #include "estimation/estimate_run.hpp"
 #include "hil/fault_plan.hpp"
 #include "hil/firmware_process.hpp"
-#include "hil/staged_output.hpp"
 #include "io/atomic_file.hpp"
 #include "io/candump_log.hpp"
+#include "io/child_process.hpp"
 #include "io/input_error.hpp"
+#include "io/output_folder.hpp"
 #include "simulate_options.hpp"
 #include "sim/truth_output.hpp"
-
-extern char** environ;
 
 namespace bms::app {
 
@@ -93,16 +89,10 @@ CanLogEntry log_entry(double t_s, const std::string& iface, const hal::CanFrame&
 
 // `ip link set IFACE up|down` (the bus going away and coming back).
 void set_link(const std::string& iface, const char* state) {
-  std::vector<std::string> a = {"ip", "link", "set", iface, state};
-  std::vector<char*> argv;
-  for (auto& s : a) argv.push_back(s.data());
-  argv.push_back(nullptr);
-  pid_t pid = -1;
-  if (posix_spawnp(&pid, "ip", nullptr, nullptr, argv.data(), environ) != 0)
-    throw RuntimeFailure("cannot run ip link set " + iface + " " + state);
-  int st = 0;
-  waitpid(pid, &st, 0);
-  if (!WIFEXITED(st) || WEXITSTATUS(st) != 0) throw RuntimeFailure("ip link set " + iface + " " + state + " failed");
+  SpawnOptions o;
+  o.search_path = true;
+  if (run_process({"ip", "link", "set", iface, state}, o) != 0)
+    throw RuntimeFailure("ip link set " + iface + " " + state + " failed");
 }
 
 // Receive counters of BMS_RxStats come mod 256: the host adds up the differences.
@@ -286,7 +276,7 @@ std::vector<std::string> firmware_args(const HilCli& c, const std::filesystem::p
 class HilSession {
  public:
   HilSession(const HilCli& c, SimulateRun run, std::size_t n, std::vector<fw::Mode> modes, const hil::FaultPlan& plan,
-             hil::StagedOutput& out)
+             OutputFolder& out)
       : c_(c), run_(std::move(run)), n_(n), modes_(std::move(modes)), plan_(plan), out_(out) {}
 
   void open_bus() {
@@ -296,11 +286,11 @@ class HilSession {
   }
 
   void run() {
-    write_truth_csv(out_.path("truth.csv"), run_.result, run_.measured);
+    write_truth_csv(out_.staging() / "truth.csv", run_.result, run_.measured);
     fw_ = std::make_unique<hil::FirmwareProcess>(
         c_.firmware.empty() ? hil::default_firmware_path() : std::filesystem::path(c_.firmware),
-        firmware_args(c_, out_.path("firmware.nvm")));
-    log_ = std::make_unique<CandumpWriter>(out_.path("can.log"));
+        firmware_args(c_, out_.staging() / "firmware.nvm"));
+    log_ = std::make_unique<CandumpWriter>(out_.staging() / "can.log");
     res_.rows.reserve(n_);
     wall0_ = std::chrono::steady_clock::now();
     for (std::size_t k = 0; k < n_; ++k) run_tick(k);
@@ -329,7 +319,7 @@ class HilSession {
   std::size_t n_;
   std::vector<fw::Mode> modes_;
   const hil::FaultPlan& plan_;
-  hil::StagedOutput& out_;
+  OutputFolder& out_;
   hal::lnx::SocketCanBus bus_;
   std::unique_ptr<hil::FirmwareProcess> fw_;
   std::unique_ptr<CandumpWriter> log_;
@@ -361,6 +351,7 @@ void HilSession::apply_process_and_link_faults(const hil::TickFaults& tf) {
 }
 
 void HilSession::run_tick(std::size_t k) {
+  throw_if_interrupted();  // SIGINT/SIGTERM reached the firmware too (io/child_process)
   const hil::TickFaults& tf = plan_.at(k);
   apply_process_and_link_faults(tf);
   can::Measurement now, next;
@@ -429,6 +420,7 @@ std::size_t HilSession::collect(std::size_t k, std::size_t expected, double t_lo
     const hal::Status st = bus_.receive(r, wait_ms);
     if (st == hal::Status::timeout) {
       if (c_.realtime) continue;
+      throw_if_interrupted();
       throw RuntimeFailure(fmt::format("the firmware did not answer tick {} within 2 s", k));
     }
     if (st != hal::Status::ok) throw RuntimeFailure(std::string("CAN receive failed: ") + bus_.last_error());
@@ -500,7 +492,7 @@ void HilSession::write_outputs(const hil::FaultSpec& spec) {
   res_.theta = res_.theta_rows.back();
   res_.cycles = score_cycles(res_.rows, true, modes_);
   res_.growth_err_pct = growth_error_pct(res_.rows);
-  write_estimates_csv(out_.path("estimates.csv"), res_);
+  write_estimates_csv(out_.staging() / "estimates.csv", res_);
   EstimateOptions eo;
   eo.h_v_per_ohm_m2 = c_.h;
   eo.settings = c_.beyond_paper ? "beyond-paper" : c_.settings;
@@ -514,8 +506,8 @@ void HilSession::write_outputs(const hil::FaultSpec& spec) {
   if (fw_exit_ != 0)
     throw RuntimeFailure(fmt::format("the firmware process exited with code {} (see its message above); nothing written to {}",
                                      fw_exit_, c_.out));
-  write_file_atomically(out_.path("summary.json"), summary.dump(2) + "\n");
-  out_.commit("summary.json");
+  write_file_atomically(out_.staging() / "summary.json", summary.dump(2) + "\n");
+  out_.commit();
   if (c_.sim.quiet) return;
   std::fprintf(stderr, "hil: %zu ticks in %.2f s wall (%.0f x real time), firmware exit %d -> %s\n", n_, res_.wall_s,
                sim_s / res_.wall_s, fw_exit_, c_.out.c_str());
@@ -528,9 +520,9 @@ int run_hil(HilCli& c) {
   if (c.bus == "uml") exec_in_uml();
   if (c.realtime && !c.fault.empty()) throw InputError("--fault: lock-step only (drop it or --realtime)");
   const hil::FaultSpec spec = hil::parse_fault_spec(c.fault);
-  // Checked before the long work: the output folder. Every file is written under DIR.partial
-  // and moved into DIR only when the run succeeded (hil/staged_output.hpp).
-  hil::StagedOutput out(c.out);
+  // Checked before the long work: the output folder. Every file is written under DIR.partial-PID
+  // that replaces DIR whole only when the run succeeded (io/output_folder.hpp).
+  OutputFolder out(c.out);
   SimulateRun run = simulate_on_bus_grid(c.sim);
   std::size_t n = run.result.samples.size();
   if (c.max_ticks > 0 && c.max_ticks < n) n = c.max_ticks;

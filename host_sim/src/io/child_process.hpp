@@ -29,6 +29,13 @@ void throw_if_interrupted();
 struct SpawnOptions {
   std::filesystem::path log;  // stdout and stderr appended here; empty: inherited
   bool search_path = false;   // look argv[0] up in PATH
+  // The signal the kernel sends the child when bmssim dies, even by SIGKILL
+  // (PR_SET_PDEATHSIG); 0: none. A child serving bmssim (the HIL's firmware) must not
+  // outlive it.
+  int parent_death_signal = 0;
+  // When set, the child's stdout is a pipe and its read end is stored here (the caller
+  // closes it), e.g. to wait for a "ready" line. Not together with `log`.
+  int* stdout_pipe = nullptr;
 };
 
 // Starts argv (argv[0] = the program) in a process group of its own. RuntimeFailure when it
