@@ -54,7 +54,7 @@ constexpr std::int64_t sign_extend(std::uint64_t raw, unsigned len) {
 
 /// Smallest and largest raw integer of a signal (as signed values).
 constexpr std::int64_t raw_min(const SignalLayout& s) {
-  // The analyzer assumes a signal of length 0 (shift by -1): every SignalLayout in this file
+  // The analyzer assumes a signal of length 0 (shift by -1): every SignalLayout in can_signal_table.hpp
   // has length 1..32, and tests/hal checks the table against the DBC.
   // NOLINTNEXTLINE(clang-analyzer-core.UndefinedBinaryOperatorResult)
   return s.type == ValueType::signed_int ? -(std::int64_t{1} << (s.length - 1u)) : 0;
