@@ -4,9 +4,6 @@
 // allows). Real time: one measurement every 0.2 s of wall time; the firmware's own timer
 // ticks. --fault injects bus faults into the measurement stream (host_sim/src/hil/fault_plan.hpp).
 // --bus uml re-runs this command inside a Linux kernel with vcan (scripts/vcan-run.sh).
-#include <fcntl.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -28,14 +25,13 @@
 #include "estimation/estimate_run.hpp"
 #include "hil/fault_plan.hpp"
 #include "hil/firmware_process.hpp"
-#include "hil/staged_output.hpp"
 #include "io/atomic_file.hpp"
 #include "io/candump_log.hpp"
+#include "io/child_process.hpp"
 #include "io/input_error.hpp"
+#include "io/output_folder.hpp"
 #include "simulate_options.hpp"
 #include "sim/truth_output.hpp"
-
-extern char** environ;
 
 namespace bms::app {
 
@@ -93,16 +89,10 @@ CanLogEntry log_entry(double t_s, const std::string& iface, const hal::CanFrame&
 
 // `ip link set IFACE up|down` (the bus going away and coming back).
 void set_link(const std::string& iface, const char* state) {
-  std::vector<std::string> a = {"ip", "link", "set", iface, state};
-  std::vector<char*> argv;
-  for (auto& s : a) argv.push_back(s.data());
-  argv.push_back(nullptr);
-  pid_t pid = -1;
-  if (posix_spawnp(&pid, "ip", nullptr, nullptr, argv.data(), environ) != 0)
-    throw RuntimeFailure("cannot run ip link set " + iface + " " + state);
-  int st = 0;
-  waitpid(pid, &st, 0);
-  if (!WIFEXITED(st) || WEXITSTATUS(st) != 0) throw RuntimeFailure("ip link set " + iface + " " + state + " failed");
+  SpawnOptions o;
+  o.search_path = true;
+  if (run_process({"ip", "link", "set", iface, state}, o) != 0)
+    throw RuntimeFailure("ip link set " + iface + " " + state + " failed");
 }
 
 // Receive counters of BMS_RxStats come mod 256: the host adds up the differences.
@@ -235,19 +225,27 @@ nlohmann::json fault_summary(const hil::FaultPlan& plan, const FaultCounts& inj,
           {"windows", w}};
 }
 
-int run_hil(HilCli& c) {
-  if (c.bus == "uml") exec_in_uml();
-  if (c.realtime && !c.fault.empty()) throw InputError("--fault: lock-step only (drop it or --realtime)");
-  const hil::FaultSpec spec = hil::parse_fault_spec(c.fault);
-  // Checked before the long work: the output folder. Every file is written under DIR.partial
-  // and moved into DIR only when the run succeeded (hil/staged_output.hpp).
-  hil::StagedOutput out(c.out);
-  if (!c.sim.quiet) std::fprintf(stderr, "hil: simulating the truth (%d cycles)...\n", c.sim.cycles);
-  SimulateRun run = run_simulation(c.sim, {});
-  // What goes on the bus: the measured values at the bus resolution (10 uV, 0.1 mA). The
-  // truth.csv records exactly these, so `bmssim estimate` on it sees what the firmware saw.
-  std::size_t n = run.result.samples.size();
-  for (std::size_t i = 0; i < n; ++i) {
+void count_faults(const hil::TickFaults& tf, FaultCounts& inj) {
+  inj.drop += tf.drop;
+  inj.dup += tf.dup;
+  inj.reorder += tf.reorder;
+  inj.crc += tf.crc;
+  inj.length += tf.length;
+  inj.unknown += tf.unknown;
+  inj.stale += tf.stale;
+  inj.range += tf.range;
+  inj.nan += tf.nan;
+  inj.busdown += tf.bus_down;
+  inj.kill += tf.fw_down;
+}
+
+// The truth run, with its measured columns put on the bus's grid (10 uV, 0.1 mA) through
+// the codec: truth.csv records exactly these, so `bmssim estimate` on it sees what the
+// firmware saw.
+SimulateRun simulate_on_bus_grid(const SimulateOptions& sim) {
+  if (!sim.quiet) std::fprintf(stderr, "hil: simulating the truth (%d cycles)...\n", sim.cycles);
+  SimulateRun run = run_simulation(sim, {});
+  for (std::size_t i = 0; i < run.result.samples.size(); ++i) {
     can::Measurement m;
     m.voltage_v = run.measured.voltage_v[i];
     m.current_a = run.measured.current_a[i];
@@ -258,214 +256,283 @@ int run_hil(HilCli& c) {
     run.measured.voltage_v[i] = back.voltage_v;
     run.measured.current_a[i] = back.current_a;
   }
+  return run;
+}
+
+std::vector<std::string> firmware_args(const HilCli& c, const std::filesystem::path& nvm) {
+  // The firmware's NVM here is a file, not flash: no write budget, so that --persist-every-s
+  // is what the kill/restart test exercises.
+  std::vector<std::string> a = {"--can", c.bus, c.realtime ? "--realtime" : "--lockstep", "--nvm", nvm.string(),
+                                "--h", fmt::format("{}", c.h), "--persist-every-s",
+                                fmt::format("{}", c.persist_every_s), "--flash-endurance-cycles", "1e12"};
+  if (c.beyond_paper)
+    a.emplace_back("--beyond-paper");
+  else
+    a.insert(a.end(), {"--settings", c.settings});
+  return a;
+}
+
+// One host-in-the-loop run: the bus, the firmware process, what was sent and answered.
+class HilSession {
+ public:
+  HilSession(const HilCli& c, SimulateRun run, std::size_t n, std::vector<fw::Mode> modes, const hil::FaultPlan& plan,
+             OutputFolder& out)
+      : c_(c), run_(std::move(run)), n_(n), modes_(std::move(modes)), plan_(plan), out_(out) {}
+
+  void open_bus() {
+    if (bus_.open(c_.bus.c_str()) != hal::Status::ok)
+      throw RuntimeFailure("cannot open CAN interface " + c_.bus + ": " + bus_.last_error() +
+                           " (on a machine without kernel CAN use --bus uml)");
+  }
+
+  void run() {
+    write_truth_csv(out_.staging() / "truth.csv", run_.result, run_.measured);
+    fw_ = std::make_unique<hil::FirmwareProcess>(
+        c_.firmware.empty() ? hil::default_firmware_path() : std::filesystem::path(c_.firmware),
+        firmware_args(c_, out_.staging() / "firmware.nvm"));
+    log_ = std::make_unique<CandumpWriter>(out_.staging() / "can.log");
+    res_.rows.reserve(n_);
+    wall0_ = std::chrono::steady_clock::now();
+    for (std::size_t k = 0; k < n_; ++k) run_tick(k);
+    if (c_.realtime) collect(n_, 0, 0.0, 0.2 * static_cast<double>(n_));
+    res_.wall_s = wall_s();
+    fw_exit_ = fw_->stop();
+    log_->commit();
+  }
+
+  void write_outputs(const hil::FaultSpec& spec);
+
+ private:
+  double wall_s() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0_).count();
+  }
+  void apply_process_and_link_faults(const hil::TickFaults& tf);
+  void run_tick(std::size_t k);
+  std::size_t send_tick(const std::vector<hal::CanFrame>& frames, const hil::TickFaults& tf, double t_log);
+  void record_row(std::size_t k, std::size_t triggers, std::size_t answers, const hil::TickFaults& tf);
+  std::size_t collect(std::size_t k, std::size_t expected, double t_log, double until_s);
+  bool take(const can::RxMessage& msg);
+  nlohmann::json hil_json(const hil::FaultSpec& spec, double sim_s) const;
+
+  const HilCli& c_;
+  SimulateRun run_;
+  std::size_t n_;
+  std::vector<fw::Mode> modes_;
+  const hil::FaultPlan& plan_;
+  OutputFolder& out_;
+  hal::lnx::SocketCanBus bus_;
+  std::unique_ptr<hil::FirmwareProcess> fw_;
+  std::unique_ptr<CandumpWriter> log_;
+  int fw_exit_ = 0;
+  static constexpr double kEpochS = 1700000000.0;  // fixed: lock-step logs are identical run to run
+  FaultyTransmitter tx_;
+  can::Receiver rx_{can::Node::host};
+  can::LockstepTicks mirror_;  // the firmware's trigger rule, to know how many answers to expect
+  RxTotals rx_totals_;
+  FaultCounts inj_;
+  std::size_t no_answer_ = 0;
+  std::uint64_t stale_ticks_ = 0, status_frames_ = 0, restored_answers_ = 0;
+  double first_status_wall_s_ = -1, last_status_wall_s_ = -1;
+  std::uint32_t first_tick_count_ = 0, last_tick_count_ = 0;
+  EstimateResult res_;
+  Answer last_;
+  std::chrono::steady_clock::time_point wall0_;
+};
+
+void HilSession::apply_process_and_link_faults(const hil::TickFaults& tf) {
+  if (tf.kill_now) fw_->kill_hard();
+  if (tf.restart_now) {
+    fw_->start();
+    rx_.reset();  // its alive counters start again at 0
+    rx_totals_.firmware_restarted();
+  }
+  if (tf.down_now) set_link(c_.bus, "down");
+  if (tf.up_now) set_link(c_.bus, "up");
+}
+
+void HilSession::run_tick(std::size_t k) {
+  throw_if_interrupted();  // SIGINT/SIGTERM reached the firmware too (io/child_process)
+  const hil::TickFaults& tf = plan_.at(k);
+  apply_process_and_link_faults(tf);
+  can::Measurement now, next;
+  now.voltage_v = run_.measured.voltage_v[k];
+  now.current_a = run_.measured.current_a[k];
+  if (k + 1 < n_) {
+    next.voltage_v = run_.measured.voltage_v[k + 1];
+    next.current_a = run_.measured.current_a[k + 1];
+  }
+  count_faults(tf, inj_);
+  const auto frames = tx_.frames(k, now, next, tf);
+  // Real time: the firmware's timer ticks; answers are read while waiting for the send time.
+  if (c_.realtime) collect(k, 0, 0.0, 0.2 * static_cast<double>(k));
+  const double t_log = kEpochS + run_.result.samples[k].t_s;
+  const std::size_t triggers = send_tick(frames, tf, t_log);
+  std::size_t answers = 0;
+  if (!c_.realtime && fw_->running()) answers = collect(k, triggers, t_log, 0.0);
+  record_row(k, triggers, answers, tf);
+  if (!c_.sim.quiet && k % 20000 == 0) std::fprintf(stderr, "hil: tick %zu / %zu\n", k, n_);
+}
+
+// Sends one tick's frames; returns how many of them trigger a firmware tick.
+std::size_t HilSession::send_tick(const std::vector<hal::CanFrame>& frames, const hil::TickFaults& tf, double t_log) {
+  std::size_t triggers = 0;
+  for (const auto& f : frames) {
+    const hal::Status st = bus_.send(f);
+    if (st != hal::Status::ok) {
+      if (tf.bus_down) continue;  // expected: ENETDOWN while the link is down
+      throw RuntimeFailure(std::string("CAN send failed: ") + bus_.last_error());
+    }
+    log_->write(log_entry(c_.realtime ? kEpochS + wall_s() : t_log, c_.bus, f));
+    std::uint32_t t = 0;
+    if (mirror_.classify(f, t)) ++triggers;
+  }
+  return triggers;
+}
+
+void HilSession::record_row(std::size_t k, std::size_t triggers, std::size_t answers, const hil::TickFaults& tf) {
+  const auto& s = run_.result.samples[k];
+  EstimateRow row = last_.row;
+  // A tick whose frames were all repeats or late (duplicated, reordered) asks for nothing.
+  const bool asked = triggers > 0 || tf.bus_down || !fw_->running();
+  if (!c_.realtime && !asked) row.status |= kHostNotAsked;
+  if (!c_.realtime && asked && answers == 0) {
+    row.status |= kHostNoAnswer;
+    ++no_answer_;
+  }
+  row.t_s = s.t_s;
+  row.cycle = s.cycle;
+  row.r_film_true_ohm_m2 = s.r_film_ohm_m2;
+  if (!last_.have) row.mode = s.mode;  // before the first answer
+  row.model_voltage_v = std::nan("");
+  row.model_current_a = std::nan("");
+  row.j_side_a_m3 = std::nan("");
+  res_.rows.push_back(row);
+  res_.theta_rows.push_back({last_.theta[0], last_.theta[1]});
+}
+
+// Reads frames until `expected` BMS_Status frames arrived (lock-step), or until `until_s`
+// of wall time (real time, expected ignored). Updates last_ with what arrived.
+std::size_t HilSession::collect(std::size_t k, std::size_t expected, double t_log, double until_s) {
+  std::size_t got = 0;
+  while (c_.realtime ? wall_s() < until_s : got < expected) {
+    hal::CanFrame r{};
+    const auto wait_ms = c_.realtime ? std::max(1, static_cast<int>((until_s - wall_s()) * 1000.0)) : 2000;
+    const hal::Status st = bus_.receive(r, wait_ms);
+    if (st == hal::Status::timeout) {
+      if (c_.realtime) continue;
+      throw_if_interrupted();
+      throw RuntimeFailure(fmt::format("the firmware did not answer tick {} within 2 s", k));
+    }
+    if (st != hal::Status::ok) throw RuntimeFailure(std::string("CAN receive failed: ") + bus_.last_error());
+    log_->write(log_entry(c_.realtime ? kEpochS + wall_s() : t_log, c_.bus, r));
+    can::RxMessage msg{};
+    if (rx_.accept(r, msg) == can::RxResult::accepted && take(msg)) ++got;
+  }
+  return got;
+}
+
+// Takes one accepted answer into last_; true for the BMS_Status that closes a tick.
+bool HilSession::take(const can::RxMessage& msg) {
+  switch (msg.msg) {
+    case can::Msg::estimate1:
+      last_.row.r_film_est_ohm_m2 = msg.estimate1.r_film_ohm_m2;
+      last_.row.mode = msg.estimate1.mode;
+      last_.row.rcsi_active = msg.estimate1.rcsi_active;
+      return false;
+    case can::Msg::estimate2: last_.theta[0] = msg.estimate2.theta0; return false;
+    case can::Msg::estimate3: last_.theta[1] = msg.estimate3.theta1; return false;
+    case can::Msg::health:
+      last_.row.z_v = msg.health.z_v;
+      last_.row.li_loss_ah = msg.health.li_loss_ah;
+      return false;
+    case can::Msg::rx_stats: rx_totals_.add(msg.rx_stats); return false;
+    case can::Msg::status: break;
+    default: return false;
+  }
+  last_.row.status = msg.status.fault_bits;
+  last_.have = true;
+  if ((msg.status.status_bits & can::status_bit::kNvmRestored) != 0u) ++restored_answers_;
+  if ((msg.status.fault_bits & can::fault_bit::kMeasStale) != 0u) ++stale_ticks_;
+  ++status_frames_;
+  last_status_wall_s_ = wall_s();
+  last_tick_count_ = msg.status.tick_count;
+  if (first_status_wall_s_ < 0) {
+    first_status_wall_s_ = last_status_wall_s_;
+    first_tick_count_ = msg.status.tick_count;
+  }
+  return true;
+}
+
+nlohmann::json HilSession::hil_json(const hil::FaultSpec& spec, double sim_s) const {
+  nlohmann::json h = {{"bus", c_.bus},
+                      {"lockstep", !c_.realtime},
+                      {"estimator", c_.beyond_paper ? "beyond-paper" : c_.settings},
+                      {"ticks", n_},
+                      {"wall_s", res_.wall_s},
+                      {"sim_s", sim_s},
+                      {"sim_s_per_wall_s", sim_s / res_.wall_s},
+                      {"firmware_exit", fw_exit_},
+                      {"frames_dropped_by_host", rx_.counters().dropped_total()},
+                      {"status_frames", status_frames_},
+                      {"answers_after_nvm_restore", restored_answers_},
+                      {"first_status_wall_s", first_status_wall_s_},
+                      {"last_status_wall_s", last_status_wall_s_},
+                      {"firmware_tick_count_first", first_tick_count_},
+                      {"firmware_tick_count_last", last_tick_count_}};
+  if (spec.any())
+    h["faults"] = fault_summary(plan_, inj_, rx_totals_, res_.rows, no_answer_, stale_ticks_, fw_->starts());
+  else
+    h["firmware_counters"] = {{"dropped_length", rx_totals_.drop_length}, {"dropped_crc", rx_totals_.drop_crc},
+                              {"dropped_counter", rx_totals_.drop_counter}, {"ignored_ids", rx_totals_.ignored_ids},
+                              {"lost_frames", rx_totals_.lost_frames}};
+  return h;
+}
+
+void HilSession::write_outputs(const hil::FaultSpec& spec) {
+  res_.theta = res_.theta_rows.back();
+  res_.cycles = score_cycles(res_.rows, true, modes_);
+  res_.growth_err_pct = growth_error_pct(res_.rows);
+  write_estimates_csv(out_.staging() / "estimates.csv", res_);
+  EstimateOptions eo;
+  eo.h_v_per_ohm_m2 = c_.h;
+  eo.settings = c_.beyond_paper ? "beyond-paper" : c_.settings;
+  auto summary = estimate_summary_json(res_, eo);
+  const auto& samples = run_.result.samples;
+  const double sim_s = samples[n_ - 1].t_s - samples[0].t_s + c_.sim.dt_s;
+  summary["simulation"] = summary_json(run_.result);
+  summary["simulation"]["options"] = options_json(c_.sim);
+  summary["simulation"]["parameters"] = run_.parameters;
+  summary["hil"] = hil_json(spec, sim_s);
+  if (fw_exit_ != 0)
+    throw RuntimeFailure(fmt::format("the firmware process exited with code {} (see its message above); nothing written to {}",
+                                     fw_exit_, c_.out));
+  write_file_atomically(out_.staging() / "summary.json", summary.dump(2) + "\n");
+  out_.commit();
+  if (c_.sim.quiet) return;
+  std::fprintf(stderr, "hil: %zu ticks in %.2f s wall (%.0f x real time), firmware exit %d -> %s\n", n_, res_.wall_s,
+               sim_s / res_.wall_s, fw_exit_, c_.out.c_str());
+  for (const auto& cs : res_.cycles)
+    std::fprintf(stderr, "hil: cycle %d: film-resistance error in CC charge: median %.3f %%, end %.3f %%\n", cs.cycle,
+                 cs.r_film_err_median_pct, cs.r_film_err_end_pct);
+}
+
+int run_hil(HilCli& c) {
+  if (c.bus == "uml") exec_in_uml();
+  if (c.realtime && !c.fault.empty()) throw InputError("--fault: lock-step only (drop it or --realtime)");
+  const hil::FaultSpec spec = hil::parse_fault_spec(c.fault);
+  // Checked before the long work: the output folder. Every file is written under DIR.partial-PID
+  // that replaces DIR whole only when the run succeeded (io/output_folder.hpp).
+  OutputFolder out(c.out);
+  SimulateRun run = simulate_on_bus_grid(c.sim);
+  std::size_t n = run.result.samples.size();
   if (c.max_ticks > 0 && c.max_ticks < n) n = c.max_ticks;
   std::vector<fw::Mode> modes;
   for (std::size_t k = 0; k < n; ++k) modes.push_back(run.result.samples[k].mode);
   const hil::FaultPlan plan(spec, modes, c.sim.dt_s);  // bad windows: exit 2 before the bus is tried
-  hal::lnx::SocketCanBus bus;
-  if (bus.open(c.bus.c_str()) != hal::Status::ok)
-    throw RuntimeFailure("cannot open CAN interface " + c.bus + ": " + bus.last_error() +
-                         " (on a machine without kernel CAN use --bus uml)");
-  const std::filesystem::path dir(c.out);
-  write_truth_csv(out.path("truth.csv"), run.result, run.measured);
-
-  const std::filesystem::path nvm = out.path("firmware.nvm");
-  // The firmware's NVM here is a file, not flash: no write budget, so that --persist-every-s
-  // is what the kill/restart test exercises.
-  std::vector<std::string> fw_args = {"--can", c.bus, c.realtime ? "--realtime" : "--lockstep", "--nvm",
-                                            nvm.string(), "--h", fmt::format("{}", c.h), "--persist-every-s",
-                                            fmt::format("{}", c.persist_every_s), "--flash-endurance-cycles", "1e12"};
-  if (c.beyond_paper) {
-    fw_args.emplace_back("--beyond-paper");
-  } else {
-    fw_args.insert(fw_args.end(), {"--settings", c.settings});
-  }
-  hil::FirmwareProcess fw(c.firmware.empty() ? hil::default_firmware_path() : std::filesystem::path(c.firmware),
-                          fw_args);
-
-  CandumpWriter log(out.path("can.log"));
-  const double t_epoch = 1700000000.0;  // fixed: lock-step logs are identical run to run
-  FaultyTransmitter tx;
-  can::Receiver rx(can::Node::host);
-  can::LockstepTicks mirror;  // the firmware's trigger rule, to know how many answers to expect
-  RxTotals rx_totals;
-  FaultCounts inj;
-  std::size_t no_answer = 0;
-  std::uint64_t stale_ticks = 0, status_frames = 0, restored_answers = 0;
-  double first_status_wall_s = -1, last_status_wall_s = -1;
-  std::uint32_t first_tick_count = 0, last_tick_count = 0;
-  EstimateResult res;
-  res.rows.reserve(n);
-  Answer last;
-  const auto wall0 = std::chrono::steady_clock::now();
-  auto wall_s = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count(); };
-
-  // Reads frames until `expected` BMS_Status frames arrived (lock-step), or until `until_s`
-  // of wall time (real time, expected ignored). Updates `last` with what arrived.
-  auto collect = [&](std::size_t k, std::size_t expected, double t_log, double until_s) {
-    std::size_t got = 0;
-    while (c.realtime ? wall_s() < until_s : got < expected) {
-      hal::CanFrame r{};
-      const auto wait_ms = c.realtime ? std::max(1, static_cast<int>((until_s - wall_s()) * 1000.0)) : 2000;
-      const hal::Status st = bus.receive(r, wait_ms);
-      if (st == hal::Status::timeout) {
-        if (c.realtime) continue;
-        throw RuntimeFailure(fmt::format("the firmware did not answer tick {} within 2 s", k));
-      }
-      if (st != hal::Status::ok) throw RuntimeFailure(std::string("CAN receive failed: ") + bus.last_error());
-      log.write(log_entry(c.realtime ? t_epoch + wall_s() : t_log, c.bus, r));
-      can::RxMessage msg{};
-      if (rx.accept(r, msg) != can::RxResult::accepted) continue;
-      switch (msg.msg) {
-        case can::Msg::estimate1:
-          last.row.r_film_est_ohm_m2 = msg.estimate1.r_film_ohm_m2;
-          last.row.mode = msg.estimate1.mode;
-          last.row.rcsi_active = msg.estimate1.rcsi_active;
-          break;
-        case can::Msg::estimate2: last.theta[0] = msg.estimate2.theta0; break;
-        case can::Msg::estimate3: last.theta[1] = msg.estimate3.theta1; break;
-        case can::Msg::health:
-          last.row.z_v = msg.health.z_v;
-          last.row.li_loss_ah = msg.health.li_loss_ah;
-          break;
-        case can::Msg::rx_stats: rx_totals.add(msg.rx_stats); break;
-        case can::Msg::status:
-          last.row.status = msg.status.fault_bits;
-          last.have = true;
-          if ((msg.status.status_bits & can::status_bit::kNvmRestored) != 0u) ++restored_answers;
-          if ((msg.status.fault_bits & can::fault_bit::kMeasStale) != 0u) ++stale_ticks;
-          ++got;
-          ++status_frames;
-          last_status_wall_s = wall_s();
-          last_tick_count = msg.status.tick_count;
-          if (first_status_wall_s < 0) {
-            first_status_wall_s = last_status_wall_s;
-            first_tick_count = msg.status.tick_count;
-          }
-          break;
-        default: break;
-      }
-    }
-    return got;
-  };
-
-  for (std::size_t k = 0; k < n; ++k) {
-    const auto& s = run.result.samples[k];
-    const hil::TickFaults& tf = plan.at(k);
-    if (tf.kill_now) fw.kill_hard();
-    if (tf.restart_now) {
-      fw.start();
-      rx.reset();  // its alive counters start again at 0
-      rx_totals.firmware_restarted();
-    }
-    if (tf.down_now) set_link(c.bus, "down");
-    if (tf.up_now) set_link(c.bus, "up");
-    can::Measurement now, next;
-    now.voltage_v = run.measured.voltage_v[k];
-    now.current_a = run.measured.current_a[k];
-    if (k + 1 < n) {
-      next.voltage_v = run.measured.voltage_v[k + 1];
-      next.current_a = run.measured.current_a[k + 1];
-    }
-    inj.drop += tf.drop;
-    inj.dup += tf.dup;
-    inj.reorder += tf.reorder;
-    inj.crc += tf.crc;
-    inj.length += tf.length;
-    inj.unknown += tf.unknown;
-    inj.stale += tf.stale;
-    inj.range += tf.range;
-    inj.nan += tf.nan;
-    inj.busdown += tf.bus_down;
-    inj.kill += tf.fw_down;
-    const auto frames = tx.frames(k, now, next, tf);
-    if (c.realtime) {  // the firmware's timer ticks: answers are read while waiting for the next send time
-      collect(k, 0, 0.0, 0.2 * static_cast<double>(k));
-    }
-    const double t_log = t_epoch + s.t_s;
-    std::size_t triggers = 0;
-    for (const auto& f : frames) {
-      const hal::Status st = bus.send(f);
-      if (st != hal::Status::ok) {
-        if (tf.bus_down) continue;  // expected: ENETDOWN while the link is down
-        throw RuntimeFailure(std::string("CAN send failed: ") + bus.last_error());
-      }
-      log.write(log_entry(c.realtime ? t_epoch + wall_s() : t_log, c.bus, f));
-      std::uint32_t t = 0;
-      if (mirror.classify(f, t)) ++triggers;
-    }
-    std::size_t answers = 0;
-    if (!c.realtime && fw.running()) answers = collect(k, triggers, t_log, 0.0);
-    EstimateRow row = last.row;
-    // A tick whose frames were all repeats or late (duplicated, reordered) asks for nothing.
-    const bool asked = triggers > 0 || tf.bus_down || !fw.running();
-    if (!c.realtime && !asked) row.status |= kHostNotAsked;
-    if (!c.realtime && asked && answers == 0) {
-      row.status |= kHostNoAnswer;
-      ++no_answer;
-    }
-    row.t_s = s.t_s;
-    row.cycle = s.cycle;
-    row.r_film_true_ohm_m2 = s.r_film_ohm_m2;
-    if (!last.have) row.mode = s.mode;  // before the first answer
-    row.model_voltage_v = std::nan("");
-    row.model_current_a = std::nan("");
-    row.j_side_a_m3 = std::nan("");
-    res.rows.push_back(row);
-    res.theta_rows.push_back({last.theta[0], last.theta[1]});
-    if (!c.sim.quiet && k % 20000 == 0) std::fprintf(stderr, "hil: tick %zu / %zu\n", k, n);
-  }
-  if (c.realtime) collect(n, 0, 0.0, 0.2 * static_cast<double>(n));
-  res.wall_s = wall_s();
-  const int fw_exit = fw.stop();
-  log.commit();
-  res.theta = res.theta_rows.back();
-  res.cycles = score_cycles(res.rows, true, modes);
-  res.growth_err_pct = growth_error_pct(res.rows);
-  write_estimates_csv(out.path("estimates.csv"), res);
-  EstimateOptions eo;
-  eo.h_v_per_ohm_m2 = c.h;
-  eo.settings = c.beyond_paper ? "beyond-paper" : c.settings;
-  auto summary = estimate_summary_json(res, eo);
-  const double sim_s = run.result.samples[n - 1].t_s - run.result.samples[0].t_s + c.sim.dt_s;
-  summary["simulation"] = summary_json(run.result);
-  summary["simulation"]["options"] = options_json(c.sim);
-  summary["simulation"]["parameters"] = run.parameters;
-  summary["hil"] = {{"bus", c.bus},
-                    {"lockstep", !c.realtime},
-                    {"estimator", c.beyond_paper ? "beyond-paper" : c.settings},
-                    {"ticks", n},
-                    {"wall_s", res.wall_s},
-                    {"sim_s", sim_s},
-                    {"sim_s_per_wall_s", sim_s / res.wall_s},
-                    {"firmware_exit", fw_exit},
-                    {"frames_dropped_by_host", rx.counters().dropped_total()},
-                    {"status_frames", status_frames},
-                    {"answers_after_nvm_restore", restored_answers},
-                    {"first_status_wall_s", first_status_wall_s},
-                    {"last_status_wall_s", last_status_wall_s},
-                    {"firmware_tick_count_first", first_tick_count},
-                    {"firmware_tick_count_last", last_tick_count}};
-  if (spec.any())
-    summary["hil"]["faults"] = fault_summary(plan, inj, rx_totals, res.rows, no_answer, stale_ticks, fw.starts());
-  else
-    summary["hil"]["firmware_counters"] = {{"dropped_length", rx_totals.drop_length},
-                                           {"dropped_crc", rx_totals.drop_crc},
-                                           {"dropped_counter", rx_totals.drop_counter},
-                                           {"ignored_ids", rx_totals.ignored_ids},
-                                           {"lost_frames", rx_totals.lost_frames}};
-  if (fw_exit != 0)
-    throw RuntimeFailure(fmt::format("the firmware process exited with code {} (see its message above); nothing written to {}",
-                                     fw_exit, dir.string()));
-  write_file_atomically(out.path("summary.json"), summary.dump(2) + "\n");
-  out.commit("summary.json");
-  if (!c.sim.quiet) {
-    std::fprintf(stderr, "hil: %zu ticks in %.2f s wall (%.0f x real time), firmware exit %d -> %s\n", n, res.wall_s,
-                 sim_s / res.wall_s, fw_exit, dir.c_str());
-    for (const auto& cs : res.cycles)
-      std::fprintf(stderr, "hil: cycle %d: film-resistance error in CC charge: median %.3f %%, end %.3f %%\n",
-                   cs.cycle, cs.r_film_err_median_pct, cs.r_film_err_end_pct);
-  }
+  HilSession session(c, std::move(run), n, modes, plan, out);
+  session.open_bus();
+  session.run();
+  session.write_outputs(spec);
   return 0;
 }
 

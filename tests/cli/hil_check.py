@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Checks a host-in-the-loop run with clients nobody in this project wrote.
 
-usage: hil_check.py DBC HIL_DIR OFFLINE_DIR [SECOND_HIL_DIR] [--replay REPLAY_DIR]
+usage: hil_check.py DBC HIL_DIR OFFLINE_DIR [SECOND_HIL_DIR] [--replay REPLAY_DIR] [--frames-check BIN]
 
 1. python3-can reads HIL_DIR/can.log (candump format); python3-canmatrix decodes every
    BMS_Estimate1 / BMS_Health frame with the DBC; the decoded values must equal
@@ -9,6 +9,11 @@ usage: hil_check.py DBC HIL_DIR OFFLINE_DIR [SECOND_HIL_DIR] [--replay REPLAY_DI
 2. The offline estimate (OFFLINE_DIR/estimates.csv, `bmssim estimate` on HIL_DIR/truth.csv)
    must give the same film resistance on the bus's 1e-10 ohm m2 grid in every tick
    (bit for bit at the bus resolution).
+   With --frames-check (tests/cli/hil_frames_check.cpp, the firmware's own codec): the
+   offline rows encoded as the firmware encodes its answers must equal the firmware's
+   BMS_Estimate1/2/3 and BMS_Health frames byte for byte in every tick (0 mismatches): bit
+   for bit where the firmware's answer is exact. The run's estimates.csv holds the decoded
+   frames, so its doubles differ from the offline ones by the bus grid (printed, not a check).
 3. With SECOND_HIL_DIR: the two lock-step logs must be byte-identical (determinism).
 4. With --replay (tests/cli/hil_replay.sh: HIL_DIR/can.log's host frames replayed into a
    fresh firmware, each tick's only after the firmware answered the previous one): the firmware's frames of the replay
@@ -18,6 +23,7 @@ Prints one line per check; exit 0 when all pass, 1 otherwise.
 """
 import csv
 import decimal
+import subprocess
 import sys
 
 import can
@@ -39,6 +45,11 @@ def bms_frames(path):
 def main():
     args = sys.argv[1:]
     replay = None
+    frames_check = None
+    if "--frames-check" in args:
+        i = args.index("--frames-check")
+        frames_check = args[i + 1]
+        del args[i:i + 2]
     if "--replay" in args:
         i = args.index("--replay")
         replay = args[i + 1]
@@ -79,6 +90,16 @@ def main():
     ok &= good
     print(f"{'PASS' if good else 'FAIL'} lock-step estimates equal the offline `bmssim estimate` on the 1e-10 ohm m2 "
           f"bus grid: {len(rows)} ticks, {bad} mismatches")
+    rel = max((abs(float(a["r_film_est_ohm_m2"]) - float(b["r_film_est_ohm_m2"])) / abs(float(b["r_film_est_ohm_m2"]))
+               for a, b in zip(rows, off) if float(b["r_film_est_ohm_m2"]) != 0.0), default=0.0)
+    print(f"INFO estimates.csv holds the decoded frames: largest relative film difference to the offline doubles "
+          f"{rel:.2e} (the bus's 1e-10 ohm m2 grid)")
+    if frames_check:
+        r = subprocess.run([frames_check, hil + "/can.log", offline + "/estimates.csv"], capture_output=True, text=True)
+        line = (r.stdout.strip() or r.stderr.strip() or "no output").splitlines()[-1]
+        good = r.returncode == 0 and line.startswith("PASS") and " 0 mismatched ticks" in line
+        ok &= good
+        print(line if line.startswith(("PASS", "FAIL")) else f"FAIL {frames_check}: {line}")
     if second:
         same = open(hil + "/can.log", "rb").read() == open(second + "/can.log", "rb").read()
         ok &= same

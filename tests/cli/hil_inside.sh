@@ -25,7 +25,7 @@ rc=0
 "$bmssim" hil --bus vcan0 --protocol "csv:$work/rest.csv" --firmware /bin/false --quiet --out "$work/failed" \
   2> "$work/failed.err" || rc=$?
 echo "exit=$rc truth_left=$([ -e "$work/failed/truth.csv" ] && echo yes || echo no)" \
-  "partial_left=$([ -e "$work/failed.partial" ] && echo yes || echo no) message=$(head -c 200 "$work/failed.err" | tr '\n' ' ')" \
+  "partial_left=$(compgen -G "$work/failed.partial*" >/dev/null && echo yes || echo no) message=$(head -c 200 "$work/failed.err" | tr '\n' ' ')" \
   > "$work/failed.txt"
 
 "$bmssim" hil --bus vcan0 --realtime --protocol "csv:$work/rest.csv" --quiet --out "$work/orphan" 2>/dev/null &

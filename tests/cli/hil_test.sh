@@ -5,10 +5,11 @@
 # a failed run and a host killed mid-run; then, outside,
 # the DBC/python-can client check, the offline-equality, determinism and replay checks
 # (hil_check.py) and the fault and real-time checks (hil_fault_check.py).
-# usage: hil_test.sh BMSSIM SOURCE_DIR WORK_DIR [FIRMWARE]. Exit 77 (skipped) when no vcan backend works.
+# usage: hil_test.sh BMSSIM SOURCE_DIR WORK_DIR [FIRMWARE [FRAMES_CHECK]]. Exit 77 (skipped) when no vcan backend works.
 set -euo pipefail
 bmssim="$1"; src="$2"; work="$3"
 fw="${4:-$(dirname "$(dirname "$bmssim")")/hal/bms-firmware}"
+frames_check="${5:-$(dirname "$(dirname "$bmssim")")/tests/cli/hil_frames_check}"
 if ! "$src/scripts/vcan-run.sh" --probe >/dev/null 2>&1; then
   echo "SKIP: no kernel with vcan available (scripts/vcan-run.sh --probe)"; exit 77
 fi
@@ -20,7 +21,7 @@ rm -rf "$work"; mkdir -p "$work"
 "$bmssim" estimate --data "$work/a/truth.csv" --quiet --out "$work/offline"
 rc=0
 /usr/bin/python3 "$src/tests/cli/hil_check.py" "$src/firmware/can/bms.dbc" "$work/a" "$work/offline" "$work/b" \
-  --replay "$work/replay" 2> >(grep -v 'is not supported' >&2) || rc=1
+  --replay "$work/replay" --frames-check "$frames_check" 2> >(grep -v 'is not supported' >&2) || rc=1
 /usr/bin/python3 "$src/tests/cli/hil_fault_check.py" "$work/a" "$work/faults" "$work/realtime" || rc=1
 # A failed run: exit 1 and nothing that looks like an output (issue 21).
 if grep -q '^exit=1 truth_left=no partial_left=no ' "$work/failed.txt"; then

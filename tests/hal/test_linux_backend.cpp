@@ -297,3 +297,30 @@ TEST(LoggingWatchdog, ReportsLateKicks) {
   noop.kick();
   EXPECT_EQ(noop.late_kicks(), 0u);
 }
+
+// Batched sending (sendmmsg at flush) and batched receiving (one recvmmsg, handed out one
+// by one) keep every frame and its order; more than one batch's worth goes out whole.
+TEST(SocketCan, Vcan0BatchesKeepEveryFrameInOrder) {
+  lnx::SocketCanBus a, b;
+  const Status s = a.open("vcan0");
+  if (s != Status::ok) GTEST_SKIP() << "no vcan0 here: " << a.last_error();
+  ASSERT_EQ(b.open("vcan0"), Status::ok) << b.last_error();
+  constexpr int kFrames = 37;  // more than two send and receive batches
+  for (int i = 0; i < kFrames; ++i) {
+    hal::CanFrame f{};
+    f.id = 0x200u + static_cast<std::uint32_t>(i % 3);
+    f.len = 8;
+    f.data[1] = static_cast<std::uint8_t>(i);
+    ASSERT_EQ(a.send_deferred(f), Status::ok) << a.last_error();
+  }
+  // Full batches went out as they filled; the last, partial one waits for flush().
+  ASSERT_EQ(a.flush(), Status::ok) << a.last_error();
+  hal::CanFrame g{};
+  for (int i = 0; i < kFrames; ++i) {
+    ASSERT_EQ(b.receive(g, 1000), Status::ok) << "frame " << i << ": " << b.last_error();
+    EXPECT_EQ(g.id, 0x200u + static_cast<std::uint32_t>(i % 3));
+    EXPECT_EQ(g.data[1], i);
+  }
+  EXPECT_EQ(b.receive(g, 30), Status::timeout);
+  EXPECT_EQ(b.receive(g, 0), Status::timeout);
+}

@@ -1,18 +1,13 @@
 #include "hil/firmware_process.hpp"
 
-#include <fcntl.h>
 #include <signal.h>
-#include <sys/prctl.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <cerrno>
 #include <cstdlib>
 #include <utility>
 
+#include "io/child_process.hpp"
 #include "io/input_error.hpp"
-
-extern char** environ;
 
 namespace bms::hil {
 
@@ -32,41 +27,23 @@ FirmwareProcess::FirmwareProcess(std::filesystem::path exe, std::vector<std::str
 
 FirmwareProcess::~FirmwareProcess() { stop(); }
 
-// fork + exec rather than posix_spawn: the child must ask the kernel for SIGTERM when its
-// parent dies (PR_SET_PDEATHSIG), so that a host killed without warning (SIGKILL, a crash)
-// leaves no firmware behind; SIGTERM lets the firmware commit its state and exit.
+// The project's runner (io/child_process) with PR_SET_PDEATHSIG: a host killed without
+// warning (SIGKILL, a crash) leaves no firmware behind; SIGTERM lets the firmware commit its
+// state and exit.
 void FirmwareProcess::start() {
   if (pid_ > 0) return;
-  int fds[2];
-  if (pipe(fds) != 0) throw RuntimeFailure("pipe failed");
-  std::string exe_s = exe_.string();
-  std::vector<std::string> copy = args_;
-  std::vector<char*> argv;
-  argv.push_back(exe_s.data());
-  for (auto& a : copy) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  const pid_t parent = getpid();
-  pid_ = fork();
-  if (pid_ == 0) {
-    // Only async-signal-safe calls between fork and exec.
-    if (prctl(PR_SET_PDEATHSIG, SIGTERM) != 0 || getppid() != parent) _exit(127);
-    dup2(fds[1], STDOUT_FILENO);
-    close(fds[0]);
-    close(fds[1]);
-    execve(exe_s.c_str(), argv.data(), environ);
-    _exit(127);
-  }
-  close(fds[1]);
-  if (pid_ < 0) {
-    close(fds[0]);
-    pid_ = -1;
-    throw RuntimeFailure("cannot start " + exe_s);
-  }
+  std::vector<std::string> argv = {exe_.string()};
+  argv.insert(argv.end(), args_.begin(), args_.end());
+  int ready_fd = -1;
+  SpawnOptions o;
+  o.parent_death_signal = SIGTERM;
+  o.stdout_pipe = &ready_fd;
+  pid_ = spawn_process(argv, o);
   // A frame sent before the firmware's socket is bound would be lost: wait for "ready".
   std::string line;
   char c = 0;
-  while (read(fds[0], &c, 1) == 1 && c != '\n') line += c;
-  close(fds[0]);
+  while (read(ready_fd, &c, 1) == 1 && c != '\n') line += c;
+  close(ready_fd);
   if (line.find("ready") == std::string::npos) {
     reap();
     throw RuntimeFailure("the firmware process exited before it was ready (see its message above)");
@@ -75,11 +52,8 @@ void FirmwareProcess::start() {
 }
 
 int FirmwareProcess::reap() {
-  int st = 0;
-  while (waitpid(pid_, &st, 0) < 0 && errno == EINTR) {
-  }
+  exit_code_ = wait_process(pid_).second;
   pid_ = -1;
-  exit_code_ = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
   return exit_code_;
 }
 

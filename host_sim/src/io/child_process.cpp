@@ -2,10 +2,12 @@
 
 #include <fcntl.h>
 #include <spawn.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
 #include <csignal>
 #include <cstring>
 
@@ -71,8 +73,74 @@ void throw_if_interrupted() {
   if (g_signal != 0) throw Interrupted(g_signal);
 }
 
+namespace {
+
+// fork + exec for what posix_spawn cannot ask: PR_SET_PDEATHSIG, set in the child before exec.
+pid_t fork_exec(std::vector<char*>& argv, const SpawnOptions& options, int log_fd) {
+  int fds[2] = {-1, -1};
+  if (options.stdout_pipe != nullptr && pipe(fds) != 0)
+    throw RuntimeFailure(std::string("pipe: ") + std::strerror(errno));
+  const pid_t parent = getpid();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    // Only async-signal-safe calls between fork and exec.
+    setpgid(0, 0);
+    if (options.parent_death_signal != 0 &&
+        (prctl(PR_SET_PDEATHSIG, options.parent_death_signal) != 0 || getppid() != parent))
+      _exit(127);
+    if (fds[1] >= 0) dup2(fds[1], STDOUT_FILENO);
+    if (!options.working_dir.empty() && chdir(options.working_dir.c_str()) != 0) _exit(127);
+    if (log_fd >= 0) {
+      dup2(log_fd, STDOUT_FILENO);
+      dup2(log_fd, STDERR_FILENO);
+    }
+    if (options.search_path)
+      execvp(argv[0], argv.data());
+    else
+      execve(argv[0], argv.data(), environ);
+    _exit(127);
+  }
+  const int err = errno;
+  if (pid > 0) setpgid(pid, pid);  // as the child does: whichever runs first, the group exists
+  if (fds[1] >= 0) close(fds[1]);
+  if (pid < 0) {
+    if (fds[0] >= 0) close(fds[0]);
+    throw RuntimeFailure(std::string("cannot start ") + argv[0] + ": " + std::strerror(err));
+  }
+  if (options.stdout_pipe != nullptr) *options.stdout_pipe = fds[0];
+  return pid;
+}
+
+pid_t fork_exec_logged(std::vector<char*>& argv, const SpawnOptions& options) {
+  int log_fd = -1;
+  if (!options.log.empty()) {
+    log_fd = open(options.log.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    if (log_fd < 0) throw RuntimeFailure("cannot open " + options.log.string() + ": " + std::strerror(errno));
+  }
+  try {
+    const pid_t pid = fork_exec(argv, options, log_fd);
+    if (log_fd >= 0) close(log_fd);
+    return pid;
+  } catch (...) {
+    if (log_fd >= 0) close(log_fd);
+    throw;
+  }
+}
+
+}  // namespace
+
 pid_t spawn_process(const std::vector<std::string>& args, const SpawnOptions& options) {
   if (args.empty()) throw RuntimeFailure("spawn_process: no program");
+  if (options.parent_death_signal != 0 || options.stdout_pipe != nullptr) {
+    std::vector<std::string> argv_s(args);
+    std::vector<char*> argv;
+    for (auto& a : argv_s) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const pid_t pid = fork_exec_logged(argv, options);
+    remember(pid);
+    if (g_signal != 0) kill(-pid, g_signal);
+    return pid;
+  }
   std::vector<std::string> argv_s(args);
   std::vector<char*> argv;
   for (auto& a : argv_s) argv.push_back(a.data());

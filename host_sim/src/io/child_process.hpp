@@ -30,6 +30,13 @@ struct SpawnOptions {
   std::filesystem::path log;  // stdout and stderr appended here; empty: inherited
   bool search_path = false;   // look argv[0] up in PATH
   std::filesystem::path working_dir;  // the child's working folder; empty: inherited
+  // The signal the kernel sends the child when bmssim dies, even by SIGKILL
+  // (PR_SET_PDEATHSIG); 0: none. A child serving bmssim (the HIL's firmware) must not
+  // outlive it.
+  int parent_death_signal = 0;
+  // When set, the child's stdout is a pipe and its read end is stored here (the caller
+  // closes it), e.g. to wait for a "ready" line. Not together with `log`.
+  int* stdout_pipe = nullptr;
 };
 
 // Starts argv (argv[0] = the program) in a process group of its own. RuntimeFailure when it

@@ -59,6 +59,14 @@ class CanBus {
   /// can_frame_valid(); overflow when the transmit queue is full; io_error otherwise.
   virtual Status send(const CanFrame& frame) = 0;
 
+  /// Queue one frame to go out at the next flush(), with the others queued, where the
+  /// driver can send a batch at once (the per-frame system call is what a Linux process
+  /// pays for); the default sends it now. Errors as send(), possibly reported by flush().
+  virtual Status send_deferred(const CanFrame& frame) { return send(frame); }
+
+  /// Send the frames queued by send_deferred(), in order. A failure drops the rest.
+  virtual Status flush() { return Status::ok; }
+
   /// Take the next received frame that passed the filters. timeout_ms: kCanNoWait (0)
   /// polls, kCanWaitForever (<0) blocks, >0 waits at most that long. Status::timeout
   /// when nothing arrived.

@@ -31,7 +31,9 @@ class LockstepBus final : public CanBus, public TickSource {
   LockstepBus(CanBus& inner, TickClassifier classify, void* ctx = nullptr)
       : inner_(inner), classify_(classify), ctx_(ctx) {}
 
-  Status send(const CanFrame& frame) override { return inner_.send(frame); }
+  /// A tick's answers are batched: the next wait_next_tick() sends them (flush) before it
+  /// waits, and the host waits for them before it triggers the next tick, so nothing is late.
+  Status send(const CanFrame& frame) override { return inner_.send_deferred(frame); }
 
   /// Hands out the frames buffered by wait_next_tick(); never waits (timeout_ms is
   /// ignored): an empty buffer gives Status::timeout.
@@ -52,6 +54,9 @@ class LockstepBus final : public CanBus, public TickSource {
   /// Reads the inner bus until a trigger frame arrives. timeout_ms bounds each wait for
   /// a frame (the host going silent), not the whole call.
   Status wait_next_tick(std::uint32_t& tick, std::int32_t timeout_ms) override {
+    // A failed flush drops the frames, as a failed send would; the application never
+    // acted on send's status either (the host sees the missing answer).
+    (void)inner_.flush();
     for (;;) {
       CanFrame f{};
       const Status s = inner_.receive(f, timeout_ms);

@@ -5,6 +5,8 @@
 #include <cstddef>
 #include <cstdint>
 
+#include <linux/can.h>
+
 #include "bms/hal/can_bus.hpp"
 
 namespace bms::hal::lnx {
@@ -28,6 +30,9 @@ class SocketCanBus final : public CanBus {
   bool is_open() const { return fd_ >= 0; }
 
   Status send(const CanFrame& frame) override;
+  /// Queued, sent with the others in one sendmmsg at flush() (or when kTxBatch are queued).
+  Status send_deferred(const CanFrame& frame) override;
+  Status flush() override;
   Status receive(CanFrame& frame, std::int32_t timeout_ms) override;
   Status set_filters(const CanFilter* filters, std::size_t count) override;
   const char* last_error() const override { return error_; }
@@ -37,8 +42,18 @@ class SocketCanBus final : public CanBus {
   int native_handle() const { return fd_; }
 
  private:
+  static constexpr std::size_t kTxBatch = 16;
+  static constexpr std::size_t kRxBatch = 16;
   Status fail(Status s, const char* what, int err);
+  Status read_batch(std::int32_t wait_ms);
+  Status set_receive_timeout(std::int32_t wait_ms);
   int fd_ = -1;
+  can_frame tx_[kTxBatch]{};
+  std::size_t tx_count_ = 0;
+  can_frame rx_[kRxBatch]{};  // read by one recvmmsg, handed out from rx_head_
+  std::size_t rx_head_ = 0;
+  std::size_t rx_count_ = 0;
+  std::int32_t rcv_timeout_ms_ = -1;  // SO_RCVTIMEO as set; -1: none (wait forever), the default
   char error_[256] = "";
 };
 
