@@ -116,8 +116,8 @@ int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
 
 }  // namespace
 
-// A table of the command's option declarations (CLI11): one option per statement, read as a
-// list; cutting it in parts would only scatter the options of one command.
+// Long on purpose: a table of the command's option declarations (CLI11), one option per
+// statement, read as a list; cutting it in parts would only scatter the options of one command.
 Runner add_estimate(CLI::App& app) {
   auto* sub = app.add_subcommand(
       "estimate",

@@ -32,7 +32,7 @@ bool same_bits(float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
 bool equal(const can::Control& a, const can::Control& b) {
   return a.reset_estimator == b.reset_estimator && a.lockstep == b.lockstep && a.tick_trigger == b.tick_trigger &&
-         a.mode_hint == b.mode_hint && a.tick == b.tick;
+         a.tick == b.tick;
 }
 bool equal(const can::Measurement& a, const can::Measurement& b) {
   return a.seq == b.seq && same_bits(a.voltage_v, b.voltage_v) && same_bits(a.current_a, b.current_a);

@@ -254,6 +254,25 @@ TEST(AppSupervision, ResetEstimatorGoesBackToThePowerOnStateAndCommitsIt) {
   EXPECT_EQ(r.core.ticks, 2u);
 }
 
+TEST(AppSupervision, AControlFrameClaimingTheOtherClockIsAnInternalFault) {
+  Rig r;  // lock-step
+  can::Control c;
+  c.lockstep = true;
+  r.send(c);
+  r.send_tick(0);
+  ASSERT_EQ(r.run(), 1);
+  EXPECT_EQ(r.statuses().back().fault_bits & can::fault_bit::kInternal, 0);
+  c.lockstep = false;  // the host thinks the firmware's timer drives the ticks
+  r.send(c);
+  r.send_tick(1);
+  ASSERT_EQ(r.run(), 1);
+  EXPECT_NE(r.statuses().back().fault_bits & can::fault_bit::kInternal, 0);
+  EXPECT_EQ(r.app.clock_mismatches(), 1u);
+  r.send_tick(2);  // reported once, in the tick that saw it
+  ASSERT_EQ(r.run(), 1);
+  EXPECT_EQ(r.statuses().back().fault_bits & can::fault_bit::kInternal, 0);
+}
+
 TEST(AppSupervision, ACellOutsideTheModelsTemperatureMakesTheEstimateNotValid) {
   Rig r;
   r.send_tick(0);

@@ -187,19 +187,14 @@ TEST(RoundTrip, Control) {
       c.reset_estimator = (bits & 1) != 0;
       c.lockstep = (bits & 2) != 0;
       c.tick_trigger = (bits & 4) != 0;
-      c.mode_hint = static_cast<can::Mode>(bits % 5);
       c.tick = tick;
       const can::Control r = round_trip(c, static_cast<std::uint8_t>(bits * 2));
       EXPECT_EQ(r.reset_estimator, c.reset_estimator);
       EXPECT_EQ(r.lockstep, c.lockstep);
       EXPECT_EQ(r.tick_trigger, c.tick_trigger);
-      EXPECT_EQ(r.mode_hint, c.mode_hint);
       EXPECT_EQ(r.tick, tick);
     }
   }
-  can::Control c;
-  c.mode_hint = can::Mode::unknown;
-  EXPECT_EQ(round_trip(c).mode_hint, can::Mode::unknown);
 }
 
 TEST(RoundTrip, Temperature) {

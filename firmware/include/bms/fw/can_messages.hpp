@@ -41,14 +41,13 @@ inline constexpr std::uint8_t kCurrentRange = 1u << 3;   ///< measured current o
 inline constexpr std::uint8_t kEstimator = 1u << 4;      ///< estimator produced a non-finite/out-of-range value
 inline constexpr std::uint8_t kNvm = 1u << 5;            ///< NVM read/write failed or rolled back; clears at the next good commit
 inline constexpr std::uint8_t kTickOverrun = 1u << 6;    ///< a tick over its time budget, or ticks skipped (real time)
-inline constexpr std::uint8_t kInternal = 1u << 7;       ///< core call-order/config fault, a failed send, a refused reset
+inline constexpr std::uint8_t kInternal = 1u << 7;       ///< core call-order/config fault, a failed send, a refused reset, a clock mismatch
 }  // namespace fault_bit
 
 struct Control {
   bool reset_estimator = false;  ///< back to the power-on state (bms::app::BmsApplication)
-  bool lockstep = false;         ///< 1: the host drives ticks (the firmware ignores its timer)
+  bool lockstep = false;         ///< 1: the host drives ticks; must match the firmware's mode (else fault bit 7)
   bool tick_trigger = false;     ///< 1: this frame triggers tick `tick` (lock-step)
-  Mode mode_hint = Mode::unknown;
   std::uint32_t tick = 0;
 };
 
@@ -115,7 +114,7 @@ struct MessageTraits<Control> {
   static constexpr Msg kMsg = Msg::control;
   template <class C, class F>
   static void fields(C& m, F&& f) {
-    f(m.reset_estimator), f(m.lockstep), f(m.tick_trigger), f(m.mode_hint), f(m.tick);
+    f(m.reset_estimator), f(m.lockstep), f(m.tick_trigger), f(m.tick);
   }
 };
 

@@ -78,7 +78,6 @@ inline constexpr SignalLayout kSeq{"Seq", 12, 12, ValueType::unsigned_int, 1.0, 
 inline constexpr SignalLayout kCtlResetEstimator{"ResetEstimator", 12, 1, ValueType::unsigned_int, 1.0, 0.0, 0.0, 1.0, ""};
 inline constexpr SignalLayout kCtlLockstep{"Lockstep", 13, 1, ValueType::unsigned_int, 1.0, 0.0, 0.0, 1.0, ""};
 inline constexpr SignalLayout kCtlTickTrigger{"TickTrigger", 14, 1, ValueType::unsigned_int, 1.0, 0.0, 0.0, 1.0, ""};
-inline constexpr SignalLayout kCtlModeHint{"ModeHint", 16, 4, ValueType::unsigned_int, 1.0, 0.0, 0.0, 15.0, ""};
 inline constexpr SignalLayout kCtlTick{"Tick", 32, 32, ValueType::unsigned_int, 1.0, 0.0, 0.0, 4294967295.0, ""};
 
 // HOST_Measurement: 10 uV and 0.1 mA steps.
@@ -117,7 +116,7 @@ inline constexpr SignalLayout kTicksWithoutMeas{"TicksWithoutMeas", 56, 8, Value
 }  // namespace sig
 
 inline constexpr SignalLayout kControlSignals[] = {sig::kCrc, sig::kCounter, sig::kCtlResetEstimator,
-                                                   sig::kCtlLockstep, sig::kCtlTickTrigger, sig::kCtlModeHint,
+                                                   sig::kCtlLockstep, sig::kCtlTickTrigger,
                                                    sig::kCtlTick};
 inline constexpr SignalLayout kMeasurementSignals[] = {sig::kCrc, sig::kCounter, sig::kSeq, sig::kMeasVoltage,
                                                        sig::kMeasCurrent};

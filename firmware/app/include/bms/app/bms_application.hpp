@@ -144,6 +144,7 @@ class BmsApplication {
   const fw::nvm::WriteBudget& write_budget() const { return nvm_.write_budget(); }
   const Store& store() const { return nvm_.store(); }
   const TickSupervisor& supervisor() const { return supervisor_; }
+  std::uint32_t clock_mismatches() const { return clock_mismatches_; }
   // The fault bits that outlast a tick (NVM, internal); BMS_Status adds the tick's own.
   std::uint8_t fault_bits() const {
     return static_cast<std::uint8_t>((nvm_.failed() ? fw::can::fault_bit::kNvm : 0u) | latched_faults_);
@@ -199,7 +200,7 @@ class BmsApplication {
         continue;
       }
       if (r != fw::can::RxResult::accepted) continue;
-      if (m.msg == fw::can::Msg::control && m.control.reset_estimator) reset_requested_ = true;
+      if (m.msg == fw::can::Msg::control) on_control(m.control);
       if (m.msg == fw::can::Msg::temperature) on_temperature(m.temperature.temperature_k);
       if (m.msg != fw::can::Msg::measurement) continue;
       in = {m.measurement.voltage_v, m.measurement.current_a, true};
@@ -211,6 +212,13 @@ class BmsApplication {
       }
     }
     return in;
+  }
+
+  // A host that believes the other side drives the ticks is misconfigured (its frames would
+  // trigger nothing, or ticks would run twice): counted, and the tick reports an internal fault.
+  void on_control(const fw::can::Control& c) {
+    if (c.reset_estimator) reset_requested_ = true;
+    if (c.lockstep != o_.lockstep) ++clock_mismatches_;
   }
 
   void on_temperature(double temperature_k) {
@@ -308,8 +316,11 @@ class BmsApplication {
                                                 fw::bit(fw::FwStatus::kThetaRestored);
     if ((out.status & kEstimatorFaults) != 0u || outside_model_temperature_) faults |= can::fault_bit::kEstimator;
     constexpr fw::StatusWord kInternalFaults = fw::bit(fw::FwStatus::kCallOrder) | fw::bit(fw::FwStatus::kConfigInvalid);
-    if ((out.status & kInternalFaults) != 0u || send_failures_ != send_failures_seen_) faults |= can::fault_bit::kInternal;
+    if ((out.status & kInternalFaults) != 0u || send_failures_ != send_failures_seen_ ||
+        clock_mismatches_ != clock_mismatches_seen_)
+      faults |= can::fault_bit::kInternal;
     send_failures_seen_ = send_failures_;
+    clock_mismatches_seen_ = clock_mismatches_;
     if (overrun) faults |= can::fault_bit::kTickOverrun;
     if (receiver_.counters().dropped_total() != dropped_seen_) {
       faults |= can::fault_bit::kRxDropped;
@@ -336,6 +347,8 @@ class BmsApplication {
   std::uint32_t send_failures_ = 0;
   std::uint32_t send_failures_seen_ = 0;
   std::uint32_t resets_ = 0;
+  std::uint32_t clock_mismatches_ = 0;  // Control frames whose Lockstep bit is not this firmware's mode
+  std::uint32_t clock_mismatches_seen_ = 0;
   std::uint8_t latched_faults_ = 0;
   std::uint8_t last_faults_ = 0;
   bool reset_requested_ = false;
