@@ -88,3 +88,19 @@ TEST(LearningGate, SaveRestoreRoundTripsAndRejectsUnknownFlags) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(LearningGate, MarkovFromTheModelOnlyAtTheWindowsStartAndOnlyWhenConfigured) {
+  Gate::Config c;
+  Gate paper(c);
+  EXPECT_FALSE(paper.should_take_markov_from_model(true)) << "the paper's constant H";
+  c.markov_from_model = true;
+  Gate g(c);
+  EXPECT_TRUE(g.should_take_markov_from_model(true));
+  EXPECT_FALSE(g.should_take_markov_from_model(false));
+  g.close_tick(true);
+  EXPECT_FALSE(g.should_take_markov_from_model(true)) << "continuing: H kept";
+}
+
+}  // namespace

@@ -382,7 +382,7 @@ class BmsCore {
   };
 
   static typename LearningGate<Scalar>::Config gate_config(const Config& c) {
-    return {c.rcsi_warmup_s, c.dt_s, c.learning, c.identify_growth};
+    return {c.rcsi_warmup_s, c.dt_s, c.learning, c.identify_growth, c.markov_from_model};
   }
   static typename BiasCalibration<Scalar>::Config bias_config(const Config& c) {
     typename BiasCalibration<Scalar>::Config b;
@@ -511,7 +511,7 @@ class BmsCore {
     if (gate_.identifies()) return identify(in, u, z, step);
     Learned l{0u, false, Scalar(0)};
     if (!open) return l;
-    if (config_.markov_from_model && gate_.should_start(open)) {
+    if (gate_.should_take_markov_from_model(open)) {
       estimator_.set_markov_parameter(step.r.markov_v_per_ohm_m2);
     }
     l.status = gate_.learning() ? estimator_.update(bias_.corrected(z), step.r.j_side_a_m3)

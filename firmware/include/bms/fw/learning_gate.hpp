@@ -8,7 +8,8 @@
 // Conditions, in the style of an aid source:
 //   should_open      start and continue: CC charge, warm, bias ready;
 //   should_start     the window opens in this tick: RCSI's theta and P are reset (paper) and its
-//                    history restarts from the film held so far; H is taken from the model;
+//                    history restarts from the film held so far; H is taken from the model
+//                    (should_take_markov_from_model);
 //   phase_ended      the CC charge ended (the bias calibration's stop);
 //   should_identify  the identifier learns: the window is open, learning is on and the model is
 //                    current-driven; should_start_identifying: first such tick of a charge.
@@ -25,6 +26,8 @@ class LearningGate {
     Scalar dt_s = Scalar(0.2);
     bool learning = true;          // false: the control run, every RCSI / RLS update off
     bool identify_growth = false;  // the FilmGrowthIdentifier learns instead of RCSI
+    // Paper: constant H. When true, H = dV/dR_film of the model at the window's start.
+    bool markov_from_model = false;
   };
 
   // Trivially copyable, for the NVM image.
@@ -42,6 +45,7 @@ class LearningGate {
   bool warm() const { return static_cast<Scalar>(cc_ticks_) * c_.dt_s > c_.warmup_s; }
   bool should_open(bool in_cc_charge, bool bias_ready) const { return in_cc_charge && warm() && bias_ready; }
   bool should_start(bool open) const { return open && !was_open_; }
+  bool should_take_markov_from_model(bool open) const { return c_.markov_from_model && should_start(open); }
   void close_tick(bool open) { was_open_ = open; }
 
   bool identifies() const { return c_.identify_growth; }
