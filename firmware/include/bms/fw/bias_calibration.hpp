@@ -22,8 +22,8 @@ class BiasCalibration {
  public:
   struct Config {
     bool enabled = false;
-    std::uint32_t after_resyncs = 0u;      // re-synchronisations before the reference charge
-    Scalar min_reference_s = Scalar(60);   // a shorter reference charge does not count
+    std::uint32_t after_resyncs = 0u;     // re-synchronisations before the reference charge
+    Scalar min_reference_s = Scalar(60);  // a shorter reference charge does not count
     Scalar dt_s = Scalar(0.2);
   };
 

@@ -78,7 +78,7 @@ class BmsCore {
     typename Estimator::Config estimator = default_estimator();
     typename Detector::Config detector{};
     Scalar dt_s = Scalar(0.2);
-    // Paper: constant H = 0.01. When true, H = dV/dR_film of the model at the start of each
+    // LearningGate. Paper: constant H = 0.01. When true, H = dV/dR_film of the model at the start of each
     // CC charge (about 0.88 V per ohm m2 for the paper cell at 2.5 A).
     bool markov_from_model = false;
     Scalar voltage_min_v = Scalar(0);
@@ -100,12 +100,12 @@ class BmsCore {
     // instructions on the Cortex-M7.
     std::uint32_t catch_up_max_ticks = 3000u;
     std::uint32_t catch_up_max_steps = 8u;
-    // Beyond the paper: once per CV phase, when |I| has fallen to resync_current_a, move the
+    // StateResync. Beyond the paper: once per CV phase, when |I| has fallen to resync_current_a, move the
     // model's state to the measured voltage at the nominal lithium inventory minus the
     // model's own lithium loss (MainModel::resync). Removes initial-condition errors and the
     // model's drift before the next CC phase. Off by default (the paper has no observer).
     bool resync_at_cv_end = false;
-    // Beyond the paper: the same re-synchronisation once, at the first accepted sample after
+    // StateResync. Beyond the paper: the same re-synchronisation once, at the first accepted sample after
     // power-up with no restored state (a BMS wakes up from rest: uniform particles). Removes
     // an initial-condition error before the first discharge can clip the model's particle
     // profiles at the stoichiometry limits, which a later uniform shift cannot repair.
@@ -115,11 +115,11 @@ class BmsCore {
     // voltage and current (ResyncWindow), taken from the trigger on; 1 = the trigger sample.
     std::uint32_t resync_window_ticks = 1u;
     Scalar nominal_inventory_mol = Scalar(0);
-    // Beyond the paper: RCSI learns only after this long in a CC charge. The first seconds
+    // LearningGate. Beyond the paper: RCSI learns only after this long in a CC charge. The first seconds
     // after a deep CV discharge are where the reduced model is least accurate (a reaction
     // front it cannot hold); the film estimate is held meanwhile.
     Scalar rcsi_warmup_s = Scalar(0);
-    // Beyond the paper: the first CC charge is a reference charge at the known initial film
+    // BiasCalibration. Beyond the paper: the first CC charge is a reference charge at the known initial film
     // resistance: the mean residual after the warm-up is stored as the model's voltage bias
     // and subtracted from z in every later charge (in CC, a constant bias is collinear with
     // R_film and would otherwise be read as film resistance).
@@ -128,18 +128,19 @@ class BmsCore {
     // model started from a wrong state can leave the first discharge with clipped particle
     // profiles that a uniform shift does not repair (measured: 0.3 mV in the first charge).
     std::uint32_t reference_after_resyncs = 0u;
-    // Beyond the paper: report (and hold for the next charge) the mean of u_hat over the
+    // FilmLevel. Beyond the paper: report (and hold for the next charge) the mean of u_hat over the
     // charge's learning window instead of its last value. The film changes by about 1 % per
     // charge while the RCSI loop (M1 ~ 1: two integrators) oscillates by a few %.
     bool average_estimate = false;
-    // Beyond the paper: between and within RCSI's updates the reported film resistance follows
-    // the growth the model's own side current predicts, dR_film = -k j_side dt with k this
+    // FilmLevel. Beyond the paper: between and within RCSI's updates the reported film resistance
+    // follows the growth the model's own side current predicts, dR_film = -k j_side dt with k this
     // factor: the *nominal* cell's Ramadass law (ReducedCell::nominal_film_growth_ohm_m2_per_a_m3_s()),
     // assumed, not learned (session 5; a cell whose law differs is tracked only through RCSI's
-    // level: docs/results/blind.md, arm session5). RCSI's data then set the level only. The film grows about 0.9 % during each CC charge, and a held or
-    // charge-averaged estimate lags it by about half of that. 0: held (the paper).
+    // level: docs/results/blind.md, arm session5). RCSI's data then set the level only. The film
+    // grows about 0.9 % during each CC charge, and a held or charge-averaged estimate lags it by
+    // about half of that. 0: held (the paper).
     Scalar nominal_growth_ohm_m2_per_a_m3_s = Scalar(0);
-    // The `best` profile: the film is identified in output-error form with its growth gain and
+    // LearningGate. The `best` profile: the film is identified in output-error form with its growth gain and
     // the cell's lithium inventory (FilmGrowthIdentifier) instead of the paper's ARX RCSI;
     // calibrate_bias, average_estimate and nominal_growth_ohm_m2_per_a_m3_s are then unused.
     bool identify_growth = false;
@@ -152,7 +153,7 @@ class BmsCore {
     // With identify_growth: a re-synchronisation that moves the model's inventory by more than
     // this (relative) restarts the film parameters' learning (FilmGrowthIdentifier::relinearise).
     Scalar relinearise_inventory = Scalar(1e-3);
-    // The control run: every RCSI / RLS update switched off (the model and its observers run).
+    // LearningGate. The control run: every RCSI / RLS update switched off (the model and its observers run).
     bool learning = true;
   };
 
@@ -521,7 +522,7 @@ class BmsCore {
     return l;
   }
 
-  // Step 9 of the `best` profile: the film, its growth gain and the inventory in output-error form.
+  // Step 9 with Config::identify_growth: the film, its growth gain and the inventory in output-error form.
   Learned identify(const TickInput<Scalar>& in, Scalar u, Scalar z, const ModelStep& step) {
     Learned l{0u, false, Scalar(0)};
     if (step.identify) {

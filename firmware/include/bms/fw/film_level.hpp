@@ -64,8 +64,8 @@ class FilmLevel {
     const Scalar r_span = r_hi - r_lo;
     const auto n = static_cast<Scalar>(s.avg_samples);
     const bool ok = within(s.avg_sum_ohm_m2, r_lo * n - r_span, r_hi * n + r_span) &&
-                    within(s.r_held_ohm_m2, r_lo - r_span, r_hi + r_span) &&
-                    within(s.growth_ohm_m2, -r_span, r_span) && s.reserved == 0u;
+                    within(s.r_held_ohm_m2, r_lo - r_span, r_hi + r_span) && within(s.growth_ohm_m2, -r_span, r_span) &&
+                    s.reserved == 0u;
     if (!ok) return false;
     r_held_ = s.r_held_ohm_m2;
     growth_ = s.growth_ohm_m2;

@@ -619,9 +619,12 @@ class ReducedCell {
     t.j_neg_a_m2 = j_n;
   }
 
+  // evaluate()'s four parts are inlined by force: called as functions they cost 2.6 % more
+  // instructions per tick on the Cortex-M7 (worst tick 114 200 against 111 280 in one body).
   // Electrolyte concentration: D_e at the start of the tick, source from the uniform j.
   template <typename T>
-  void electrolyte_concentration(const T& j_n, const T& j_p, Scalar dt, Trial<T>& t, T (&ce)[kNx]) const {
+  [[gnu::always_inline]] inline void electrolyte_concentration(const T& j_n, const T& j_p, Scalar dt, Trial<T>& t,
+                                                               T (&ce)[kNx]) const {
     Scalar m[kNx], g[kNx];
     Scalar d_eff[kNx];
     for (int k = 0; k < kNx; ++k) {
@@ -644,7 +647,8 @@ class ReducedCell {
   // Electrolyte potential at cell centres from the ionic current on the faces
   // (psi = phi_e - nu ln c_e, reference psi_0 = 0).
   template <typename T>
-  void electrolyte_potential(const T (&ce)[kNx], const T& j_n, const T& j_p, Scalar frt, T (&phie)[kNx]) const {
+  [[gnu::always_inline]] inline void electrolyte_potential(const T (&ce)[kNx], const T& j_n, const T& j_p, Scalar frt,
+                                                           T (&phie)[kNx]) const {
     using std::log;
     const Scalar nu = Scalar(2.0 * (1.0 - Cell::kTransference)) / frt;
     T psi = T(Scalar(0));
@@ -665,8 +669,9 @@ class ReducedCell {
   // Negative electrode: side reaction inside Butler-Volmer, fixed number of passes. js enters
   // with the previous tick's side current density and leaves with this tick's.
   template <typename T>
-  void negative_electrode(const T (&ce)[kNx], const T (&phie)[kNx], const T& j_n, Scalar r_film, Scalar dt,
-                          Scalar frt, Trial<T>& t, T& phis_n, T& js) const {
+  [[gnu::always_inline]] inline void negative_electrode(const T (&ce)[kNx], const T (&phie)[kNx], const T& j_n,
+                                                        Scalar r_film, Scalar dt, Scalar frt, Trial<T>& t, T& phis_n,
+                                                        T& js) const {
     using std::exp; using std::sqrt;
     const double cmax_n = Cell::kNeg.max_concentration_mol_m3;
     T cs_surf_n = T(Scalar(0));
@@ -693,8 +698,8 @@ class ReducedCell {
   }
 
   template <typename T>
-  T positive_electrode(const T (&ce)[kNx], const T (&phie)[kNx], const T& j_p, Scalar dt, Scalar frt,
-                       Trial<T>& t) const {
+  [[gnu::always_inline]] inline T positive_electrode(const T (&ce)[kNx], const T (&phie)[kNx], const T& j_p, Scalar dt,
+                                                     Scalar frt, Trial<T>& t) const {
     using std::sqrt;
     const double cmax_p = Cell::kPos.max_concentration_mol_m3;
     const T cs_surf_p = clamp_conc(

@@ -50,7 +50,8 @@ class StateResync {
   }
   bool should_stop(bool voltage_driven) const { return !voltage_driven; }
   bool should_start_at_cv_end(bool voltage_driven, Scalar current_a) const {
-    return c_.at_cv_end && voltage_driven && !done_in_phase_ && !window_.is_open() && std::fabs(current_a) <= c_.current_a;
+    return c_.at_cv_end && voltage_driven && !done_in_phase_ && !window_.is_open() &&
+           std::fabs(current_a) <= c_.current_a;
   }
   bool should_continue() const { return window_.is_open(); }
 
