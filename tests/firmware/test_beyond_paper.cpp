@@ -274,14 +274,14 @@ TEST(BmsCoreGrowthPropagation, SaveRestoreCarriesThePendingGrowth) {
   a.run(2.5, 10000);
   a.run(-2.5, 2000);  // inside the reference charge: growth pending, not yet folded
   const auto image = a.core.save();
-  ASSERT_GT(image.growth_ohm_m2, 0.0);
+  ASSERT_GT(image.film.growth_ohm_m2, 0.0);
   GrowingRig b(growth_config());
   ASSERT_TRUE(b.core.restore(image));
   ASSERT_TRUE(b.plant.restore(a.plant.state()));
   b.r_true = a.r_true;
   for (int k = 0; k < 3000; ++k) ASSERT_EQ(a.tick(-2.5).r_film_est_ohm_m2, b.tick(-2.5).r_film_est_ohm_m2);
   auto bad = image;
-  bad.growth_ohm_m2 = std::nan("");
+  bad.film.growth_ohm_m2 = std::nan("");
   EXPECT_FALSE(b.core.restore(bad));
 }
 

@@ -379,11 +379,11 @@ TEST(NvmRestore, EveryScalarFieldIsRangeChecked) {
       {"model.ce", [](Core::State& x) { x.model.ce_mol_m3[0] = 1e7; }},
       {"model.charge_c", [](Core::State& x) { x.model.charge_c = 1e300; }},
       {"model.current_a", [](Core::State& x) { x.model.current_a = 1e6; }},
-      {"bias_v", [](Core::State& x) { x.bias_v = 5.0; }},
-      {"r_held", [](Core::State& x) { x.r_held_ohm_m2 = 1e200; }},
-      {"growth", [](Core::State& x) { x.growth_ohm_m2 = -1e100; }},
+      {"bias_v", [](Core::State& x) { x.bias.bias_v = 5.0; }},
+      {"r_held", [](Core::State& x) { x.film.r_held_ohm_m2 = 1e200; }},
+      {"growth", [](Core::State& x) { x.film.growth_ohm_m2 = -1e100; }},
       {"last_current_a", [](Core::State& x) { x.last_current_a = 1e200; }},
-      {"inventory_deviation", [](Core::State& x) { x.inventory_deviation_model = 0.9; }},
+      {"inventory_deviation", [](Core::State& x) { x.resync.inventory_deviation_model = 0.9; }},
       {"identifier.growth", [](Core::State& x) { x.identifier.growth_ohm_m2 = 1e250; }},
   };
   for (const Bad& b : cases) {

@@ -187,13 +187,7 @@ using App = bms::app::BmsApplication<Core>;
 // The estimator's configuration: a profile of the nominal cell (make_config), or session 5's.
 Core::Config config_for(const Args& a) {
   const bms::fw::NominalCell cell = bms::fw::paper_nominal_cell<double>();
-  if (a.beyond_paper) {
-    Core::Config cfg = Core::beyond_paper_config(cell.inventory_mol, cell.growth_ohm_m2_per_a_m3_s);
-    const Core::Config window = bms::fw::make_config<Core>(cell, bms::fw::Profile::paper);
-    cfg.voltage_min_v = window.voltage_min_v;
-    cfg.voltage_max_v = window.voltage_max_v;
-    return cfg;
-  }
+  if (a.beyond_paper) return bms::fw::make_beyond_paper_config<Core>(cell);
   Core::Config cfg = bms::fw::make_config<Core>(cell, a.settings == "paper" ? bms::fw::Profile::paper : bms::fw::Profile::best);
   if (a.settings == "paper") {
     cfg.estimator.markov_v_per_ohm_m2 = a.h;

@@ -3,17 +3,11 @@
 // the film-resistance estimate and status. Owns the main-system model, the mode detector
 // and the RCSI estimator; no heap, no exceptions, no globals (the HAL owns the rest).
 //
-// Per tick:
-//   1. validate the sample (finite, voltage and current plausible, no impossible step);
-//      a rejected or missing sample keeps every state and counts towards staleness;
-//   2. debounced operating mode (bms/fw/mode_detector.hpp);
-//   3. constant-current charge only: at its start the estimator's theta and P are reset
-//      (paper) and its history restarts from the film resistance held so far; then
-//      u_hat(k) = predict() is the film resistance the model uses this tick. In every other
-//      mode the held film resistance is used and nothing is learned (not identifiable);
-//   4. the model steps: voltage-driven in CV (debounced and confirmed by this sample's
-//      class), current-driven otherwise;
-//   5. z = y_hat - y; in CC charge the estimator learns from z (RcsiEstimator::update).
+// One tick is the numbered step list at the top of tick() (docs/architecture.md uses the same
+// numbers). The parts beyond the paper each sit in their own header with named start, continue
+// and stop conditions, and are switched on by Config alone (the profiles below): LearningGate
+// (learning_gate.hpp), StateResync (state_resync.hpp), BiasCalibration (bias_calibration.hpp),
+// FilmLevel (film_level.hpp), and the `best` profile's FilmGrowthIdentifier.
 // The model answers within the same tick to the u_hat it was given (the film drop is
 // algebraic), so the default delay is D = 0 (see bms/fw/rcsi_estimator.hpp).
 //
@@ -22,18 +16,22 @@
 //   ModelTickResult<Scalar> step_voltage(Scalar voltage_v, Scalar r_film_ohm_m2, Scalar dt_s);
 //   Scalar li_loss_ah() const;  Scalar li_loss_mol() const;  State state() const;  bool restore(const State&);
 //   bool resync(Scalar voltage_v, Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s, Scalar inventory_mol);
-//     (only called when Config::resync_at_cv_end; a model without an observer returns false)
+//     (only called by StateResync's steps; a model without an observer returns false)
 // The host runs the same core with the full DFN as MainModel (the paper's setting).
 #include <cmath>
 #include <cstdint>
 
+#include "bms/fw/bias_calibration.hpp"
 #include "bms/fw/film_growth_identifier.hpp"
+#include "bms/fw/film_level.hpp"
 #include "bms/fw/fw_status.hpp"
+#include "bms/fw/learning_gate.hpp"
 #include "bms/fw/mode_detector.hpp"
 #include "bms/fw/operating_mode.hpp"
 #include "bms/fw/rcsi_estimator.hpp"
 #include "bms/fw/reduced_cell.hpp"
 #include "bms/fw/resync_window.hpp"
+#include "bms/fw/state_resync.hpp"
 
 namespace bms::fw {
 
@@ -80,7 +78,7 @@ class BmsCore {
     typename Estimator::Config estimator = default_estimator();
     typename Detector::Config detector{};
     Scalar dt_s = Scalar(0.2);
-    // Paper: constant H = 0.01. When true, H = dV/dR_film of the model at the start of each
+    // LearningGate. Paper: constant H = 0.01. When true, H = dV/dR_film of the model at the start of each
     // CC charge (about 0.88 V per ohm m2 for the paper cell at 2.5 A).
     bool markov_from_model = false;
     Scalar voltage_min_v = Scalar(0);
@@ -102,12 +100,12 @@ class BmsCore {
     // instructions on the Cortex-M7.
     std::uint32_t catch_up_max_ticks = 3000u;
     std::uint32_t catch_up_max_steps = 8u;
-    // Beyond the paper: once per CV phase, when |I| has fallen to resync_current_a, move the
+    // StateResync. Beyond the paper: once per CV phase, when |I| has fallen to resync_current_a, move the
     // model's state to the measured voltage at the nominal lithium inventory minus the
     // model's own lithium loss (MainModel::resync). Removes initial-condition errors and the
     // model's drift before the next CC phase. Off by default (the paper has no observer).
     bool resync_at_cv_end = false;
-    // Beyond the paper: the same re-synchronisation once, at the first accepted sample after
+    // StateResync. Beyond the paper: the same re-synchronisation once, at the first accepted sample after
     // power-up with no restored state (a BMS wakes up from rest: uniform particles). Removes
     // an initial-condition error before the first discharge can clip the model's particle
     // profiles at the stoichiometry limits, which a later uniform shift cannot repair.
@@ -117,11 +115,11 @@ class BmsCore {
     // voltage and current (ResyncWindow), taken from the trigger on; 1 = the trigger sample.
     std::uint32_t resync_window_ticks = 1u;
     Scalar nominal_inventory_mol = Scalar(0);
-    // Beyond the paper: RCSI learns only after this long in a CC charge. The first seconds
+    // LearningGate. Beyond the paper: RCSI learns only after this long in a CC charge. The first seconds
     // after a deep CV discharge are where the reduced model is least accurate (a reaction
     // front it cannot hold); the film estimate is held meanwhile.
     Scalar rcsi_warmup_s = Scalar(0);
-    // Beyond the paper: the first CC charge is a reference charge at the known initial film
+    // BiasCalibration. Beyond the paper: the first CC charge is a reference charge at the known initial film
     // resistance: the mean residual after the warm-up is stored as the model's voltage bias
     // and subtracted from z in every later charge (in CC, a constant bias is collinear with
     // R_film and would otherwise be read as film resistance).
@@ -130,18 +128,19 @@ class BmsCore {
     // model started from a wrong state can leave the first discharge with clipped particle
     // profiles that a uniform shift does not repair (measured: 0.3 mV in the first charge).
     std::uint32_t reference_after_resyncs = 0u;
-    // Beyond the paper: report (and hold for the next charge) the mean of u_hat over the
+    // FilmLevel. Beyond the paper: report (and hold for the next charge) the mean of u_hat over the
     // charge's learning window instead of its last value. The film changes by about 1 % per
     // charge while the RCSI loop (M1 ~ 1: two integrators) oscillates by a few %.
     bool average_estimate = false;
-    // Beyond the paper: between and within RCSI's updates the reported film resistance follows
-    // the growth the model's own side current predicts, dR_film = -k j_side dt with k this
+    // FilmLevel. Beyond the paper: between and within RCSI's updates the reported film resistance
+    // follows the growth the model's own side current predicts, dR_film = -k j_side dt with k this
     // factor: the *nominal* cell's Ramadass law (ReducedCell::nominal_film_growth_ohm_m2_per_a_m3_s()),
     // assumed, not learned (session 5; a cell whose law differs is tracked only through RCSI's
-    // level: docs/results/blind.md, arm session5). RCSI's data then set the level only. The film grows about 0.9 % during each CC charge, and a held or
-    // charge-averaged estimate lags it by about half of that. 0: held (the paper).
+    // level: docs/results/blind.md, arm session5). RCSI's data then set the level only. The film
+    // grows about 0.9 % during each CC charge, and a held or charge-averaged estimate lags it by
+    // about half of that. 0: held (the paper).
     Scalar nominal_growth_ohm_m2_per_a_m3_s = Scalar(0);
-    // The `best` profile: the film is identified in output-error form with its growth gain and
+    // LearningGate. The `best` profile: the film is identified in output-error form with its growth gain and
     // the cell's lithium inventory (FilmGrowthIdentifier) instead of the paper's ARX RCSI;
     // calibrate_bias, average_estimate and nominal_growth_ohm_m2_per_a_m3_s are then unused.
     bool identify_growth = false;
@@ -154,9 +153,13 @@ class BmsCore {
     // With identify_growth: a re-synchronisation that moves the model's inventory by more than
     // this (relative) restarts the film parameters' learning (FilmGrowthIdentifier::relinearise).
     Scalar relinearise_inventory = Scalar(1e-3);
-    // The control run: every RCSI / RLS update switched off (the model and its observers run).
+    // LearningGate. The control run: every RCSI / RLS update switched off (the model and its observers run).
     bool learning = true;
   };
+
+  // The paper's estimator: RCSI (n_c = 1, eta = 0, P(0) = 5e-7 I, H = 0.01) in CC charge, film
+  // held elsewhere; every part beyond the paper off.
+  static Config paper_config() { return Config{}; }
 
   // What both beyond-the-paper profiles share: H from the model and the state observer
   // (re-synchronisation at power-up and at each CV end over a 50-tick window).
@@ -219,29 +222,18 @@ class BmsCore {
 
   struct State {
     typename FilmGrowthIdentifier<Scalar>::State identifier;
-    Scalar inventory_deviation_model;
     std::uint32_t layout_tag;
     std::uint32_t ticks;
     std::uint32_t stale_ticks;
-    std::uint32_t flags;  // bit 0: previous tick was CC charge, bit 1: a sample was accepted,
-                          // bit 2: the model was re-synchronised in this CV phase,
-                          // bit 3: the voltage bias is calibrated,
-                          // bit 4: the open re-synchronisation window is the power-up one,
-                          // bit 5: the identifier learned in the previous tick
-    std::uint32_t cc_ticks;
-    std::uint32_t resync_count;
-    std::uint32_t bias_samples;
-    Scalar bias_sum_v;
-    Scalar bias_v;
-    std::uint32_t avg_samples;
-    Scalar avg_sum_ohm_m2;
-    Scalar r_held_ohm_m2;
-    Scalar growth_ohm_m2;
+    std::uint32_t flags;  // bit 0: a sample was accepted
     Scalar last_current_a;
     Scalar last_j_side_a_m3;
+    typename LearningGate<Scalar>::State learning;
+    typename BiasCalibration<Scalar>::State bias;
+    typename FilmLevel<Scalar>::State film;
+    typename StateResync<Scalar>::State resync;
     typename Detector::State detector;
     typename Estimator::State estimator;
-    typename ResyncWindow<Scalar>::State resync_window;
     ModelState model;
   };
   static constexpr std::uint32_t kLayoutTag =
@@ -250,206 +242,88 @@ class BmsCore {
 
   BmsCore(const Config& config, MainModel& model)
       : config_(config), model_(model), detector_(config.detector), estimator_(config.estimator),
-        identifier_(config.identifier) {
-    r_held_ = config.estimator.r_film_init_ohm_m2;
+        identifier_(config.identifier), gate_(gate_config(config)), bias_(bias_config(config)),
+        film_(film_config(config), config.estimator.r_film_init_ohm_m2), resync_(resync_config(config)) {
     last_j_side_ = config.estimator.j_side_init_a_m3;
   }
 
   Output tick(const TickInput<Scalar>& in) {
+    // One tick, in this order (the numbering docs/architecture.md uses):
+    //   1 validate      validate(): finite, voltage and current plausible, no impossible step; a
+    //                   rejected or missing sample keeps every state and counts towards staleness
+    //   2 catch-up      accept_sample(): the model steps over the ticks missed since the last
+    //                   accepted sample (catch_up()); the power-up re-synchronisation window opens
+    //   3 detect mode   ModeDetector::update(): debounced operating mode
+    //   4 learning gate open_gate(): LearningGate (CC charge, warm-up, bias ready; at the window's
+    //                   start RCSI is reset), BiasCalibration stops at the end of a CC charge
+    //   5 film in use   film_in_use(): u_hat = RcsiEstimator::predict() inside the window, else the
+    //                   held FilmLevel, or the FilmGrowthIdentifier's film
+    //   6 model step    step_model(): voltage-driven in CV (debounced and confirmed by this
+    //                   sample's class), current-driven otherwise
+    //   7 resync        resync_step(): StateResync's window at the end of a CV phase or at power-up
+    //   8 residual      z = y_hat - y; BiasCalibration::collect() over the reference charge
+    //   9 learning      learn(): RcsiEstimator::update (or the identifier) from z inside the window
+    //  10 output        finish_tick()
     StatusWord st = 0u;
-    if (!in.present) return held_output(raise_stale(st));
+    if (!in.present) return held_output(raise_stale(st));                        // 1
     st |= validate(in);
     if ((st & kTickRejectMask) != 0u) return held_output(raise_stale(st));
-    const bool first_sample = !have_sample_;
-    if (!first_sample && stale_ticks_ > 0u) catch_up(stale_ticks_, in);
-    stale_ticks_ = 0;
-    have_sample_ = true;
-    last_current_ = in.current_a;
-
-    const Mode mode = detector_.update(in.voltage_v, in.current_a);
-    const bool in_cc_charge = mode == Mode::cc_charge;
-    if (!in_cc_charge && cc_ticks_ > 0u) finish_reference_charge();
-    cc_ticks_ = in_cc_charge ? (cc_ticks_ < 0xFFFFFFFFu ? cc_ticks_ + 1u : cc_ticks_) : 0u;
-    const bool warm = static_cast<Scalar>(cc_ticks_) * config_.dt_s > config_.rcsi_warmup_s;
-    const bool reference = in_cc_charge && warm && config_.calibrate_bias && !bias_calibrated_ &&
-                           resync_count_ >= config_.reference_after_resyncs;
-    // RCSI runs in CC charge after the warm-up, once the bias is known (the film is held at
-    // its initial value until then).
-    const bool cc_charge = in_cc_charge && warm && !(config_.calibrate_bias && !bias_calibrated_);
-    if (!config_.identify_growth && cc_charge && !prev_cc_charge_) {
-      // The predicted growth is folded into the held value here, so its sum stays a small
-      // number (float keeps the per-tick increments, about 1e-8 of R_film).
-      r_held_ += growth_;
-      growth_ = Scalar(0);
-      estimator_.reset_history(r_held_, last_j_side_);
-      estimator_.reset();
-      avg_sum_ = Scalar(0);
-      avg_samples_ = 0u;
-    }
-    const Scalar u = config_.identify_growth ? identifier_.film_ohm_m2()
-                                             : (cc_charge ? estimator_.predict() : r_film_ohm_m2());
-    if (first_sample && config_.resync_at_start) {
-      window_.open(config_.resync_window_ticks);
-      start_window_ = true;
-    }
-
-    const Mode raw = detector_.raw_mode();
-    const bool voltage_driven = (raw == Mode::cv_charge || raw == Mode::cv_discharge) && raw == mode;
-    const bool identify = config_.identify_growth && config_.learning && cc_charge && !voltage_driven;
-    const Scalar v_probe = identify ? model_.inventory_probe_voltage(in.current_a, u, config_.dt_s,
-                                                                     kInventoryProbe * config_.nominal_inventory_mol)
-                                    : Scalar(0);
-    const ModelTickResult<Scalar> r = voltage_driven ? model_.step_voltage(in.voltage_v, u, config_.dt_s)
-                                                     : model_.step_current(in.current_a, u, config_.dt_s);
-    if (!r.valid) {
-      st |= bit(FwStatus::kModelInvalid);
-      if (cc_charge && !config_.identify_growth) st |= estimator_.advance_without_learning(last_j_side_);
-      prev_cc_charge_ = cc_charge;
-      status_ |= st;
-      return held_output(st);
-    }
-    if (!r.converged) st |= bit(FwStatus::kModelNotConverged);
-    if (!voltage_driven) {
-      resynced_in_phase_ = false;
-      if (!start_window_) window_.close();  // the CV phase ended before its window filled
-    } else if (config_.resync_at_cv_end && !resynced_in_phase_ && !window_.is_open() &&
-               std::fabs(in.current_a) <= config_.resync_current_a) {
-      resynced_in_phase_ = true;
-      window_.open(config_.resync_window_ticks);
-      start_window_ = false;
-    }
-    if (window_.is_open()) {
-      window_.add(in.voltage_v, in.current_a);
-      if (window_.full()) {
-        const auto m = window_.fit();
-        window_.close();
-        start_window_ = false;
-        const Scalar nu = config_.identify_growth ? identifier_.inventory_deviation() : Scalar(0);
-        const Scalar target_mol = config_.nominal_inventory_mol * (Scalar(1) + nu) - model_.li_loss_mol();
-        if (model_.resync(m.voltage_v, m.current_a, u, config_.dt_s, target_mol)) {
-          ++resync_count_;
-          if (config_.identify_growth && std::fabs(nu - nu_model_) > config_.relinearise_inventory) {
-            identifier_.relinearise();
-          }
-          nu_model_ = nu;
-        } else {
-          st |= bit(FwStatus::kResyncFailed);
-        }
-      }
-    }
-    const Scalar z = r.voltage_v - in.voltage_v;
-    if (reference) {
-      bias_sum_ += z;
-      ++bias_samples_;
-    }
-    bool active = false;
-    Scalar s_v = Scalar(0);
-    if (config_.identify_growth) {
-      if (identify) {
-        if (!prev_identify_) identifier_.begin_charge();
-        s_v = (v_probe - r.voltage_v) / kInventoryProbe;
-        const StatusWord learned =
-            identifier_.learn(u, z, r.markov_v_per_ohm_m2, s_v, nu_model_, -config_.model_bias_ohm * in.current_a);
-        st |= learned;
-        active = (learned & kIdentifierRejectMask) == 0u;
-      }
-      identifier_.propagate(r.j_side_a_m3, config_.dt_s);
-      prev_identify_ = identify;
-    } else if (cc_charge) {
-      if (config_.markov_from_model && !prev_cc_charge_) {
-        estimator_.set_markov_parameter(r.markov_v_per_ohm_m2);
-      }
-      st |= config_.learning ? estimator_.update(bias_calibrated_ ? z - bias_v_ : z, r.j_side_a_m3)
-                             : estimator_.advance_without_learning(r.j_side_a_m3);
-      active = config_.learning && estimator_.theta_updated();
-      const Scalar level = u - growth_;  // what RCSI's data say, less the predicted growth
-      r_held_ = level;
-      if (config_.average_estimate) {
-        avg_sum_ += level;
-        ++avg_samples_;
-        r_held_ = avg_sum_ / static_cast<Scalar>(avg_samples_);
-      }
-    }
-    if (!config_.identify_growth) add_growth(r.j_side_a_m3, config_.dt_s);
-    prev_cc_charge_ = cc_charge;
-    last_j_side_ = r.j_side_a_m3;
-    ++ticks_;
-    Output out = base_output(mode);
-    out.rcsi_active = active;
-    out.r_film_est_ohm_m2 = r_film_ohm_m2();  // u itself, or its charge average, plus predicted growth
-    out.z_v = z;
-    out.model_voltage_v = r.voltage_v;
-    out.model_current_a = r.current_a;
-    out.j_side_a_m3 = r.j_side_a_m3;
-    out.markov_v_per_ohm_m2 = r.markov_v_per_ohm_m2;
-    out.inventory_sensitivity_v = s_v;
-    out.newton_iterations = r.newton_iterations;
-    out.status = st;
-    status_ |= st;
-    return out;
+    accept_sample(in);                                                            // 2
+    const Mode mode = detector_.update(in.voltage_v, in.current_a);               // 3
+    const Gate gate = open_gate(mode);                                            // 4
+    const Scalar u = film_in_use(gate.open);                                      // 5
+    const ModelStep step = step_model(in, mode, u, gate.open);                    // 6
+    if (!step.r.valid) return model_failed(st, gate.open);
+    if (!step.r.converged) st |= bit(FwStatus::kModelNotConverged);
+    st |= resync_step(in, u, step.voltage_driven);                                // 7
+    const Scalar z = step.r.voltage_v - in.voltage_v;
+    if (gate.reference) bias_.collect(z);                                         // 8
+    const Learned learned = learn(in, u, z, step, gate.open);                     // 9
+    return finish_tick(mode, gate, step, z, learned, st | learned.status);        // 10
   }
 
   State save() const {
     State s{};
     s.identifier = identifier_.save();
-    s.inventory_deviation_model = nu_model_;
     s.layout_tag = kLayoutTag;
     s.ticks = ticks_;
     s.stale_ticks = stale_ticks_;
-    s.flags = (prev_cc_charge_ ? 1u : 0u) | (have_sample_ ? 2u : 0u) | (resynced_in_phase_ ? 4u : 0u) |
-              (bias_calibrated_ ? 8u : 0u) | (start_window_ ? 16u : 0u) | (prev_identify_ ? 32u : 0u);
-    s.cc_ticks = cc_ticks_;
-    s.resync_count = resync_count_;
-    s.bias_samples = bias_samples_;
-    s.bias_sum_v = bias_sum_;
-    s.bias_v = bias_v_;
-    s.avg_samples = avg_samples_;
-    s.avg_sum_ohm_m2 = avg_sum_;
-    s.r_held_ohm_m2 = r_held_;
-    s.growth_ohm_m2 = growth_;
+    s.flags = have_sample_ ? 1u : 0u;
     s.last_current_a = last_current_;
     s.last_j_side_a_m3 = last_j_side_;
+    s.learning = gate_.save();
+    s.bias = bias_.save();
+    s.film = film_.save();
+    s.resync = resync_.save();
     s.detector = detector_.state();
     s.estimator = estimator_.save();
-    s.resync_window = window_.state();
     s.model = model_.state();
     return s;
   }
 
-  // Range of every scalar field of an image (finite alone let 1e308 through, and every output
-  // then became infinite): sums within their sample count times the largest value a sample
-  // can have, the film within the estimator's admissible range, the inventory deviation
-  // within the identifier's limit, currents within generous physical bounds.
-  bool fields_in_range(const State& s) const {
-    auto within = [](Scalar v, Scalar lo, Scalar hi) { return std::isfinite(v) && v >= lo && v <= hi; };
-    const Scalar r_lo = config_.estimator.r_film_min_ohm_m2;
-    const Scalar r_hi = config_.estimator.r_film_max_ohm_m2;
-    const Scalar r_span = r_hi - r_lo;
-    const Scalar nu_max = config_.identifier.inventory_limit;
-    const auto bias_n = static_cast<Scalar>(s.bias_samples);
-    const auto avg_n = static_cast<Scalar>(s.avg_samples);
-    return within(s.bias_v, -Scalar(kMaxBias_v), Scalar(kMaxBias_v)) &&
-           within(s.bias_sum_v, -Scalar(kMaxBias_v) * bias_n, Scalar(kMaxBias_v) * bias_n) &&
-           within(s.avg_sum_ohm_m2, r_lo * avg_n - r_span, r_hi * avg_n + r_span) &&
-           within(s.r_held_ohm_m2, r_lo - r_span, r_hi + r_span) && within(s.growth_ohm_m2, -r_span, r_span) &&
-           within(s.last_current_a, -Scalar(kMaxCurrent_a), Scalar(kMaxCurrent_a)) &&
-           within(s.last_j_side_a_m3, -Scalar(kMaxSideCurrent_a_m3), Scalar(kMaxSideCurrent_a_m3)) &&
-           within(s.inventory_deviation_model, -nu_max, nu_max);
-  }
-  static constexpr double kMaxBias_v = 1.0;
   static constexpr double kMaxCurrent_a = 1e4;
   static constexpr double kMaxSideCurrent_a_m3 = 1e9;
 
-  // All or nothing: a rejected image changes nothing but the sticky kRestoreRejected bit.
+  // All or nothing: a rejected image changes nothing but the sticky kRestoreRejected bit. Every
+  // scalar field is range-checked (finite alone let 1e308 through, and every output then became
+  // infinite): the core's currents here, each part's fields by its own restore().
   bool restore(const State& s) {
-    const bool header_ok = s.layout_tag == kLayoutTag && (s.flags & ~63u) == 0u && fields_in_range(s);
+    auto within = [](Scalar v, Scalar lo, Scalar hi) { return std::isfinite(v) && v >= lo && v <= hi; };
+    const bool header_ok = s.layout_tag == kLayoutTag && (s.flags & ~1u) == 0u &&
+                           within(s.last_current_a, -Scalar(kMaxCurrent_a), Scalar(kMaxCurrent_a)) &&
+                           within(s.last_j_side_a_m3, -Scalar(kMaxSideCurrent_a_m3), Scalar(kMaxSideCurrent_a_m3));
     Detector d = detector_;
     FilmGrowthIdentifier<Scalar> id = identifier_;
     Estimator e = estimator_;
-    ResyncWindow<Scalar> w;
+    LearningGate<Scalar> g = gate_;
+    BiasCalibration<Scalar> b = bias_;
+    FilmLevel<Scalar> f = film_;
+    StateResync<Scalar> rs = resync_;
     const ModelState model_backup = model_.state();
-    const bool ok = header_ok && d.restore(s.detector) && e.restore(s.estimator) && w.restore(s.resync_window) &&
-                    id.restore(s.identifier) && model_.restore(s.model);
+    const bool ok = header_ok && d.restore(s.detector) && e.restore(s.estimator) && id.restore(s.identifier) &&
+                    g.restore(s.learning) && b.restore(s.bias) &&
+                    f.restore(s.film, config_.estimator.r_film_min_ohm_m2, config_.estimator.r_film_max_ohm_m2) &&
+                    rs.restore(s.resync, config_.identifier.inventory_limit) && model_.restore(s.model);
     if (!ok) {
       model_.restore(model_backup);
       status_ |= bit(FwStatus::kRestoreRejected);
@@ -458,25 +332,13 @@ class BmsCore {
     detector_ = d;
     estimator_ = e;
     identifier_ = id;
-    nu_model_ = s.inventory_deviation_model;
-    window_ = w;
+    gate_ = g;
+    bias_ = b;
+    film_ = f;
+    resync_ = rs;
     ticks_ = s.ticks;
     stale_ticks_ = s.stale_ticks;
-    prev_cc_charge_ = (s.flags & 1u) != 0u;
-    have_sample_ = (s.flags & 2u) != 0u;
-    resynced_in_phase_ = (s.flags & 4u) != 0u;
-    bias_calibrated_ = (s.flags & 8u) != 0u;
-    start_window_ = (s.flags & 16u) != 0u;
-    prev_identify_ = (s.flags & 32u) != 0u;
-    cc_ticks_ = s.cc_ticks;
-    resync_count_ = s.resync_count;
-    bias_samples_ = s.bias_samples;
-    bias_sum_ = s.bias_sum_v;
-    bias_v_ = s.bias_v;
-    avg_samples_ = s.avg_samples;
-    avg_sum_ = s.avg_sum_ohm_m2;
-    r_held_ = s.r_held_ohm_m2;
-    growth_ = s.growth_ohm_m2;
+    have_sample_ = (s.flags & 1u) != 0u;
     last_current_ = s.last_current_a;
     last_j_side_ = s.last_j_side_a_m3;
     return true;
@@ -489,8 +351,8 @@ class BmsCore {
   const FilmGrowthIdentifier<Scalar>& identifier() const { return identifier_; }
   // The film resistance in use: identified (best profile), or the held level plus the growth
   // predicted since it was set.
-  Scalar r_film_ohm_m2() const { return config_.identify_growth ? identifier_.film_ohm_m2() : r_held_ + growth_; }
-  std::uint32_t resync_count() const { return resync_count_; }
+  Scalar r_film_ohm_m2() const { return gate_.identifies() ? identifier_.film_ohm_m2() : film_.value_ohm_m2(); }
+  std::uint32_t resync_count() const { return resync_.count(); }
   // Ticks that passed without reaching tick() at all (the application's clock or the bus's
   // sequence numbers say how many): counted as ticks without a sample, as `tick` would, without
   // building an output for each.
@@ -499,23 +361,45 @@ class BmsCore {
   }
   // Ticks without an accepted sample the model was stepped over since construction (not persisted).
   std::uint32_t catch_up_ticks() const { return catch_up_ticks_; }
-  bool bias_calibrated() const { return bias_calibrated_; }
-  Scalar bias_v() const { return bias_v_; }
+  bool bias_calibrated() const { return bias_.calibrated(); }
+  Scalar bias_v() const { return bias_.bias_v(); }
   const Config& config() const { return config_; }
 
  private:
-  // End of the reference charge: a charge cut short before it collected a minute of samples
-  // does not count, and the next charge is the reference instead.
-  void finish_reference_charge() {
-    if (!config_.calibrate_bias || bias_calibrated_) return;
-    if (static_cast<Scalar>(bias_samples_) * config_.dt_s >= Scalar(60)) {
-      bias_v_ = bias_sum_ / static_cast<Scalar>(bias_samples_);
-      bias_calibrated_ = true;
-    }
-    bias_sum_ = Scalar(0);
-    bias_samples_ = 0u;
+  struct Gate {
+    bool open;       // the film is learned in this tick (LearningGate::should_open)
+    bool reference;  // this tick's residual goes into the bias calibration
+  };
+  struct ModelStep {
+    ModelTickResult<Scalar> r;
+    bool voltage_driven;
+    bool identify;      // the FilmGrowthIdentifier learns in this tick
+    Scalar v_probe_v;   // the model's voltage at the probed inventory (identify only)
+  };
+  struct Learned {
+    StatusWord status;
+    bool active;
+    Scalar inventory_sensitivity_v;
+  };
+
+  static typename LearningGate<Scalar>::Config gate_config(const Config& c) {
+    return {c.rcsi_warmup_s, c.dt_s, c.learning, c.identify_growth, c.markov_from_model};
+  }
+  static typename BiasCalibration<Scalar>::Config bias_config(const Config& c) {
+    typename BiasCalibration<Scalar>::Config b;
+    b.enabled = c.calibrate_bias;
+    b.after_resyncs = c.reference_after_resyncs;
+    b.dt_s = c.dt_s;
+    return b;
+  }
+  static typename FilmLevel<Scalar>::Config film_config(const Config& c) {
+    return {c.average_estimate, c.nominal_growth_ohm_m2_per_a_m3_s};
+  }
+  static typename StateResync<Scalar>::Config resync_config(const Config& c) {
+    return {c.resync_at_start, c.resync_at_cv_end, c.resync_current_a, c.resync_window_ticks};
   }
 
+  // Step 1.
   StatusWord validate(const TickInput<Scalar>& in) const {
     if (!std::isfinite(in.voltage_v) || !std::isfinite(in.current_a)) return bit(FwStatus::kSampleNonFinite);
     StatusWord st = 0u;
@@ -527,6 +411,16 @@ class BmsCore {
       st |= bit(FwStatus::kCurrentImplausible);
     }
     return st;
+  }
+
+  // Step 2.
+  void accept_sample(const TickInput<Scalar>& in) {
+    const bool first_sample = !have_sample_;
+    if (!first_sample && stale_ticks_ > 0u) catch_up(stale_ticks_, in);
+    stale_ticks_ = 0;
+    have_sample_ = true;
+    last_current_ = in.current_a;
+    if (resync_.should_start_at_power_up(first_sample)) resync_.start_at_power_up();
   }
 
   // Steps the model over `missed` ticks that had no accepted sample (see
@@ -544,17 +438,124 @@ class BmsCore {
                                                             r_film_ohm_m2(), ticks_per_step * config_.dt_s);
       if (!r.valid) return;
       // The film grew over the gap too: without this, each lost frame drops a tick of growth.
-      if (config_.identify_growth) {
-        identifier_.propagate(r.j_side_a_m3, ticks_per_step * config_.dt_s);
-      } else {
-        add_growth(r.j_side_a_m3, ticks_per_step * config_.dt_s);
-      }
+      propagate_film(r.j_side_a_m3, ticks_per_step * config_.dt_s);
     }
     catch_up_ticks_ = catch_up_ticks_ + gap < catch_up_ticks_ ? 0xFFFFFFFFu : catch_up_ticks_ + gap;
   }
 
-  void add_growth(Scalar j_side_a_m3, Scalar dt_s) {
-    growth_ -= config_.nominal_growth_ohm_m2_per_a_m3_s * j_side_a_m3 * dt_s;
+  void propagate_film(Scalar j_side_a_m3, Scalar dt_s) {
+    if (gate_.identifies()) {
+      identifier_.propagate(j_side_a_m3, dt_s);
+    } else {
+      film_.add_growth(j_side_a_m3, dt_s);
+    }
+  }
+
+  // Step 4.
+  Gate open_gate(Mode mode) {
+    const bool in_cc_charge = mode == Mode::cc_charge;
+    if (gate_.phase_ended(in_cc_charge)) bias_.stop_at_charge_end();
+    gate_.count_phase(in_cc_charge);
+    Gate g{};
+    g.reference = bias_.should_collect(in_cc_charge, gate_.warm(), resync_.count());
+    g.open = gate_.should_open(in_cc_charge, !bias_.blocks_learning());
+    if (!gate_.identifies() && gate_.should_start(g.open)) {
+      estimator_.reset_history(film_.begin_charge(), last_j_side_);
+      estimator_.reset();
+    }
+    return g;
+  }
+
+  // Step 5.
+  Scalar film_in_use(bool open) {
+    if (gate_.identifies()) return identifier_.film_ohm_m2();
+    return open ? estimator_.predict() : r_film_ohm_m2();
+  }
+
+  // Step 6.
+  ModelStep step_model(const TickInput<Scalar>& in, Mode mode, Scalar u, bool open) {
+    const Mode raw = detector_.raw_mode();
+    const bool voltage_driven = (raw == Mode::cv_charge || raw == Mode::cv_discharge) && raw == mode;
+    const bool identify = gate_.should_identify(open, voltage_driven);
+    const Scalar v_probe = identify ? model_.inventory_probe_voltage(in.current_a, u, config_.dt_s,
+                                                                     kInventoryProbe * config_.nominal_inventory_mol)
+                                    : Scalar(0);
+    const ModelTickResult<Scalar> r = voltage_driven ? model_.step_voltage(in.voltage_v, u, config_.dt_s)
+                                                     : model_.step_current(in.current_a, u, config_.dt_s);
+    return ModelStep{r, voltage_driven, identify, v_probe};
+  }
+
+  Output model_failed(StatusWord st, bool open) {
+    st |= bit(FwStatus::kModelInvalid);
+    if (open && !gate_.identifies()) st |= estimator_.advance_without_learning(last_j_side_);
+    gate_.close_tick(open);
+    status_ |= st;
+    return held_output(st);
+  }
+
+  // Step 7: the model is re-synchronised to the identified inventory (nominal without the
+  // identifier) less its own lithium loss.
+  StatusWord resync_step(const TickInput<Scalar>& in, Scalar u, bool voltage_driven) {
+    resync_.follow_phase(voltage_driven, in.current_a);
+    typename StateResync<Scalar>::Fit m{};
+    if (!resync_.collect(in.voltage_v, in.current_a, m)) return 0u;
+    const bool id = gate_.identifies();
+    const Scalar nu = id ? identifier_.inventory_deviation() : Scalar(0);
+    const Scalar target_mol = config_.nominal_inventory_mol * (Scalar(1) + nu) - model_.li_loss_mol();
+    if (!model_.resync(m.voltage_v, m.current_a, u, config_.dt_s, target_mol)) return bit(FwStatus::kResyncFailed);
+    if (resync_.succeeded(nu, config_.relinearise_inventory) && id) identifier_.relinearise();
+    return 0u;
+  }
+
+  // Step 9.
+  Learned learn(const TickInput<Scalar>& in, Scalar u, Scalar z, const ModelStep& step, bool open) {
+    if (gate_.identifies()) return identify(in, u, z, step);
+    Learned l{0u, false, Scalar(0)};
+    if (!open) return l;
+    if (gate_.should_take_markov_from_model(open)) {
+      estimator_.set_markov_parameter(step.r.markov_v_per_ohm_m2);
+    }
+    l.status = gate_.learning() ? estimator_.update(bias_.corrected(z), step.r.j_side_a_m3)
+                                : estimator_.advance_without_learning(step.r.j_side_a_m3);
+    l.active = gate_.learning() && estimator_.theta_updated();
+    film_.record(u - film_.growth_ohm_m2());  // what RCSI's data say, less the predicted growth
+    return l;
+  }
+
+  // Step 9 with Config::identify_growth: the film, its growth gain and the inventory in output-error form.
+  Learned identify(const TickInput<Scalar>& in, Scalar u, Scalar z, const ModelStep& step) {
+    Learned l{0u, false, Scalar(0)};
+    if (step.identify) {
+      if (gate_.should_start_identifying(step.identify)) identifier_.begin_charge();
+      l.inventory_sensitivity_v = (step.v_probe_v - step.r.voltage_v) / kInventoryProbe;
+      l.status = identifier_.learn(u, z, step.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
+                                   resync_.inventory_deviation_model(), -config_.model_bias_ohm * in.current_a);
+      l.active = (l.status & kIdentifierRejectMask) == 0u;
+    }
+    identifier_.propagate(step.r.j_side_a_m3, config_.dt_s);
+    gate_.identified(step.identify);
+    return l;
+  }
+
+  // Step 10.
+  Output finish_tick(Mode mode, Gate gate, const ModelStep& step, Scalar z, const Learned& learned, StatusWord st) {
+    if (!gate_.identifies()) film_.add_growth(step.r.j_side_a_m3, config_.dt_s);
+    gate_.close_tick(gate.open);
+    last_j_side_ = step.r.j_side_a_m3;
+    ++ticks_;
+    Output out = base_output(mode);
+    out.rcsi_active = learned.active;
+    out.r_film_est_ohm_m2 = r_film_ohm_m2();  // u itself, or its charge average, plus predicted growth
+    out.z_v = z;
+    out.model_voltage_v = step.r.voltage_v;
+    out.model_current_a = step.r.current_a;
+    out.j_side_a_m3 = step.r.j_side_a_m3;
+    out.markov_v_per_ohm_m2 = step.r.markov_v_per_ohm_m2;
+    out.inventory_sensitivity_v = learned.inventory_sensitivity_v;
+    out.newton_iterations = step.r.newton_iterations;
+    out.status = st;
+    status_ |= st;
+    return out;
   }
 
   StatusWord raise_stale(StatusWord st, std::uint32_t ticks = 1u) {
@@ -575,7 +576,7 @@ class BmsCore {
     o.j_side_a_m3 = last_j_side_;
     o.li_loss_ah = model_.li_loss_ah();
     for (int i = 0; i < 2 * Nc; ++i) o.theta[i] = estimator_.theta()(i);
-    const bool id = config_.identify_growth;
+    const bool id = gate_.identifies();
     o.film_initial_ohm_m2 = id ? identifier_.initial_film_ohm_m2() : Scalar(0);
     o.growth_gain = id ? identifier_.gain() : Scalar(0);
     o.inventory_deviation = id ? identifier_.inventory_deviation() : Scalar(0);
@@ -605,28 +606,16 @@ class BmsCore {
   Detector detector_;
   Estimator estimator_;
   FilmGrowthIdentifier<Scalar> identifier_;
-  bool prev_identify_ = false;   // the identifier learned in the previous tick
-  Scalar nu_model_ = Scalar(0);  // inventory deviation of the model's last re-synchronisation
-  Scalar r_held_ = Scalar(0);
-  Scalar growth_ = Scalar(0);  // predicted film growth since the last charge start (see Config)
+  LearningGate<Scalar> gate_;
+  BiasCalibration<Scalar> bias_;
+  FilmLevel<Scalar> film_;
+  StateResync<Scalar> resync_;
   Scalar last_current_ = Scalar(0);
   Scalar last_j_side_ = Scalar(0);
   std::uint32_t ticks_ = 0u;
   std::uint32_t stale_ticks_ = 0u;
-  bool prev_cc_charge_ = false;
   bool have_sample_ = false;
-  bool resynced_in_phase_ = false;
-  bool bias_calibrated_ = false;
-  bool start_window_ = false;
-  ResyncWindow<Scalar> window_;
-  std::uint32_t resync_count_ = 0u;
   std::uint32_t catch_up_ticks_ = 0u;
-  std::uint32_t cc_ticks_ = 0u;
-  std::uint32_t bias_samples_ = 0u;
-  Scalar bias_sum_ = Scalar(0);
-  Scalar bias_v_ = Scalar(0);
-  std::uint32_t avg_samples_ = 0u;
-  Scalar avg_sum_ = Scalar(0);
   StatusWord status_ = 0u;
 };
 

@@ -40,18 +40,36 @@ NominalCell paper_nominal_cell() {
           Cell::kUpperVoltageV};
 }
 
+/// The cell's voltage window in the mode detector and the plausibility check.
+template <class Config>
+void apply_voltage_window(const NominalCell& cell, Config& cfg) {
+  using Scalar = decltype(Config::dt_s);
+  cfg.detector.v_min = Scalar(cell.lower_voltage_v);
+  cfg.detector.v_max = Scalar(cell.upper_voltage_v);
+  cfg.voltage_min_v = Scalar(cell.lower_voltage_v - kVoltagePlausibilityMarginV);
+  cfg.voltage_max_v = Scalar(cell.upper_voltage_v + kVoltagePlausibilityMarginV);
+}
+
 template <class Core>
 typename Core::Config make_config(const NominalCell& cell, Profile profile) {
   using Scalar = decltype(Core::Config::dt_s);
   typename Core::Config cfg =
       profile == Profile::paper
-          ? typename Core::Config{}
+          ? Core::paper_config()
           : Core::best_config(Scalar(cell.inventory_mol), Scalar(cell.initial_film_ohm_m2),
                               Scalar(cell.growth_ohm_m2_per_a_m3_s), Scalar(cell.model_bias_ohm));
-  cfg.detector.v_min = Scalar(cell.lower_voltage_v);
-  cfg.detector.v_max = Scalar(cell.upper_voltage_v);
-  cfg.voltage_min_v = Scalar(cell.lower_voltage_v - kVoltagePlausibilityMarginV);
-  cfg.voltage_max_v = Scalar(cell.upper_voltage_v + kVoltagePlausibilityMarginV);
+  apply_voltage_window(cell, cfg);
+  return cfg;
+}
+
+/// Session 5's profile (`--beyond-paper`): it assumes the nominal growth law (documented in
+/// docs/results/firmware-model.md); kept for comparison.
+template <class Core>
+typename Core::Config make_beyond_paper_config(const NominalCell& cell) {
+  using Scalar = decltype(Core::Config::dt_s);
+  typename Core::Config cfg =
+      Core::beyond_paper_config(Scalar(cell.inventory_mol), Scalar(cell.growth_ohm_m2_per_a_m3_s));
+  apply_voltage_window(cell, cfg);
   return cfg;
 }
 

@@ -16,15 +16,16 @@
 // RLS (bms/fw/rls.hpp): fits theta^T phi(k-D-1) ~ u*(k-D), where phi(k-D-1) is exactly the
 // regressor that produced u_hat(k-D).
 //
-// ---- Call order within one tick k (the off-by-one in D is the classic RCSI bug) ----------
-//   1. r = est.predict();           u_hat(k) = theta^T phi(k-1), clipped; apply r to the model
-//   2. the model runs its tick with u_hat(k) and gives y_hat and y0_hat of this tick
-//   3. z = y_hat - y                (y measured at the same instant as y_hat)
-//   4. est.update(z, y0_hat);       learns from u*(k-D), then stores u_hat(k), y0_hat(k)
+// ---- Call order within one tick k: BmsCore::tick's steps 5, 6, 8 and 9 (the off-by-one in D is
+// the classic RCSI bug) ----
+//   step 5  r = est.predict();       u_hat(k) = theta^T phi(k-1), clipped; apply r to the model
+//   step 6  the model runs its tick with u_hat(k) and gives y_hat and y0_hat of this tick
+//   step 8  z = y_hat - y            (y measured at the same instant as y_hat)
+//   step 9  est.update(z, y0_hat);   learns from u*(k-D), then stores u_hat(k), y0_hat(k)
 // D is the number of ticks between the u_hat a z first depends on and that z:
-//   D = 0  the y_hat of step 2 already depends on u_hat(k) (direct feedthrough: a DFN that
+//   D = 0  the y_hat of step 6 already depends on u_hat(k) (direct feedthrough: a DFN that
 //          solves its algebraic equations with the updated film drop j*R_film at the same instant);
-//   D = 1  the y_hat of step 2 depends only on u_hat(k-1) (paper eqs 17-18: x_hat(k+1) uses
+//   D = 1  the y_hat of step 6 depends only on u_hat(k-1) (paper eqs 17-18: x_hat(k+1) uses
 //          u_hat(k) and y_hat(k) = h(x_hat(k)); the paper uses D = 1).
 // Why predict comes first: it is the one order that is valid for both D = 0 and D >= 1
 // (with D = 0, z(k) cannot exist before u_hat(k)). For D >= 1 the cost is that u_hat(k) uses
@@ -163,7 +164,7 @@ class RcsiEstimator {
     return true;
   }
 
-  // Step 1 of a tick: u_hat(k) = theta^T phi(k-1), clipped to [min, max] (kOutputClipped).
+  // Tick step 5: u_hat(k) = theta^T phi(k-1), clipped to [min, max] (kOutputClipped).
   // A non-finite product (overflow) holds u_hat(k-1) (kPredictionNonFinite). Calling it
   // twice before update() returns the same value.
   Scalar predict() {
@@ -190,14 +191,14 @@ class RcsiEstimator {
     return u;
   }
 
-  // Step 4 of a tick: z(k) = y_hat(k) - y(k) [V] and the model's y0_hat(k) [A/m3].
+  // Tick step 9: z(k) = y_hat(k) - y(k) [V] and the model's y0_hat(k) [A/m3].
   // Learns from u*(k-D) unless an input is non-finite (kRejectedNonFinite: theta and P
   // unchanged), then commits u_hat(k) and y0_hat(k) to the history (a non-finite y0_hat is
   // replaced by y0_hat(k-1)). Time always advances: the model has used u_hat(k).
   // Returns the status bits raised in this tick (predict() and update()).
   StatusWord update(Scalar z_v, Scalar j_side_a_m3) { return commit(z_v, j_side_a_m3, true); }
 
-  // Alternative step 4 when learning is off (e.g. outside constant-current charging, where
+  // Tick step 9 when learning is off (e.g. outside constant-current charging, where
   // the film is not identifiable): commits u_hat(k) and y0_hat(k) without learning.
   StatusWord advance_without_learning(Scalar j_side_a_m3) {
     return commit(Scalar(0), j_side_a_m3, false);

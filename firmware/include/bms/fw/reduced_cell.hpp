@@ -597,59 +597,83 @@ class ReducedCell {
 
   template <typename T>
   void evaluate(const T& current_a, Scalar r_film, Scalar dt, Trial<T>& t) const {
-    using std::exp; using std::log; using std::sqrt;
     const Scalar frt = Scalar(f_rt());
     const T i_app = current_a / Scalar(Cell::kAreaM2);  // A/m2, positive = discharge
     const T j_n = i_app / Scalar(a_neg() * Cell::kNeg.thickness_m);
     const T j_p = -i_app / Scalar(a_pos() * Cell::kPos.thickness_m);
-
-    // Electrolyte concentration: D_e at the start of the tick, source from the uniform j.
-    Scalar m[kNx], g[kNx];
     T ce[kNx];
-    {
-      Scalar d_eff[kNx];
-      for (int k = 0; k < kNx; ++k) {
-        d_eff[k] = Cell::electrolyte_diffusivity_m2_s(s_.ce_mol_m3[k]) * te_[k];
-      }
-      for (int k = 0; k < kNx; ++k) {
-        m[k] = eps_[k] * dx_[k] / dt;
-        g[k] = k + 1 < kNx ? Scalar(1) / (dx_[k] / (Scalar(2) * d_eff[k]) + dx_[k + 1] / (Scalar(2) * d_eff[k + 1]))
-                           : Scalar(0);
-      }
-      for (int k = 0; k < kNx; ++k) {
-        const T j_k = k < kNn ? j_n : (k < kNn + kNs ? T(Scalar(0)) : j_p);
-        t.d_ce[k] = Scalar((1.0 - Cell::kTransference) / kFaradayC_mol) * a_[k] * j_k * dx_[k] -
-                    outflow(s_.ce_mol_m3, s_.ce_carry_mol_m3, g, k);
-      }
-      chain_solve(m, g, t.d_ce);
-      for (int k = 0; k < kNx; ++k) ce[k] = t.d_ce[k] + (s_.ce_mol_m3[k] + s_.ce_carry_mol_m3[k]);
-    }
-
-    // Electrolyte potential at cell centres from the ionic current on the faces
-    // (psi = phi_e - nu ln c_e, reference psi_0 = 0).
-    const Scalar nu = Scalar(2.0 * (1.0 - Cell::kTransference)) / frt;
+    electrolyte_concentration(j_n, j_p, dt, t, ce);
     T phie[kNx];
-    {
-      T psi = T(Scalar(0));
-      T ie = T(Scalar(0));
-      T kap_k = Cell::electrolyte_conductivity_s_m(clamp_low(ce[0])) * te_[0];
-      phie[0] = nu * log(clamp_low(ce[0]));
-      for (int k = 0; k + 1 < kNx; ++k) {
-        const T j_k = k < kNn ? j_n : (k < kNn + kNs ? T(Scalar(0)) : j_p);
-        ie = ie + a_[k] * j_k * dx_[k];
-        const T kap_n = Cell::electrolyte_conductivity_s_m(clamp_low(ce[k + 1])) * te_[k + 1];
-        const T rk = dx_[k] / (Scalar(2) * kap_k) + dx_[k + 1] / (Scalar(2) * kap_n);
-        psi = psi - ie * rk;
-        phie[k + 1] = psi + nu * log(clamp_low(ce[k + 1]));
-        kap_k = kap_n;
-      }
-    }
-
-    // Negative electrode: side reaction inside Butler-Volmer, fixed number of passes.
-    const double cmax_n = Cell::kNeg.max_concentration_mol_m3;
-    const double cmax_p = Cell::kPos.max_concentration_mol_m3;
-    T js = T(s_.j_side_a_m2);
+    electrolyte_potential(ce, j_n, j_p, frt, phie);
     T phis_n = T(Scalar(0));
+    T js = T(s_.j_side_a_m2);
+    negative_electrode(ce, phie, j_n, r_film, dt, frt, t, phis_n, js);
+    const T phis_p = positive_electrode(ce, phie, j_p, dt, frt, t);
+
+    // Solid ohmic drop with a uniform reaction: mean potential to current collector is I L/(3 sigma).
+    const T ohmic = i_app * Scalar(Cell::kNeg.thickness_m / (3.0 * Cell::kNeg.conductivity_eff_s_m) +
+                                   Cell::kPos.thickness_m / (3.0 * Cell::kPos.conductivity_eff_s_m));
+    t.voltage_v = phis_p - phis_n - ohmic;
+    t.j_side_a_m2 = js;
+    t.j_side_a_m3 = js * Scalar(a_neg());
+    t.j_neg_a_m2 = j_n;
+  }
+
+  // evaluate()'s four parts are inlined by force: called as functions they cost 2.6 % more
+  // instructions per tick on the Cortex-M7 (worst tick 114 200 against 111 280 in one body).
+  // Electrolyte concentration: D_e at the start of the tick, source from the uniform j.
+  template <typename T>
+  [[gnu::always_inline]] inline void electrolyte_concentration(const T& j_n, const T& j_p, Scalar dt, Trial<T>& t,
+                                                               T (&ce)[kNx]) const {
+    Scalar m[kNx], g[kNx];
+    Scalar d_eff[kNx];
+    for (int k = 0; k < kNx; ++k) {
+      d_eff[k] = Cell::electrolyte_diffusivity_m2_s(s_.ce_mol_m3[k]) * te_[k];
+    }
+    for (int k = 0; k < kNx; ++k) {
+      m[k] = eps_[k] * dx_[k] / dt;
+      g[k] = k + 1 < kNx ? Scalar(1) / (dx_[k] / (Scalar(2) * d_eff[k]) + dx_[k + 1] / (Scalar(2) * d_eff[k + 1]))
+                         : Scalar(0);
+    }
+    for (int k = 0; k < kNx; ++k) {
+      const T j_k = k < kNn ? j_n : (k < kNn + kNs ? T(Scalar(0)) : j_p);
+      t.d_ce[k] = Scalar((1.0 - Cell::kTransference) / kFaradayC_mol) * a_[k] * j_k * dx_[k] -
+                  outflow(s_.ce_mol_m3, s_.ce_carry_mol_m3, g, k);
+    }
+    chain_solve(m, g, t.d_ce);
+    for (int k = 0; k < kNx; ++k) ce[k] = t.d_ce[k] + (s_.ce_mol_m3[k] + s_.ce_carry_mol_m3[k]);
+  }
+
+  // Electrolyte potential at cell centres from the ionic current on the faces
+  // (psi = phi_e - nu ln c_e, reference psi_0 = 0).
+  template <typename T>
+  [[gnu::always_inline]] inline void electrolyte_potential(const T (&ce)[kNx], const T& j_n, const T& j_p, Scalar frt,
+                                                           T (&phie)[kNx]) const {
+    using std::log;
+    const Scalar nu = Scalar(2.0 * (1.0 - Cell::kTransference)) / frt;
+    T psi = T(Scalar(0));
+    T ie = T(Scalar(0));
+    T kap_k = Cell::electrolyte_conductivity_s_m(clamp_low(ce[0])) * te_[0];
+    phie[0] = nu * log(clamp_low(ce[0]));
+    for (int k = 0; k + 1 < kNx; ++k) {
+      const T j_k = k < kNn ? j_n : (k < kNn + kNs ? T(Scalar(0)) : j_p);
+      ie = ie + a_[k] * j_k * dx_[k];
+      const T kap_n = Cell::electrolyte_conductivity_s_m(clamp_low(ce[k + 1])) * te_[k + 1];
+      const T rk = dx_[k] / (Scalar(2) * kap_k) + dx_[k + 1] / (Scalar(2) * kap_n);
+      psi = psi - ie * rk;
+      phie[k + 1] = psi + nu * log(clamp_low(ce[k + 1]));
+      kap_k = kap_n;
+    }
+  }
+
+  // Negative electrode: side reaction inside Butler-Volmer, fixed number of passes. js enters
+  // with the previous tick's side current density and leaves with this tick's.
+  template <typename T>
+  [[gnu::always_inline]] inline void negative_electrode(const T (&ce)[kNx], const T (&phie)[kNx], const T& j_n,
+                                                        Scalar r_film, Scalar dt, Scalar frt, Trial<T>& t, T& phis_n,
+                                                        T& js) const {
+    using std::exp; using std::sqrt;
+    const double cmax_n = Cell::kNeg.max_concentration_mol_m3;
     T cs_surf_n = T(Scalar(0));
     for (int pass = 0; pass <= kSidePasses; ++pass) {
       const T flux_out = (j_n - js) / Scalar(kFaradayC_mol);
@@ -671,8 +695,13 @@ class ReducedCell {
       phis_n = phis_n / Scalar(kNn);
       js = js_sum / Scalar(kNn);
     }
+  }
 
-    // Positive electrode.
+  template <typename T>
+  [[gnu::always_inline]] inline T positive_electrode(const T (&ce)[kNx], const T (&phie)[kNx], const T& j_p, Scalar dt,
+                                                     Scalar frt, Trial<T>& t) const {
+    using std::sqrt;
+    const double cmax_p = Cell::kPos.max_concentration_mol_m3;
     const T cs_surf_p = clamp_conc(
         particle_step(s_.cs_pos_mol_m3, s_.cs_pos_carry_mol_m3, vol_p_, g_p_, r2_p_, half_p_,
                       Cell::kPos.solid_diffusivity_m2_s, dt, T(j_p / Scalar(kFaradayC_mol)), t.d_cs_pos),
@@ -683,15 +712,7 @@ class ReducedCell {
       const T i0 = Scalar(Cell::kPos.i0_coefficient) * sqrt(clamp_low(ce[k]) * cs_surf_p * (Scalar(cmax_p) - cs_surf_p));
       phis_p = phis_p + phie[k] + ocp_p + Scalar(2) / frt * asinh_of(j_p / (Scalar(2) * i0));
     }
-    phis_p = phis_p / Scalar(kNp);
-
-    // Solid ohmic drop with a uniform reaction: mean potential to current collector is I L/(3 sigma).
-    const T ohmic = i_app * Scalar(Cell::kNeg.thickness_m / (3.0 * Cell::kNeg.conductivity_eff_s_m) +
-                                   Cell::kPos.thickness_m / (3.0 * Cell::kPos.conductivity_eff_s_m));
-    t.voltage_v = phis_p - phis_n - ohmic;
-    t.j_side_a_m2 = js;
-    t.j_side_a_m3 = js * Scalar(a_neg());
-    t.j_neg_a_m2 = j_n;
+    return phis_p / Scalar(kNp);
   }
 
   template <typename T>

@@ -21,14 +21,18 @@
 #include <cstdint>
 #include <type_traits>
 
+#include "bms/fw/bias_calibration.hpp"
 #include "bms/fw/bms_core.hpp"
 #include "bms/fw/cell_effects.hpp"
 #include "bms/fw/film_growth_identifier.hpp"
+#include "bms/fw/film_level.hpp"
+#include "bms/fw/learning_gate.hpp"
 #include "bms/fw/mode_detector.hpp"
 #include "bms/fw/rcsi_estimator.hpp"
 #include "bms/fw/reduced_cell.hpp"
 #include "bms/fw/resync_window.hpp"
 #include "bms/fw/rls.hpp"
+#include "bms/fw/state_resync.hpp"
 
 namespace bms::fw::schema {
 
@@ -155,6 +159,42 @@ constexpr std::uint32_t state_schema(Type<ResyncWindow<S>> /*tag*/) {
   return hash("ResyncWindow.State", f, sizeof(St));
 }
 
+template <class S>
+constexpr std::uint32_t state_schema(Type<LearningGate<S>> /*tag*/) {
+  using St = typename LearningGate<S>::State;
+  constexpr Field f[] = {BMS_SCHEMA_FIELD(St, cc_ticks), BMS_SCHEMA_FIELD(St, flags)};
+  static_assert(covers(f, sizeof(St), alignof(St)), "LearningGate::State changed: update its schema table");
+  return hash("LearningGate.State", f, sizeof(St));
+}
+
+template <class S>
+constexpr std::uint32_t state_schema(Type<BiasCalibration<S>> /*tag*/) {
+  using St = typename BiasCalibration<S>::State;
+  constexpr Field f[] = {BMS_SCHEMA_FIELD(St, sum_v), BMS_SCHEMA_FIELD(St, bias_v), BMS_SCHEMA_FIELD(St, samples),
+                         BMS_SCHEMA_FIELD(St, calibrated)};
+  static_assert(covers(f, sizeof(St), alignof(St)), "BiasCalibration::State changed: update its schema table");
+  return hash("BiasCalibration.State", f, sizeof(St));
+}
+
+template <class S>
+constexpr std::uint32_t state_schema(Type<FilmLevel<S>> /*tag*/) {
+  using St = typename FilmLevel<S>::State;
+  constexpr Field f[] = {BMS_SCHEMA_FIELD(St, r_held_ohm_m2), BMS_SCHEMA_FIELD(St, growth_ohm_m2),
+                         BMS_SCHEMA_FIELD(St, avg_sum_ohm_m2), BMS_SCHEMA_FIELD(St, avg_samples),
+                         BMS_SCHEMA_FIELD(St, reserved)};
+  static_assert(covers(f, sizeof(St), alignof(St)), "FilmLevel::State changed: update its schema table");
+  return hash("FilmLevel.State", f, sizeof(St));
+}
+
+template <class S>
+constexpr std::uint32_t state_schema(Type<StateResync<S>> /*tag*/) {
+  using St = typename StateResync<S>::State;
+  constexpr Field f[] = {BMS_SCHEMA_NESTED(St, window, ResyncWindow<S>), BMS_SCHEMA_FIELD(St, inventory_deviation_model),
+                         BMS_SCHEMA_FIELD(St, count), BMS_SCHEMA_FIELD(St, flags)};
+  static_assert(covers(f, sizeof(St), alignof(St)), "StateResync::State changed: update its schema table");
+  return hash("StateResync.State", f, sizeof(St));
+}
+
 template <class S, class Cell, class Mesh>
 constexpr std::uint32_t state_schema(Type<ReducedCell<S, Cell, Mesh>> /*tag*/) {
   using St = typename ReducedCell<S, Cell, Mesh>::State;
@@ -189,25 +229,18 @@ constexpr std::uint32_t state_schema(Type<BmsCore<S, M, Nc, D>> /*tag*/) {
   using C = BmsCore<S, M, Nc, D>;
   using St = typename C::State;
   constexpr Field f[] = {BMS_SCHEMA_NESTED(St, identifier, FilmGrowthIdentifier<S>),
-                         BMS_SCHEMA_FIELD(St, inventory_deviation_model),
                          BMS_SCHEMA_FIELD(St, layout_tag),
                          BMS_SCHEMA_FIELD(St, ticks),
                          BMS_SCHEMA_FIELD(St, stale_ticks),
                          BMS_SCHEMA_FIELD(St, flags),
-                         BMS_SCHEMA_FIELD(St, cc_ticks),
-                         BMS_SCHEMA_FIELD(St, resync_count),
-                         BMS_SCHEMA_FIELD(St, bias_samples),
-                         BMS_SCHEMA_FIELD(St, bias_sum_v),
-                         BMS_SCHEMA_FIELD(St, bias_v),
-                         BMS_SCHEMA_FIELD(St, avg_samples),
-                         BMS_SCHEMA_FIELD(St, avg_sum_ohm_m2),
-                         BMS_SCHEMA_FIELD(St, r_held_ohm_m2),
-                         BMS_SCHEMA_FIELD(St, growth_ohm_m2),
                          BMS_SCHEMA_FIELD(St, last_current_a),
                          BMS_SCHEMA_FIELD(St, last_j_side_a_m3),
+                         BMS_SCHEMA_NESTED(St, learning, LearningGate<S>),
+                         BMS_SCHEMA_NESTED(St, bias, BiasCalibration<S>),
+                         BMS_SCHEMA_NESTED(St, film, FilmLevel<S>),
+                         BMS_SCHEMA_NESTED(St, resync, StateResync<S>),
                          BMS_SCHEMA_NESTED(St, detector, typename C::Detector),
                          BMS_SCHEMA_NESTED(St, estimator, typename C::Estimator),
-                         BMS_SCHEMA_NESTED(St, resync_window, ResyncWindow<S>),
                          BMS_SCHEMA_NESTED(St, model, M)};
   static_assert(covers(f, sizeof(St), alignof(St)), "BmsCore::State changed: update its schema table");
   return hash("BmsCore.State", f, sizeof(St));
