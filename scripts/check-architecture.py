@@ -3,11 +3,13 @@
 
     scripts/check-architecture.py [--root DIR] [--doc FILE]
 
-The section whose heading starts with "## One 0.2 s tick" holds a numbered list; every item
-starts with `N. \`path:Name\`` (Name is `function`, `Class::function` or `ns::Class::function`).
-For each item: the numbers run 1, 2, 3, ...; the file exists; every part of Name occurs in the
-file as a word, and the last part as a function (`name(` or `name<...>(`) and only once
-defined or declared there when the item says `Class::function`. A tick renamed, moved or
+The section whose heading starts with "## One 0.2 s tick" holds a numbered list (the path, 1, 2,
+3, ...) whose items name code as `path:Name` (Name is `function`, `Class::function` or a
+`kConstant`). Every such name in the section is checked: the file exists, every part of Name
+occurs in it as a word, and a function's name as `name(` (or `name<...>(`). The section's
+"tick step N, **name**" bullets must be the list written at the top of BmsCore::tick
+(firmware/include/bms/fw/bms_core.hpp: `//   N name   ...`), same numbers, same names, all of
+them: one numbering of the tick in the code and the document. A step renamed, moved or
 removed in the code makes this fail until the list is updated.
 
 Exit 0 when every step matches, 1 naming each step that does not, 2 when the section or the
@@ -18,25 +20,43 @@ import os
 import re
 import sys
 
-ITEM = re.compile(r"^(\d+)\.\s+`([^`:]+):([^`]+)`")
+ITEM = re.compile(r"^(\d+)\.\s")
+REF = re.compile(r"`([\w./-]+\.(?:hpp|cpp|h|c|py|sh)):([\w:~]+)`")
+TICK_DOC = re.compile(r"tick step (\d+), \*\*([^*]+)\*\*")
+TICK_CODE = re.compile(r"^\s*//\s+(\d+) (\S+(?: \S+)*?)\s{2,}\S")
+CORE = "firmware/include/bms/fw/bms_core.hpp"
 
 
-def tick_items(doc_path):
+def read_section(doc_path):
+    """(numbered items, code references, tick steps) of the one-tick section."""
     try:
         with open(doc_path, encoding="utf-8") as f:
             lines = f.read().split("\n")
     except OSError as e:
         print(f"check-architecture: cannot read {doc_path}: {e.strerror}", file=sys.stderr)
         sys.exit(2)
-    items, inside = [], False
+    items, refs, steps, inside = [], [], [], False
     for number, line in enumerate(lines, 1):
         if line.startswith("## "):
             inside = line.startswith("## One 0.2 s tick")
             continue
-        m = ITEM.match(line) if inside else None
+        if not inside:
+            continue
+        m = ITEM.match(line)
         if m:
-            items.append((number, int(m.group(1)), m.group(2), m.group(3)))
-    return items
+            items.append((number, int(m.group(1))))
+        refs += [(number, r.group(1), r.group(2)) for r in REF.finditer(line)]
+        steps += [(number, int(t.group(1)), t.group(2)) for t in TICK_DOC.finditer(line)]
+    return items, refs, steps
+
+
+def code_tick_steps(root):
+    """The numbered list at the top of BmsCore::tick: {number: name}."""
+    with open(os.path.join(root, CORE), encoding="utf-8") as f:
+        text = f.read()
+    body = text[text.index("Output tick("):]
+    body = body[:body.index("StatusWord st")]
+    return {int(m.group(1)): m.group(2) for m in map(TICK_CODE.match, body.split("\n")) if m}
 
 
 def check_item(root, doc_line, path, name):
@@ -50,6 +70,8 @@ def check_item(root, doc_line, path, name):
         if not re.search(r"\b" + re.escape(part) + r"\b", text):
             return f"line {doc_line}: {path} has no '{part}' (step {name})"
     fn = parts[-1]
+    if re.match(r"k[A-Z]", fn):
+        return None  # a constant: present is enough
     if not re.search(r"\b" + re.escape(fn) + r"\s*(<[^;{}()]*>)?\s*\(", text):
         return f"line {doc_line}: {path} has no function '{fn}(' (step {name})"
     return None
@@ -62,21 +84,30 @@ def main():
     ap.add_argument("--doc", help="the document to check (default: ROOT/docs/architecture.md)")
     a = ap.parse_args()
     doc = a.doc or os.path.join(a.root, "docs", "architecture.md")
-    items = tick_items(doc)
-    if not items:
-        print(f"check-architecture: {doc}: no numbered `path:function` list under '## One 0.2 s tick'",
+    items, refs, steps = read_section(doc)
+    if not items or not refs:
+        print(f"check-architecture: {doc}: no numbered list naming `path:function` under '## One 0.2 s tick'",
               file=sys.stderr)
         return 2
     failures = []
-    for expected, (doc_line, number, path, name) in enumerate(items, 1):
+    for expected, (doc_line, number) in enumerate(items, 1):
         if number != expected:
             failures.append(f"line {doc_line}: step numbered {number}, expected {expected}")
+    for doc_line, path, name in refs:
         problem = check_item(a.root, doc_line, path, name)
         if problem:
             failures.append(problem)
+    code_steps = code_tick_steps(a.root)
+    doc_steps = {n: name for _, n, name in steps}
+    for doc_line, n, name in steps:
+        if code_steps.get(n) != name:
+            failures.append(f"line {doc_line}: tick step {n} is '{name}', {CORE} says '{code_steps.get(n)}'")
+    for n in sorted(set(code_steps) - set(doc_steps)):
+        failures.append(f"tick step {n} ('{code_steps[n]}') of {CORE} is not in the list")
     for f in failures:
         print(f"check-architecture: {doc} {f}")
-    print(f"check-architecture: {len(items)} steps, {len(failures)} mismatch(es)")
+    print(f"check-architecture: {len(items)} path steps, {len(steps)} tick steps, {len(refs)} names, "
+          f"{len(failures)} mismatch(es)")
     return 1 if failures else 0
 
 

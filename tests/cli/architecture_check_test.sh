@@ -31,4 +31,13 @@ if [ $rc = 1 ] && grep -q "numbered 4, expected 2" "$tmp/out2.txt"; then
 else
   echo "FAIL a step out of order: exit $rc"; cat "$tmp/out2.txt"; fail=1
 fi
+# One numbering: a tick step the code does not name so (or numbers otherwise) fails.
+sed 's/tick step 7, \*\*resync\*\*/tick step 7, **re-synchronise**/' "$src/docs/architecture.md" >"$tmp/tick.md"
+python3 "$src/scripts/check-architecture.py" --root "$src" --doc "$tmp/tick.md" >"$tmp/out3.txt" 2>&1
+rc=$?
+if [ $rc = 1 ] && grep -q "tick step 7 is 're-synchronise'" "$tmp/out3.txt"; then
+  echo "PASS a tick step named otherwise than in BmsCore::tick fails the check"
+else
+  echo "FAIL a tick step named otherwise: exit $rc"; cat "$tmp/out3.txt"; fail=1
+fi
 exit $fail

@@ -249,21 +249,21 @@ class BmsCore {
 
   Output tick(const TickInput<Scalar>& in) {
     // One tick, in this order (the numbering docs/architecture.md uses):
-    //   1 validate      validate(): finite, voltage and current plausible, no impossible step; a
-    //                   rejected or missing sample keeps every state and counts towards staleness
-    //   2 catch-up      accept_sample(): the model steps over the ticks missed since the last
-    //                   accepted sample (catch_up()); the power-up re-synchronisation window opens
-    //   3 detect mode   ModeDetector::update(): debounced operating mode
-    //   4 learning gate open_gate(): LearningGate (CC charge, warm-up, bias ready; at the window's
-    //                   start RCSI is reset), BiasCalibration stops at the end of a CC charge
-    //   5 film in use   film_in_use(): u_hat = RcsiEstimator::predict() inside the window, else the
-    //                   held FilmLevel, or the FilmGrowthIdentifier's film
-    //   6 model step    step_model(): voltage-driven in CV (debounced and confirmed by this
-    //                   sample's class), current-driven otherwise
-    //   7 resync        resync_step(): StateResync's window at the end of a CV phase or at power-up
-    //   8 residual      z = y_hat - y; BiasCalibration::collect() over the reference charge
-    //   9 learning      learn(): RcsiEstimator::update (or the identifier) from z inside the window
-    //  10 output        finish_tick()
+    //   1 validate       validate(): finite, voltage and current plausible, no impossible step; a
+    //                    rejected or missing sample keeps every state and counts towards staleness
+    //   2 catch-up       accept_sample(): the model steps over the ticks missed since the last
+    //                    accepted sample (catch_up()); the power-up re-synchronisation window opens
+    //   3 detect mode    ModeDetector::update(): debounced operating mode
+    //   4 learning gate  open_gate(): LearningGate (CC charge, warm-up, bias ready; at the window's
+    //                    start RCSI is reset), BiasCalibration stops at the end of a CC charge
+    //   5 film in use    film_in_use(): u_hat = RcsiEstimator::predict() inside the window, else the
+    //                    held FilmLevel, or the FilmGrowthIdentifier's film
+    //   6 model step     step_model(): voltage-driven in CV (debounced and confirmed by this
+    //                    sample's class), current-driven otherwise
+    //   7 resync         resync_step(): StateResync's window at the end of a CV phase or at power-up
+    //   8 residual       z = y_hat - y; BiasCalibration::collect() over the reference charge
+    //   9 learning       learn(): RcsiEstimator::update (or the identifier) from z inside the window
+    //  10 output         finish_tick()
     StatusWord st = 0u;
     if (!in.present) return held_output(raise_stale(st));                        // 1
     st |= validate(in);
