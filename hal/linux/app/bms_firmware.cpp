@@ -213,7 +213,7 @@ App::Options app_options(const Args& a, double dt_s) {
 
 // Runs ticks until SIGTERM/SIGINT; a bus that goes down is retried, any other failure ends
 // the run (exit 1). The state is committed on the way out.
-int run(App& app, bms::hal::lnx::SocketCanBus& can, unsigned long& bus_errors) {
+int run(App& app, const bms::hal::lnx::SocketCanBus& can, unsigned long& bus_errors) {
   while (g_stop == 0) {
     const bms::hal::Status s = app.step();
     if (s == bms::hal::Status::ok || s == bms::hal::Status::timeout) continue;

@@ -46,6 +46,7 @@ constexpr std::uint64_t get_bits(const std::uint8_t* data, unsigned start, unsig
 }
 
 constexpr std::int64_t sign_extend(std::uint64_t raw, unsigned len) {
+  if (len == 0u || len >= 64u) return static_cast<std::int64_t>(raw);  // no sign bit to extend
   const std::uint64_t sign = std::uint64_t{1} << (len - 1u);
   const std::uint64_t value = raw & ((sign << 1u) - 1u);
   return (value & sign) != 0u ? static_cast<std::int64_t>(value) - static_cast<std::int64_t>(sign << 1u)
