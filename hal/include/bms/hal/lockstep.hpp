@@ -16,6 +16,7 @@
 #include <cstdint>
 
 #include "bms/hal/can_bus.hpp"
+#include "bms/hal/frame_ring.hpp"
 #include "bms/hal/tick_source.hpp"
 
 namespace bms::hal {
@@ -38,11 +39,7 @@ class LockstepBus final : public CanBus, public TickSource {
   /// Hands out the frames buffered by wait_next_tick(); never waits (timeout_ms is
   /// ignored): an empty buffer gives Status::timeout.
   Status receive(CanFrame& frame, std::int32_t /*timeout_ms*/) override {
-    if (count_ == 0) return Status::timeout;
-    frame = fifo_[head_];
-    head_ = (head_ + 1) % Capacity;
-    --count_;
-    return Status::ok;
+    return fifo_.pop(frame) ? Status::ok : Status::timeout;
   }
 
   Status set_filters(const CanFilter* filters, std::size_t count) override {
@@ -61,7 +58,7 @@ class LockstepBus final : public CanBus, public TickSource {
       CanFrame f{};
       const Status s = inner_.receive(f, timeout_ms);
       if (s != Status::ok) return s;
-      push(f);
+      if (fifo_.push_dropping_oldest(f)) ++overflowed_;  // keep the trigger that is coming
       std::uint32_t t = 0;
       if (classify_ != nullptr && classify_(f, t, ctx_)) {
         tick = t;
@@ -74,25 +71,13 @@ class LockstepBus final : public CanBus, public TickSource {
   std::uint32_t ticks() const { return ticks_; }
   /// Frames lost because more than Capacity arrived before the application drained them.
   std::uint32_t overflowed_frames() const { return overflowed_; }
-  std::size_t buffered() const { return count_; }
+  std::size_t buffered() const { return fifo_.size(); }
 
  private:
-  void push(const CanFrame& f) {
-    if (count_ == Capacity) {  // drop the oldest, keep the trigger that is coming
-      head_ = (head_ + 1) % Capacity;
-      --count_;
-      ++overflowed_;
-    }
-    fifo_[(head_ + count_) % Capacity] = f;
-    ++count_;
-  }
-
   CanBus& inner_;
   TickClassifier classify_;
   void* ctx_;
-  CanFrame fifo_[Capacity]{};
-  std::size_t head_ = 0;
-  std::size_t count_ = 0;
+  FrameRing<Capacity> fifo_;
   std::uint32_t ticks_ = 0;
   std::uint32_t overflowed_ = 0;
 };

@@ -9,6 +9,7 @@
 #include <cstdint>
 
 #include "bms/hal/can_bus.hpp"
+#include "bms/hal/frame_ring.hpp"
 
 namespace bms::hal {
 
@@ -25,7 +26,7 @@ class MemoryCanBus final : public CanBus {
   Status send(const CanFrame& frame) override {
     if (peer_ == nullptr) return Status::not_open;
     if (frame.len > 8u) return Status::invalid_argument;
-    if (!peer_->push(frame)) {
+    if (!peer_->ring_.push(frame)) {
       ++refused_;
       return Status::overflow;
     }
@@ -35,31 +36,18 @@ class MemoryCanBus final : public CanBus {
 
   /// Never waits: the sender runs in the same thread, so waiting could not help.
   Status receive(CanFrame& frame, std::int32_t /*timeout_ms*/) override {
-    if (count_ == 0u) return Status::timeout;
-    frame = ring_[head_];
-    head_ = (head_ + 1u) % Capacity;
-    --count_;
-    return Status::ok;
+    return ring_.pop(frame) ? Status::ok : Status::timeout;
   }
 
   Status set_filters(const CanFilter* /*filters*/, std::size_t /*count*/) override { return Status::ok; }
 
   std::uint32_t sent() const { return sent_; }
   std::uint32_t refused() const { return refused_; }
-  std::size_t queued() const { return count_; }
+  std::size_t queued() const { return ring_.size(); }
 
  private:
-  bool push(const CanFrame& f) {
-    if (count_ == Capacity) return false;
-    ring_[(head_ + count_) % Capacity] = f;
-    ++count_;
-    return true;
-  }
-
   MemoryCanBus* peer_ = nullptr;
-  CanFrame ring_[Capacity]{};
-  std::size_t head_ = 0;
-  std::size_t count_ = 0;
+  FrameRing<Capacity> ring_;
   std::uint32_t sent_ = 0;
   std::uint32_t refused_ = 0;
 };
