@@ -26,7 +26,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
-#include <vector>
 
 #include "bms/fw/bms_core.hpp"
 #include "bms/app/bms_application.hpp"
@@ -37,6 +36,7 @@
 #include "bms/hal/linux/socketcan.hpp"
 #include "bms/hal/linux/stderr_log.hpp"
 #include "bms/hal/linux/timerfd_tick.hpp"
+#include "bms/hal/ram_nvm.hpp"
 #include "bms/hal/lockstep.hpp"
 
 namespace {
@@ -44,32 +44,6 @@ namespace {
 volatile std::sig_atomic_t g_stop = 0;  // set by the signal handler only
 void on_signal(int) { g_stop = 1; }
 
-// Volatile NVM for runs without --nvm: the state lives as long as the process.
-class RamOnlyNvm final : public bms::hal::NonVolatileMemory {
- public:
-  RamOnlyNvm() : bytes_(kSize, 0xFF) {}
-  std::size_t size_bytes() const override { return kSize; }
-  std::size_t page_size() const override { return 256; }
-  bms::hal::Status read(std::size_t off, void* dst, std::size_t len) override {
-    if (off + len > kSize) return bms::hal::Status::out_of_range;
-    std::memcpy(dst, bytes_.data() + off, len);
-    return bms::hal::Status::ok;
-  }
-  bms::hal::Status write(std::size_t off, const void* src, std::size_t len) override {
-    if (off + len > kSize) return bms::hal::Status::out_of_range;
-    std::memcpy(bytes_.data() + off, src, len);
-    return bms::hal::Status::ok;
-  }
-  bms::hal::Status erase(std::size_t off, std::size_t len) override {
-    if (off + len > kSize) return bms::hal::Status::out_of_range;
-    std::memset(bytes_.data() + off, 0xFF, len);
-    return bms::hal::Status::ok;
-  }
-
- private:
-  static constexpr std::size_t kSize = 16384;
-  std::vector<unsigned char> bytes_;
-};
 
 void usage(FILE* to) {
   std::fprintf(to,
@@ -262,7 +236,10 @@ int main(int argc, char** argv) {
   }
   enlarge_receive_buffer(can.native_handle(), static_cast<int>(args.rcvbuf_bytes));
   bms::hal::lnx::FileNvm file_nvm;
-  static RamOnlyNvm ram_nvm;
+  // Without --nvm: the state lives as long as the process (erased RAM, as a blank flash).
+  static std::uint8_t ram_bytes[16384];
+  static bms::hal::RamNvm ram_nvm(ram_bytes, sizeof ram_bytes, 256u);
+  (void)ram_nvm.erase(0, sizeof ram_bytes);
   bms::hal::NonVolatileMemory* nvm = &ram_nvm;
   if (!args.nvm_path.empty()) {
     if (file_nvm.open(args.nvm_path.c_str(), 16384, 256) != bms::hal::Status::ok) {

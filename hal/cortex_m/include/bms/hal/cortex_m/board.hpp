@@ -20,6 +20,7 @@
 #include "bms/hal/log_sink.hpp"
 #include "bms/hal/monotonic_clock.hpp"
 #include "bms/hal/nvm.hpp"
+#include "bms/hal/ram_nvm.hpp"
 #include "bms/hal/status.hpp"
 #include "bms/hal/tick_source.hpp"
 #include "bms/hal/watchdog.hpp"
@@ -79,26 +80,8 @@ class SemihostLogSink final : public LogSink {
   const MonotonicClock* clock_;
 };
 
-/// NonVolatileMemory over a caller-provided RAM buffer (for example retained_ram()), with
-/// the erase semantics of flash (erased bytes read kNvmErasedByte). A new RamNvm over a
-/// buffer does not erase it: contents survive a warm reset when the buffer is retained_ram().
-class RamNvm final : public NonVolatileMemory {
- public:
-  RamNvm(std::uint8_t* storage, std::size_t size_bytes, std::size_t page_size);
-
-  std::size_t size_bytes() const override { return size_; }
-  std::size_t page_size() const override { return page_size_; }
-  Status read(std::size_t offset, void* dst, std::size_t len) override;
-  Status write(std::size_t offset, const void* src, std::size_t len) override;
-  Status erase(std::size_t offset, std::size_t len) override;
-  const char* last_error() const override { return error_; }
-
- private:
-  std::uint8_t* mem_;
-  std::size_t size_;
-  std::size_t page_size_;
-  const char* error_ = "";
-};
+/// NonVolatileMemory over RAM: the portable one (bms/hal/ram_nvm.hpp), over retained_ram() here.
+using RamNvm = bms::hal::RamNvm;
 
 /// The CMSDK APB watchdog of the MPS2 boards (0x40008000, clocked at kSysClockHz). Its
 /// counter runs down from the load value; at zero it raises its interrupt (the NMI on MPS2)
