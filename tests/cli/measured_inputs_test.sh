@@ -51,5 +51,29 @@ fi
 check_input_error sampled_120s 'm120\.csv.*every 120 s.*60 s' e120 -- \
   "$BMSSIM" estimate --data m120.csv --cell paper --quiet --out e120
 
+# --- 3. --out never replaces a folder holding the user's files or an input of the run.
+"$BMSSIM" simulate --cycles 1 --dt 1 --points 6 --radial 6 --quiet --out S 2>/dev/null >/dev/null
+check_input_error out_holds_input "--out 'S'.*holds the input .*S/truth\.csv" S_unused -- \
+  "$BMSSIM" estimate --data S/truth.csv --cell paper --quiet --out S
+[ -s S/truth.csv ] && pass out_input_kept || fail out_input_kept "S/truth.csv is gone"
+if "$BMSSIM" simulate --cycles 1 --dt 1 --points 6 --radial 6 --quiet --out S 2>/dev/null >/dev/null; then
+  pass out_rerun_replaces_own_folder
+else
+  fail out_rerun_replaces_own_folder "a second run into a folder bmssim wrote exits $?"
+fi
+mkdir export && cp m60.csv export/raw.csv && echo '{"cycler": "own"}' > export/summary.json
+check_input_error out_foreign_summary "--out 'export'.*files no bmssim run wrote" export_unused -- \
+  "$BMSSIM" estimate --data m60.csv --cell paper --quiet --out export
+cmp -s m60.csv export/raw.csv && pass out_foreign_kept || fail out_foreign_kept "export/raw.csv changed or gone"
+echo extra > S/notes.txt
+check_input_error out_added_file "--out 'S'.*files no bmssim run wrote" S_unused -- \
+  "$BMSSIM" simulate --cycles 1 --dt 1 --quiet --out S
+mkdir target && ln -s target link && ln -s nowhere dangling
+check_input_error out_symlink "--out 'link'.*symbolic link" link_unused -- \
+  "$BMSSIM" simulate --cycles 1 --dt 1 --quiet --out link
+[ -L link ] && pass out_symlink_kept || fail out_symlink_kept "the link was replaced"
+check_input_error out_dangling "--out 'dangling'.*symbolic link" dangling_unused -- \
+  timeout 5 "$BMSSIM" simulate --cycles 1000 --quiet --out dangling
+
 echo "$PASSED passed, $FAILED failed"
 [ "$FAILED" -eq 0 ]
