@@ -292,15 +292,16 @@ void dispatch_nc(Model& model, const MeasuredSeries& d, const EstimateOptions& o
 }
 
 // A measured record gives no truth to check against: an estimate outside the physical range
-// (a film at or below zero) is a failure of the data's sampling, not a result.
+// (a negative film) is a failure of the data's sampling, not a result.
 void require_physical_film(const EstimateResult& res, const EstimateData& d) {
   if (!(d.tick_s > 0.0)) return;
   for (const EstimateRow& r : res.rows) {
-    const bool bad = !(r.r_film_est_ohm_m2 > 0.0) || !std::isfinite(r.r_film_est_ohm_m2);
-    if (bad)
+    // The identifier's initial film is clipped into the film in use: negative there is the sign.
+    const double film = std::min(r.r_film_est_ohm_m2, r.film_initial_ohm_m2);
+    if (!(film >= 0.0) || !std::isfinite(r.r_film_est_ohm_m2))
       throw RuntimeFailure(fmt::format("{}: the film estimate left the physical range ({} ohm m2 at t = {} s) on a "
                                        "record sampled every {} s: log at 1 s (or finer) and run again",
-                                       d.source, r.r_film_est_ohm_m2, r.t_s, d.median_step_s));
+                                       d.source, film, r.t_s, d.median_step_s));
   }
 }
 
