@@ -51,6 +51,31 @@ fi
 check_input_error sampled_120s 'm120\.csv.*every 120 s.*60 s' e120 -- \
   "$BMSSIM" estimate --data m120.csv --cell paper --quiet --out e120
 
+# --- 2. The current sign: settled by the layout, --current-sign, or the data. A discharge-
+# positive file under a cycler-style header contradicts the voltage's response: refused
+# naming the option by every command that reads it; with the option it runs.
+awk -F, 'NR == 1 { for (k = 1; k <= NF; k++) col[$k] = k; print "Time [s],Current [A],Voltage [V]"; next }
+  { printf "%s,%.6f,%.6f\n", $col["t_s"], $col["current_meas_a"], $col["voltage_meas_v"] }' sim/truth.csv > dpos.csv
+check_input_error sign_estimate 'dpos\.csv.*contradicts the voltage.*--current-sign discharge-positive' sign_e -- \
+  "$BMSSIM" estimate --data dpos.csv --cell paper --quiet --out sign_e
+check_input_error sign_simulate 'dpos\.csv.*contradicts the voltage.*--current-sign discharge-positive' sign_s -- \
+  "$BMSSIM" simulate --protocol csv:dpos.csv --quiet --out sign_s
+check_input_error sign_diagnose 'dpos\.csv.*contradicts the voltage.*--current-sign discharge-positive' sign_d -- \
+  "$BMSSIM" diagnose --data dpos.csv --cell paper --out sign_d
+check_input_error sign_simulate_unused '--current-sign: only with --protocol csv' sign_u -- \
+  "$BMSSIM" simulate --current-sign charge-positive --quiet --out sign_u
+if "$BMSSIM" estimate --data dpos.csv --cell paper --current-sign discharge-positive --quiet --out sign_ok 2>err_sign >/dev/null; then
+  film=$(final_film sign_ok)
+  if awk -v a="$film" -v b="$(final_film e1)" 'BEGIN { exit !((a - b) / b < 0.001 && (b - a) / b < 0.001) }'; then
+    pass "sign_option (film $film, as the charge-positive file's)"
+  else fail sign_option "film $film, the charge-positive file gives $(final_film e1)"; fi
+else fail sign_option "exit $?: $(head -n 1 err_sign)"; fi
+if "$BMSSIM" simulate --protocol csv:dpos.csv --current-sign discharge-positive --points 6 --radial 6 --quiet \
+     --out sign_sim 2>err_sim2 >/dev/null && grep -q '"complete": true' sign_sim/summary.json; then
+  end=$(tail -n 1 sign_sim/truth.csv | cut -d, -f1)
+  [ "${end%.*}" -ge 15000 ] && pass "sign_simulate_option (driven to t = $end s)" || fail sign_simulate_option "stopped at $end s"
+else fail sign_simulate_option "exit $?: $(head -n 1 err_sim2)"; fi
+
 # --- 3. --out never replaces a folder holding the user's files or an input of the run.
 "$BMSSIM" simulate --cycles 1 --dt 1 --points 6 --radial 6 --quiet --out S 2>/dev/null >/dev/null
 check_input_error out_holds_input "--out 'S'.*holds the input .*S/truth\.csv" S_unused -- \
