@@ -106,13 +106,7 @@ void check_voltage_window(const CellParameters& cell, const InitialConditions& i
 
 // A measured current far beyond what the cell can carry is bad input, not a solver failure.
 void check_profile_currents(const MeasuredProfile& p, const CellParameters& cell) {
-  const double limit_a = 4.0 * kMaxCRate * cell.nominal_capacity_ah;
-  for (size_t i = 0; i < p.current_a.size(); ++i)
-    if (!(std::abs(p.current_a[i]) <= limit_a))
-      throw InputError(fmt::format("{}: sample {} (t = {:g} s): current {:g} A is beyond {:g}C ({:g} A) for this "
-                                   "cell's {:g} Ah",
-                                   p.source, i + 1, p.t_s[i], p.current_a[i], 4.0 * kMaxCRate, limit_a,
-                                   cell.nominal_capacity_ah));
+  check_record_currents(p.source, p.t_s, p.current_a, cell);
 }
 
 void check_experiment(const Experiment& e, const CellParameters& cell, double v_min, double v_max) {
@@ -198,6 +192,17 @@ void check_cccv_options(const SimulateOptions& o, const CellParameters& cell, co
 }
 
 }  // namespace
+
+void check_record_currents(const std::string& source, const std::vector<double>& t_s,
+                           const std::vector<double>& current_a, const CellParameters& cell) {
+  const double limit_a = 4.0 * kMaxCRate * cell.nominal_capacity_ah;
+  for (size_t i = 0; i < current_a.size(); ++i)
+    if (!(std::abs(current_a[i]) <= limit_a))
+      throw InputError(fmt::format("{}: sample {} (t = {:g} s): current {:g} A is beyond {:g}C ({:g} A) for this "
+                                   "cell's {:g} Ah (a column in mA labelled [A]?)",
+                                   source, i + 1, t_s[i], current_a[i], 4.0 * kMaxCRate, limit_a,
+                                   cell.nominal_capacity_ah));
+}
 
 SimulationPlan plan_simulation(const SimulateOptions& o) {
   require_finite(o.current_a, "--current-a");

@@ -76,6 +76,13 @@ if "$BMSSIM" simulate --protocol csv:dpos.csv --current-sign discharge-positive 
   [ "${end%.*}" -ge 15000 ] && pass "sign_simulate_option (driven to t = $end s)" || fail sign_simulate_option "stopped at $end s"
 else fail sign_simulate_option "exit $?: $(head -n 1 err_sim2)"; fi
 
+# --- 5. Units: a current in mA under an [A] header is refused by diagnose as by simulate.
+awk -F, 'NR == 1 { print; next } { printf "%s,%.3f,%s\n", $1, $2 * 1000, $3 }' m30.csv > milli.csv
+check_input_error milliamps_diagnose 'milli\.csv: sample 1 .*current -?2500 A is beyond .*mA labelled \[A\]' milli_d -- \
+  "$BMSSIM" diagnose --data milli.csv --cell paper --out milli_d
+check_input_error milliamps_simulate 'milli\.csv: sample 1 .*current -?2500 A is beyond .*mA labelled \[A\]' milli_s -- \
+  "$BMSSIM" simulate --protocol csv:milli.csv --quiet --out milli_s
+
 # --- 3. --out never replaces a folder holding the user's files or an input of the run.
 "$BMSSIM" simulate --cycles 1 --dt 1 --points 6 --radial 6 --quiet --out S 2>/dev/null >/dev/null
 check_input_error out_holds_input "--out 'S'.*holds the input .*S/truth\.csv" S_unused -- \
