@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "simulate_options.hpp"
 #include "diagnosis/diagnose.hpp"
 #include "diagnosis/report.hpp"
 #include "io/input_error.hpp"
@@ -97,6 +98,7 @@ int run_diagnose(const DiagnoseOptions& o) {
   std::vector<diagnosis::Record> records;
   for (const auto& d : o.data) {
     records.push_back(diagnosis::load_record(d, sign));
+    check_record_currents(d, records.back().t_s, records.back().current_a, cell);
     diagnosis::set_initial_state(records.back(), cell, o.initial_soc);
   }
   auto log = [q = o.quiet](const std::string& s) {
