@@ -83,6 +83,24 @@ check_input_error milliamps_diagnose 'milli\.csv: sample 1 .*current -?2500 A is
 check_input_error milliamps_simulate 'milli\.csv: sample 1 .*current -?2500 A is beyond .*mA labelled \[A\]' milli_s -- \
   "$BMSSIM" simulate --protocol csv:milli.csv --quiet --out milli_s
 
+# --- 6. Memory bounded by the samples, not by a grid: 1 ms samples around a three-day rest.
+python3 - <<'PY'
+with open('ms.csv', 'w') as f:
+    f.write('Time [s],Current [A],Voltage [V]\n')
+    for k in range(20000):
+        f.write('%.3f,0,3.3\n' % (k * 0.001 + (259200 if k >= 10000 else 0)))
+PY
+for cmd in estimate simulate; do
+  if [ "$cmd" = estimate ]; then args=(estimate --data ms.csv --cell paper); else args=(simulate --protocol csv:ms.csv); fi
+  /usr/bin/time -o "rss_$cmd" -f %M "$BMSSIM" "${args[@]}" --quiet --out "ms_$cmd" >/dev/null 2>&1
+  kb=$(tail -n 1 "rss_$cmd")
+  if [ -f "ms_$cmd/summary.json" ] && [ "${kb:-999999}" -lt 200000 ]; then pass "memory_${cmd}_gap ($kb kB)"
+  else fail "memory_${cmd}_gap" "$kb kB, summary $(ls "ms_$cmd" 2>&1 | head -c 100)"; fi
+done
+# A record entirely at rest: nothing to diagnose, said before any work.
+check_input_error rest_diagnose 'ms\.csv: no current flows in the record' ms_d -- \
+  "$BMSSIM" diagnose --data ms.csv --cell paper --out ms_d
+
 # --- 3. --out never replaces a folder holding the user's files or an input of the run.
 "$BMSSIM" simulate --cycles 1 --dt 1 --points 6 --radial 6 --quiet --out S 2>/dev/null >/dev/null
 check_input_error out_holds_input "--out 'S'.*holds the input .*S/truth\.csv" S_unused -- \
