@@ -115,6 +115,10 @@ void check_experiment(const Experiment& e, const CellParameters& cell, double v_
     if (step.kind == ControlKind::current && c_rate > kMaxCRate)
       throw InputError(fmt::format("--protocol step '{}': {:g} A is {:.3g}C; at most {:g}C for this cell's {:g} Ah",
                                    step.text, std::abs(step.value), c_rate, kMaxCRate, cell.nominal_capacity_ah));
+    if (step.duration_s > e.max_step_s)
+      throw InputError(fmt::format("--protocol step '{}': {:g} s is longer than a step may run ({:g} s); split it "
+                                   "into shorter steps",
+                                   step.text, step.duration_s, e.max_step_s));
     const double v = step.kind == ControlKind::voltage ? step.value : step.until_voltage_v;
     if (std::isfinite(v) && !(v >= v_min - 0.5 && v <= v_max + 0.5))
       throw InputError(fmt::format("--protocol step '{}': {:g} V is outside the cell's window [{:g}, {:g}] V by more "

@@ -101,6 +101,15 @@ done
 check_input_error rest_diagnose 'ms\.csv: no current flows in the record' ms_d -- \
   "$BMSSIM" diagnose --data ms.csv --cell paper --out ms_d
 
+# --- 7. Checks that need no work run before the work.
+check_input_error rest_forever "--protocol step 'Rest for 1e12 hours'.*longer than a step may run" rest12 -- \
+  timeout 20 "$BMSSIM" simulate --protocol "Rest for 1e12 hours" --quiet --out rest12
+[ ! -e rest12 ] && pass rest_forever_no_folder || fail rest_forever_no_folder "rest12 exists: $(ls rest12)"
+start=$(date +%s)
+check_input_error hil_fault_first "--fault: 'crc=0.6,drop=0.6': the rates add up to more than 1" hf -- \
+  timeout 60 "$BMSSIM" hil --bus uml --fault crc=0.6,drop=0.6 --cycles 1 --out hf
+[ $(($(date +%s) - start)) -lt 5 ] && pass hil_fault_before_boot || fail hil_fault_before_boot "took $(($(date +%s) - start)) s"
+
 # --- 3. --out never replaces a folder holding the user's files or an input of the run.
 "$BMSSIM" simulate --cycles 1 --dt 1 --points 6 --radial 6 --quiet --out S 2>/dev/null >/dev/null
 check_input_error out_holds_input "--out 'S'.*holds the input .*S/truth\.csv" S_unused -- \
