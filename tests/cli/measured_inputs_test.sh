@@ -110,6 +110,24 @@ check_input_error hil_fault_first "--fault: 'crc=0.6,drop=0.6': the rates add up
   timeout 60 "$BMSSIM" hil --bus uml --fault crc=0.6,drop=0.6 --cycles 1 --out hf
 [ $(($(date +%s) - start)) -lt 5 ] && pass hil_fault_before_boot || fail hil_fault_before_boot "took $(($(date +%s) - start)) s"
 
+# --- 8. Messages that say what to do.
+sed 's/,/;/g; s/\./,/g' m60.csv > eu.csv
+check_input_error european_csv "eu\.csv: line 1: columns separated by ';'.*'\.' as the decimal point" eu_o -- \
+  "$BMSSIM" estimate --data eu.csv --cell paper --quiet --out eu_o
+iconv -f UTF-8 -t UTF-16 m60.csv > u16.csv
+check_input_error utf16 'u16\.csv: NUL bytes in the text \(UTF-16' u16_o -- \
+  "$BMSSIM" estimate --data u16.csv --cell paper --quiet --out u16_o
+"$BMSSIM" simulate --cycles 1e3 --quiet --out c1e3 2> err_c1e3 >/dev/null
+rc=$?
+if [ $rc -eq 2 ] && grep -q "^bmssim: --cycles: '1e3' is not a whole number.*1000, not 1e3" err_c1e3 && [ ! -e c1e3 ]; then
+  pass cycles_1e3
+else fail cycles_1e3 "exit $rc: $(head -n 1 err_c1e3)"; fi
+FIRMWARE=$(dirname "$BMSSIM")/../hal/bms-firmware
+if [ -x "$FIRMWARE" ]; then
+  check_input_error firmware_long_can "--can must name a CAN interface of 1\.\.15 characters" fw_o -- \
+    "$FIRMWARE" --can averyveryverylongcanname --lockstep
+fi
+
 # --- 3. --out never replaces a folder holding the user's files or an input of the run.
 "$BMSSIM" simulate --cycles 1 --dt 1 --points 6 --radial 6 --quiet --out S 2>/dev/null >/dev/null
 check_input_error out_holds_input "--out 'S'.*holds the input .*S/truth\.csv" S_unused -- \
