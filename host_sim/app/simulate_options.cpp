@@ -25,7 +25,15 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
   sub.add_option("--current-sign", o.current_sign,
                  "discharge-positive | charge-positive: the sign of a csv:FILE's current (default: by its layout, "
                  "checked against the voltage's response; a contradiction exits 2)");
-  sub.add_option("--cycles", o.cycles, "Number of CCCV cycles")->capture_default_str()->check(CLI::Range(1, 100000));
+  sub.add_option("--cycles", o.cycles, "Number of CCCV cycles")
+      ->capture_default_str()
+      ->check(CLI::Validator(
+          [](std::string& v) -> std::string {
+            const bool digits = !v.empty() && v.size() <= 6 && v.find_first_not_of("0123456789") == std::string::npos;
+            if (digits && std::stoi(v) >= 1 && std::stoi(v) <= 100000) return {};
+            return "'" + v + "' is not a whole number of cycles from 1 to 100000 (written out: 1000, not 1e3)";
+          },
+          "INT in [1 - 100000]"));
   sub.add_option("--current-a", o.current_a, "CC current magnitude (A)")->capture_default_str();
   sub.add_option("--dt", o.dt_s, "Output sample time (s)")->capture_default_str();
   sub.add_option("--noise-v-mv", o.noise_v_mv, "Voltage measurement noise, standard deviation (mV)")->capture_default_str();
@@ -115,6 +123,10 @@ void check_experiment(const Experiment& e, const CellParameters& cell, double v_
     if (step.kind == ControlKind::current && c_rate > kMaxCRate)
       throw InputError(fmt::format("--protocol step '{}': {:g} A is {:.3g}C; at most {:g}C for this cell's {:g} Ah",
                                    step.text, std::abs(step.value), c_rate, kMaxCRate, cell.nominal_capacity_ah));
+    if (step.duration_s > e.max_step_s)
+      throw InputError(fmt::format("--protocol step '{}': {:g} s is longer than a step may run ({:g} s); split it "
+                                   "into shorter steps",
+                                   step.text, step.duration_s, e.max_step_s));
     const double v = step.kind == ControlKind::voltage ? step.value : step.until_voltage_v;
     if (std::isfinite(v) && !(v >= v_min - 0.5 && v <= v_max + 0.5))
       throw InputError(fmt::format("--protocol step '{}': {:g} V is outside the cell's window [{:g}, {:g}] V by more "
