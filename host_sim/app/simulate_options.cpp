@@ -22,6 +22,9 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
                  "times), or csv:FILE (drive with a measured current: truth.csv or About:Energy "
                  "'Time [s],I[A],U[V]' format)")
       ->capture_default_str();
+  sub.add_option("--current-sign", o.current_sign,
+                 "discharge-positive | charge-positive: the sign of a csv:FILE's current (default: by its layout, "
+                 "checked against the voltage's response; a contradiction exits 2)");
   sub.add_option("--cycles", o.cycles, "Number of CCCV cycles")->capture_default_str()->check(CLI::Range(1, 100000));
   sub.add_option("--current-a", o.current_a, "CC current magnitude (A)")->capture_default_str();
   sub.add_option("--dt", o.dt_s, "Output sample time (s)")->capture_default_str();
@@ -230,6 +233,8 @@ SimulationPlan plan_simulation(const SimulateOptions& o) {
   if (!(v_min < v_max))
     throw InputError("voltage limits inverted: --v-min " + std::to_string(v_min) + " V must be below --v-max " +
                      std::to_string(v_max) + " V");
+  if (!o.current_sign.empty() && o.protocol.rfind("csv:", 0) != 0)
+    throw InputError("--current-sign: only with --protocol csv:FILE (the sign of the file's current)");
   if (o.protocol == "cccv") {
     check_cccv_options(o, cfg.cell, cfg.ic, v_min, v_max);
     CccvProtocol p;
@@ -241,7 +246,7 @@ SimulationPlan plan_simulation(const SimulateOptions& o) {
     plan.experiment = cccv_experiment(p);
   } else if (o.protocol.rfind("csv:", 0) == 0) {
     plan.driven = true;
-    plan.profile = read_measured_profile(o.protocol.substr(4), ProfileColumns::truth);
+    plan.profile = read_measured_profile(o.protocol.substr(4), ProfileColumns::truth, current_sign_option(o.current_sign));
     check_profile_currents(plan.profile, cfg.cell);
     plan.v_stop_low_v = v_min - kDrivenStopMarginV;
     plan.v_stop_high_v = v_max + kDrivenStopMarginV;

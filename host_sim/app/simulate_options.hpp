@@ -17,6 +17,7 @@ namespace bms::app {
 struct SimulateOptions {
   std::string cell = "paper";
   std::string protocol = "cccv";
+  std::string current_sign;  // csv:FILE only: discharge-positive | charge-positive ("" = by layout and data)
   int cycles = 1;
   double current_a = 2.5;
   double dt_s = 0.2;

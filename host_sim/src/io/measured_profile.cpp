@@ -204,6 +204,34 @@ void check_range(const CsvTable& table, const std::string& column, const std::ve
   }
 }
 
+// The voltage's response settles the current's sign: at a step of the current the voltage
+// steps the other way (positive = discharge: more discharge current, lower voltage). Steps of
+// over a tenth of the largest current are weighed by |dI dV|; when four fifths of that weight
+// (and at least 3 steps) say the sign read is wrong, the file is refused naming the option.
+void check_sign_against_voltage(const CsvTable& table, const Layout& l, const MeasuredProfile& p, bool given) {
+  double imax = 0.0;
+  for (double x : p.current_a) imax = std::max(imax, std::abs(x));
+  double agree = 0.0, contradict = 0.0;
+  std::size_t steps = 0, against = 0, first = 0;
+  for (std::size_t i = 1; i < p.current_a.size(); ++i) {
+    const double di = p.current_a[i] - p.current_a[i - 1], dv = p.voltage_v[i] - p.voltage_v[i - 1];
+    if (!(std::abs(di) > 0.1 * imax) || dv == 0.0) continue;
+    ++steps;
+    if (di * dv > 0.0) {
+      contradict += std::abs(di * dv);
+      if (against++ == 0) first = i;
+    } else {
+      agree += std::abs(di * dv);
+    }
+  }
+  if (steps < 3 || contradict <= 4.0 * agree) return;
+  throw InputError(fmt::format(
+      "{}: the current read as {} contradicts the voltage: at {} steps the voltage moves with the current "
+      "read as discharge (first at line {}); {} --current-sign {}",
+      table.name(), l.negate_current ? "charge-positive" : "discharge-positive", fmt::format("{} of {}", against, steps), CsvTable::line_of_row(first),
+      given ? "check the file or" : "give", l.negate_current ? "discharge-positive" : "charge-positive"));
+}
+
 }  // namespace
 
 bool parse_current_sign(std::string_view text, CurrentSign& out) {
@@ -247,6 +275,7 @@ MeasuredProfile parse_measured_profile(std::string_view text, std::string_view n
   if (l.negate_current) {
     for (double& i : p.current_a) i = -i;
   }
+  check_sign_against_voltage(table, l, p, sign != CurrentSign::by_layout);
   if (!l.temperature.empty()) {
     if (l.celsius) {
       check_range(table, l.temperature, p.temperature_k, kMinTemperatureC, kMaxTemperatureC,
