@@ -196,7 +196,9 @@ TEST(EstimateConfig, AcceptedOverridesChangeTheConfiguration) {
                              (p == fw::Profile::nominal_growth &&
                               (std::string(c.option) == "calibrate-bias" || std::string(c.option) == "average" ||
                                std::string(c.option) == "propagate-growth"));
-      if (!redundant) EXPECT_TRUE(changed) << fw::profile_name(p) << " --" << c.option << " changed nothing";
+      if (!redundant) {
+        EXPECT_TRUE(changed) << fw::profile_name(p) << " --" << c.option << " changed nothing";
+      }
     }
   }
 }
