@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "bms/fw/bms_core.hpp"
+#include "bms/fw/make_config.hpp"
 #include "bms/fw/paper_cell.hpp"
 
 namespace {
@@ -57,7 +58,7 @@ void BM_TickCcChargeLearning(benchmark::State& state) {
   const auto& p = plant<Scalar>();
   Model model;
   model.init_default();
-  Core core(typename Core::Config{}, model);
+  Core core(bms::fw::paper_cell_config<Core>(bms::fw::Profile::paper), model);
   for (const auto& in : p.discharge) core.tick(in);
   for (std::size_t k = 0; k < 100; ++k) core.tick(p.charge[k]);
   const auto start = core.save();
@@ -136,7 +137,7 @@ void BM_TickAfterGap(benchmark::State& state) {
   const auto& p = plant<double>();
   Model model;
   model.init_default();
-  Core core(Core::Config{}, model);
+  Core core(bms::fw::paper_cell_config<Core>(bms::fw::Profile::paper), model);
   for (std::size_t k = 0; k < 2000; ++k) core.tick(p.discharge[k]);
   const auto start = core.save();
   const auto gap = static_cast<std::size_t>(state.range(0));
