@@ -11,7 +11,7 @@ set -euo pipefail
 bmssim="$1"; fw="$2"; src="$3"; work="$4"
 at=cc_charge
 # Fault times in s after the CC charge starts; the learning checks need them after the best
-# profile's 900 s warm-up (BmsCore::best_config).
+# profile's 900 s warm-up (make_config.hpp).
 "$bmssim" hil --bus vcan0 --cycles 1 --quiet --out "$work/a"
 "$bmssim" hil --bus vcan0 --cycles 1 --quiet --out "$work/b"
 bash "$src/tests/cli/hil_replay.sh" "$fw" "$work/a/can.log" "$work/replay"

@@ -5,7 +5,7 @@
 //
 // One tick is the numbered step list at the top of tick() (docs/architecture.md uses the same
 // numbers). The parts beyond the paper each sit in their own header with named start, continue
-// and stop conditions, and are switched on by Config alone (the profiles below): LearningGate
+// and stop conditions, and are switched on by Config alone (the profiles of make_config.hpp): LearningGate
 // (learning_gate.hpp), StateResync (state_resync.hpp), BiasCalibration (bias_calibration.hpp),
 // FilmLevel (film_level.hpp), and the `best` profile's FilmGrowthIdentifier.
 // The model answers within the same tick to the u_hat it was given (the film drop is
