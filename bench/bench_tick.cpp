@@ -8,6 +8,8 @@
 #include <vector>
 
 #include "bms/fw/bms_core.hpp"
+#include "bms/fw/make_config.hpp"
+#include "bms/fw/paper_cell.hpp"
 
 namespace {
 
@@ -56,7 +58,7 @@ void BM_TickCcChargeLearning(benchmark::State& state) {
   const auto& p = plant<Scalar>();
   Model model;
   model.init_default();
-  Core core(typename Core::Config{}, model);
+  Core core(bms::fw::paper_cell_config<Core>(bms::fw::Profile::paper), model);
   for (const auto& in : p.discharge) core.tick(in);
   for (std::size_t k = 0; k < 100; ++k) core.tick(p.charge[k]);
   const auto start = core.save();
@@ -85,11 +87,11 @@ template <typename Scalar>
 void BM_ModelStepVoltage(benchmark::State& state) {
   bms::fw::ReducedCell<Scalar> model;
   model.init_default();
-  for (int k = 0; k < 5000; ++k) model.step_current(Scalar(-2.5), Scalar(3.391e-3), Scalar(0.2));
+  for (int k = 0; k < 5000; ++k) model.step_current(Scalar(-2.5), Scalar(bms::fw::paper::kInitialFilm_ohm_m2), Scalar(0.2));
   const auto start = model.state();
   int k = 0;
   for (auto _ : state) {
-    const auto r = model.step_voltage(Scalar(3.6), Scalar(3.391e-3), Scalar(0.2));
+    const auto r = model.step_voltage(Scalar(3.6), Scalar(bms::fw::paper::kInitialFilm_ohm_m2), Scalar(0.2));
     benchmark::DoNotOptimize(r.current_a);
     if (++k == 500) {
       state.PauseTiming();
@@ -110,15 +112,15 @@ void BM_Resync(benchmark::State& state) {
   truth.init_default();
   model.init(Scalar(0.8408 * 1.01), Scalar(0.1592 * 1.01), Scalar(1266.9 * 1.01));
   for (int k = 0; k < 3000; ++k) {
-    truth.step_current(Scalar(2.5), Scalar(3.391e-3), Scalar(0.2));
-    model.step_current(Scalar(2.5), Scalar(3.391e-3), Scalar(0.2));
+    truth.step_current(Scalar(2.5), Scalar(bms::fw::paper::kInitialFilm_ohm_m2), Scalar(0.2));
+    model.step_current(Scalar(2.5), Scalar(bms::fw::paper::kInitialFilm_ohm_m2), Scalar(0.2));
   }
-  const Scalar v = truth.peek_voltage(Scalar(0.2), Scalar(3.391e-3), Scalar(0.2));
+  const Scalar v = truth.peek_voltage(Scalar(0.2), Scalar(bms::fw::paper::kInitialFilm_ohm_m2), Scalar(0.2));
   const Scalar inventory = bms::fw::ReducedCell<Scalar>::inventory_of(Scalar(0.8408), Scalar(0.1592));
   const auto start = model.state();
   bool ok = true;
   for (auto _ : state) {
-    ok = ok && model.resync(v, Scalar(0.2), Scalar(3.391e-3), Scalar(0.2), inventory);
+    ok = ok && model.resync(v, Scalar(0.2), Scalar(bms::fw::paper::kInitialFilm_ohm_m2), Scalar(0.2), inventory);
     state.PauseTiming();
     model.restore(start);
     state.ResumeTiming();
@@ -135,7 +137,7 @@ void BM_TickAfterGap(benchmark::State& state) {
   const auto& p = plant<double>();
   Model model;
   model.init_default();
-  Core core(Core::Config{}, model);
+  Core core(bms::fw::paper_cell_config<Core>(bms::fw::Profile::paper), model);
   for (std::size_t k = 0; k < 2000; ++k) core.tick(p.discharge[k]);
   const auto start = core.save();
   const auto gap = static_cast<std::size_t>(state.range(0));

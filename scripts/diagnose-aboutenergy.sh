@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 7 "must show", measured part: `bmssim diagnose` on the About:Energy LFP 18650 C/20,
+# What diagnose must show, measured part: `bmssim diagnose` on the About:Energy LFP 18650 C/20,
 # 1C and 2C discharges with the BPX parameters, each case alone and the three together
 # (fit on the 1C case, validate on C/20 and 2C: the cross-validated figure). Prints the
 # table of docs/results/diagnosis.md.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 7 "must show", synthetic part: for each candidate effect at a realistic size
+# What diagnose must show, synthetic part: for each candidate effect at a realistic size
 # (models.md section 5) and for no effect, make one CCCV cycle of data with the effect
 # undeclared, run `bmssim diagnose` on it, and print the table of docs/results/diagnosis.md.
 #

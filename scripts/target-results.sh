@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Reproduces the numbers of docs/results/target.md (issue 5): builds the host reference and
+# Reproduces the numbers of docs/results/target.md: builds the host reference and
 # both board presets when missing, runs the board tests verbosely and prints their reports.
 #   scripts/target-results.sh [cortex-m7|cortex-m4f]...   (default: both)
 # The JSON behind each report: build/<preset>/target/results/*.json.

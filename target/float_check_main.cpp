@@ -21,7 +21,7 @@
 #include <vector>
 
 #include <bms/fw/bms_core.hpp>
-#include <bms/fw/paper_cell_profiles.hpp>
+#include <bms/fw/make_config.hpp>
 #include <bms/fw/reduced_cell.hpp>
 
 namespace {

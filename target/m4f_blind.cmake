@@ -1,5 +1,5 @@
 # Blind identification on the board over streamed truths (target/m4f_blind_main.cpp,
-# target/tools/m4f_blind.py; docs/results/target.md, issue 19). Included twice by
+# target/tools/m4f_blind.py; docs/results/target.md). Included twice by
 # target/CMakeLists.txt: in the host block (the references) and at the end of the cross block.
 set(bms_m4f_gen ${CMAKE_CURRENT_BINARY_DIR}/generated)
 if(NOT CMAKE_CROSSCOMPILING)

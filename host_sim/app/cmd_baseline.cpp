@@ -6,8 +6,11 @@
 #include <memory>
 #include <string>
 
+#include <fmt/format.h>
+
 #include "baselines/baseline_output.hpp"
 #include "baselines/baseline_run.hpp"
+#include "bms/fw/paper_cell.hpp"
 #include "commands.hpp"
 #include "io/input_error.hpp"
 #include "io/output_folder.hpp"
@@ -85,7 +88,7 @@ Runner add_baseline(CLI::App& app) {
                   "mapped to voltage through dV/dI of each tick");
   sub->add_option("--r-film-init", c->o.r_film_init_ohm_m2,
                   "Film resistance the EKF and the first batch cycle start from [ohm m2] (default: the paper cell's "
-                  "3.391e-3)");
+                  "initial film, " + fmt::format("{}", fw::paper::kInitialFilm_ohm_m2) + ")");
   sub->add_option("--ic-error-pct", c->ic_error_pct,
                   "Initial-condition error of the model (not the data), percent: scales the initial anode and "
                   "cathode stoichiometries and the electrolyte concentration together")

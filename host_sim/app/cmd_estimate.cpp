@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
+
 #include "bms/fw/fw_status.hpp"
 #include "commands.hpp"
 #include "estimation/aging_report.hpp"
@@ -31,18 +33,56 @@ void require_accepted_samples(const EstimateResult& r, const std::string& data) 
   for (const auto& row : r.rows) accepted += (row.status & rejected) == 0 ? 1 : 0;
   if (accepted == 0)
     throw RuntimeFailure(data + ": the firmware rejected every one of its " + std::to_string(r.rows.size()) +
-                         " samples (non-finite, voltage outside 0-5 V or an implausible current): check the file's "
+                         " samples (non-finite, a voltage outside the cell's window by more than " + std::to_string(fw::kVoltagePlausibilityMarginV).substr(0, 3) + " V, or an implausible current): check the file's "
                          "columns and units (V, A, discharge positive)");
 }
 struct EstimateCli {
   std::vector<std::string> data;
-  std::string out, cell = "paper", current_sign;
+  std::string out, cell = "paper", current_sign, settings = "best";
   EstimateOptions o;
+  std::vector<double> theta0;
   double ic_error_pct = 0.0;
   bool beyond = false;
   bool quiet = false;
   std::vector<std::string> model_effects;
 };
+
+// Which overrides the user gave: the flag's count, after CLI11 has stored the values.
+void mark_given(const CLI::App& sub, EstimateCli& c) {
+  fw::Overrides& v = c.o.overrides;
+  const auto g = [&sub](const char* flag, auto& field) { field.given = sub.count(flag) > 0; };
+  g("--nc", v.nc);
+  g("--h", v.h_v_per_ohm_m2);
+  g("--h-from-model", v.h_from_model);
+  g("--p0", v.p0);
+  g("--p0-y0", v.p0_y0);
+  g("--lambda", v.lambda);
+  g("--eta", v.eta);
+  g("--r-film-init", v.r_film_init_ohm_m2);
+  g("--calibrate-bias", v.calibrate_bias);
+  g("--reference-after-resyncs", v.reference_after_resyncs);
+  g("--average", v.average_estimate);
+  g("--propagate-growth", v.propagate_growth);
+  g("--growth-scale", v.growth_scale);
+  g("--no-learning", v.learning);
+  g("--warmup", v.warmup_s);
+  g("--resync", v.resync);
+  g("--no-start-resync", v.resync_at_start);
+  g("--resync-window", v.resync_window_ticks);
+  g("--resync-current", v.resync_current_a);
+  g("--no-inventory", v.learn_inventory);
+  g("--model-bias-ohm", v.model_bias_ohm);
+  g("--relinearise", v.relinearise_inventory);
+  g("--inventory-error-pct", c.o.inventory_error_pct);
+  c.o.points_given = sub.count("--points") > 0;
+  if (sub.count("--theta0") > 0) {
+    if (c.theta0.size() > 16) throw InputError("--theta0: at most 16 values (n_c <= 8)");
+    fw::Theta0 t{};
+    t.count = static_cast<int>(c.theta0.size());
+    for (std::size_t k = 0; k < c.theta0.size(); ++k) t.values[k] = c.theta0[k];
+    v.theta0 = t;
+  }
+}
 
 // summary.json: the estimator's summary, and no errors for a file without truth.
 nlohmann::json command_summary(const EstimateResult& r, const EstimateOptions& o, const EstimateData& data) {
@@ -107,18 +147,14 @@ void add_charges(nlohmann::json& summary, const EstimateResult& r, const Estimat
 
 int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
   c.o.mesh.n_sep = c.o.mesh.n_pos = c.o.mesh.n_neg;
-  const auto given = [&sub](const char* flag) { return sub.count(flag) > 0; };
-  if (c.beyond) {
-    if (given("--settings")) throw InputError("--beyond-paper is the session-5 profile; give it or --settings, not both");
-    c.o.settings = "beyond-paper";
-    apply_beyond_paper(c.o, given);
-  } else {
-    apply_settings(c.o, given);
-  }
+  if (c.beyond && sub.count("--settings") > 0)
+    throw InputError("--beyond-paper is --settings nominal-growth; give one of them, not both");
+  const std::string settings = c.beyond ? "nominal-growth" : c.settings;
+  if (!fw::parse_profile(settings.c_str(), c.o.profile))
+    throw InputError("--settings must be 'best', 'paper' or 'nominal-growth' (got '" + settings + "')");
+  mark_given(sub, c);
   for (const auto& e : c.model_effects) add_model_effect(c.o, e);
-  if (given("--r-film-init") && !(std::isfinite(c.o.r_film_init_ohm_m2) && c.o.r_film_init_ohm_m2 >= 0.0 &&
-                                  c.o.r_film_init_ohm_m2 <= 1.0))
-    throw InputError("--r-film-init: must be a finite film resistance in [0, 1] ohm m2");
+  check_estimate_options(c.o);  // before any long work: an option the settings do not use exits 2
   const CellParameters cell = load_cell(c.cell);
   c.o.ic = perturbed_initial_conditions(cell, c.ic_error_pct);
   const CurrentSign sign = current_sign_option(c.current_sign);
@@ -165,91 +201,97 @@ Runner add_estimate(CLI::App& app) {
                   "Main-system model: 'reduced' (the firmware's reduced-order DFN) or 'full' (the truth DFN without "
                   "film growth: the paper's setting)")
       ->capture_default_str();
-  sub->add_option("--settings", c->o.settings,
-                  "Estimator profile: 'best' (the project's best, from the nominal cell only: the film, its growth "
-                  "gain and the lithium inventory identified together; BmsCore::best_config) or 'paper' (the paper's "
-                  "RCSI: n_c = 1, eta = 0, P(0) = 5e-7 I, H = 0.01). Options given explicitly beside it win")
+  sub->add_option("--settings", c->settings,
+                  "Estimator profile (bms/fw/make_config.hpp, the firmware's own): 'best' (from the nominal cell "
+                  "only: the film, its growth gain and the lithium inventory identified together), 'paper' (the "
+                  "paper's RCSI: n_c = 1, eta = 0, P(0) = " + fmt::format("{}", fw::kPaperCovarianceP0) +
+                      " I, H = " + fmt::format("{}", fw::kPaperMarkovVPerOhmM2) +
+                      ") or 'nominal-growth' (RCSI with the observer, bias calibration and the nominal growth "
+                      "law). The options below change the profile; one it does not use exits 2 naming it")
       ->capture_default_str();
-  sub->add_flag("!--no-learning", c->o.learning,
+  sub->add_flag("--beyond-paper", c->beyond, "The same as --settings nominal-growth (its older name)");
+  sub->add_flag("!--no-learning", c->o.overrides.learning.value,
                 "Control run: the same settings with every RCSI / RLS update switched off (what the nominal cell "
                 "alone predicts)");
-  sub->add_flag("!--no-inventory", c->o.learn_inventory,
-                "With --settings best: keep the nominal lithium inventory instead of identifying it (ablation)");
-  sub->add_option("--model-bias-ohm", c->o.model_bias_ohm,
-                  "With --settings best: the main model's voltage bias in CC charge per ampere [ohm] (default: the "
+  sub->add_option("--warmup", c->o.overrides.warmup_s.value,
+                  "Seconds at the start of each CC charge before the estimator learns (film held; default: the "
+                  "profile's, paper 0, best 900, nominal-growth 600)");
+  // best only: the FilmGrowthIdentifier.
+  sub->add_flag("!--no-inventory", c->o.overrides.learn_inventory.value,
+                "--settings best only: keep the nominal lithium inventory instead of identifying it (ablation)");
+  sub->add_option("--model-bias-ohm", c->o.overrides.model_bias_ohm.value,
+                  "--settings best only: the main model's voltage bias in CC charge per ampere [ohm] (default: the "
                   "reduced model's design-time calibration, 0 for the full model; 0 = ablation)");
-  sub->add_option("--theta0", c->o.theta0,
-                  "RCSI's theta(0) = M1..Mnc,N1..Nnc (comma-separated; default 1,0: hold the film at a charge start; "
-                  "0,0 is what the paper's figure 6 suggests)")
-      ->delimiter(',');
-  sub->add_option("--relinearise", c->o.relinearise_inventory,
-                  "With --settings best: a re-synchronisation that moves the model's inventory by more than this "
-                  "(relative) restarts the film's learning (1 = never: ablation)")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
-  sub->add_option("--cell", c->cell, "Cell of the main model: paper | aboutenergy | FILE.bpx.json")->capture_default_str();
-  sub->add_option("--nc", c->o.nc, "Order n_c of the ARX subsystem model (1..8)")->capture_default_str();
-  sub->add_option("--p0", c->o.p0, "RLS initial covariance P(0) = p0 I (paper: 5e-7)")->capture_default_str();
-  sub->add_option("--p0-y0", c->o.p0_y0, "P(0) for the side-current regressors when it should differ from --p0 "
+  sub->add_option("--relinearise", c->o.overrides.relinearise_inventory.value,
+                  "--settings best with the observer: a re-synchronisation that moves the model's inventory by more "
+                  "than this (relative, default 1e-3) restarts the film's learning (1 = never: ablation)")
+      ->check(CLI::Range(0.0, 1.0));
+  // RCSI (paper, nominal-growth).
+  sub->add_option("--nc", c->o.overrides.nc.value, "RCSI profiles: order n_c of the ARX subsystem model (1..8, default 1)");
+  sub->add_option("--p0", c->o.overrides.p0.value,
+                  "RCSI profiles: RLS initial covariance P(0) = p0 I (default: the paper's " +
+                      fmt::format("{}", fw::kPaperCovarianceP0) + ")");
+  sub->add_option("--p0-y0", c->o.overrides.p0_y0.value,
+                  "RCSI profiles: P(0) for the side-current regressors when it should differ from --p0 "
                   "(regressors of very different size: ohm m2 vs A/m3)");
-  sub->add_option("--lambda", c->o.lambda, "RLS forgetting factor in (0, 1]")->capture_default_str();
-  sub->add_option("--eta", c->o.eta, "Retrospective-cost regularisation eta >= 0 (paper: 0)")->capture_default_str();
-  sub->add_option("--h", c->o.h_v_per_ohm_m2, "Markov parameter H [V per ohm m2] (paper: 0.01)")->capture_default_str();
-  sub->add_flag("--h-from-model", c->o.markov_from_model,
-                "Use H = dV/dR_film of the main model at each charge start (about 0.88 for the paper cell) instead of --h");
-  sub->add_option("--r-film-init", c->o.r_film_init_ohm_m2,
-                  "Film resistance the estimator starts from [ohm m2] (default: the cell's initial value)");
+  sub->add_option("--lambda", c->o.overrides.lambda.value, "RCSI profiles: RLS forgetting factor in (0, 1] (default 1)");
+  sub->add_option("--eta", c->o.overrides.eta.value, "RCSI profiles: retrospective-cost regularisation eta >= 0 (default: the paper's 0)");
+  sub->add_option("--theta0", c->theta0,
+                  "RCSI profiles: theta(0) = M1..Mnc,N1..Nnc (comma-separated, 2 n_c values; default 1,0: hold the "
+                  "film at a charge start; 0,0 is what the paper's figure 6 suggests)")
+      ->delimiter(',');
+  sub->add_option("--h", c->o.overrides.h_v_per_ohm_m2.value,
+                  "--settings paper: Markov parameter H [V per ohm m2] (default: the paper's " +
+                      fmt::format("{}", fw::kPaperMarkovVPerOhmM2) + "); the other profiles take H from the model");
+  sub->add_flag("--h-from-model", c->o.overrides.h_from_model.value,
+                "Use H = dV/dR_film of the main model at each charge start (about 0.88 for the paper cell) instead "
+                "of --h (best and nominal-growth do already)");
+  sub->add_option("--r-film-init", c->o.overrides.r_film_init_ohm_m2.value,
+                  "RCSI profiles: film resistance the estimator starts from [ohm m2] (default: the cell's initial value)");
+  sub->add_flag("--calibrate-bias", c->o.overrides.calibrate_bias.value,
+                "RCSI profiles: the first CC charge is a reference charge at the initial film resistance; its mean "
+                "residual (after --warmup) is the model's voltage bias, subtracted in later charges (nominal-growth: on)");
+  sub->add_option("--reference-after-resyncs", c->o.overrides.reference_after_resyncs.value,
+                  "With the bias calibration and the observer: re-synchronisations before the reference charge "
+                  "(default 1)");
+  sub->add_flag("--average", c->o.overrides.average_estimate.value,
+                "RCSI profiles: report and hold the mean of RCSI's u_hat over each charge's learning window "
+                "(nominal-growth: on)");
+  sub->add_flag("--propagate-growth", c->o.overrides.propagate_growth.value,
+                "RCSI profiles: the reported film resistance follows the growth the model's side current predicts "
+                "(the nominal cell's Ramadass law) between and within RCSI's updates; RCSI sets the level "
+                "(nominal-growth: on)");
+  sub->add_option("--growth-scale", c->o.overrides.growth_scale.value,
+                  "With the growth propagated: factor on the nominal growth law (default 1), to test a cell whose "
+                  "film constants differ from the model's");
+  // The state observer (best and nominal-growth on the reduced model; --resync for paper).
+  sub->add_flag("--resync,!--no-resync", c->o.overrides.resync.value,
+                "Re-synchronise the firmware model's state at the end of each CV phase (measured voltage, nominal "
+                "lithium inventory minus the model's lithium loss) and once at the first sample (power-up from "
+                "rest); reduced model only (best and nominal-growth: on; --no-resync switches it off)");
+  sub->add_flag("!--no-start-resync", c->o.overrides.resync_at_start.value,
+                "With the observer: skip the re-synchronisation at the first sample (only at CV ends)");
+  sub->add_option("--resync-window", c->o.overrides.resync_window_ticks.value,
+                  "With the observer: ticks of measured voltage and current each re-synchronisation fits a straight "
+                  "line to (evaluated at the last tick), against measurement noise; 1 = the trigger sample alone "
+                  "(default: paper 1, best and nominal-growth 50)")
+      ->check(CLI::Range(1u, 3000u));
+  sub->add_option("--resync-current", c->o.overrides.resync_current_a.value,
+                  "With the observer: |current| [A] below which a CV phase counts as ended (default 0.25)");
+  sub->add_option("--inventory-error-pct", c->o.inventory_error_pct.value,
+                  "Reduced model with the observer or --settings best: the lithium inventory the estimator assumes "
+                  "is off the cell's nominal one by this percent (how well a BMS must know its cell's inventory)");
+  sub->add_option("--cell", c->cell, "Cell of the main model: paper | aboutenergy | FILE.bpx.json")->capture_default_str();
   sub->add_option("--ic-error-pct", c->ic_error_pct,
                   "Initial-condition error of the main model (not the data), percent: scales the initial anode and "
                   "cathode stoichiometries and the electrolyte concentration together (paper: +-1)")
       ->capture_default_str();
-  sub->add_flag("--resync", c->o.resync,
-                "Beyond the paper: re-synchronise the firmware model's state at the end of each CV phase (measured "
-                "voltage, nominal lithium inventory minus the model's lithium loss) and once at the first sample "
-                "(power-up from rest); removes initial-condition errors");
-  sub->add_flag("!--no-start-resync", c->o.resync_at_start,
-                "With --resync: skip the re-synchronisation at the first sample (only at CV ends, as in session 3)");
-  sub->add_option("--resync-window", c->o.resync_window_ticks,
-                  "With --resync: ticks of measured voltage and current each re-synchronisation fits a straight line "
-                  "to (evaluated at the last tick), against measurement noise; 1 = the trigger sample alone")
-      ->check(CLI::Range(1u, 3000u))
-      ->capture_default_str();
-  sub->add_option("--resync-current", c->o.resync_current_a,
-                  "|current| [A] below which a CV phase counts as ended for --resync")
-      ->capture_default_str();
-  sub->add_option("--warmup", c->o.warmup_s,
-                  "Beyond the paper: seconds at the start of each CC charge before RCSI learns (film held)")
-      ->capture_default_str();
-  sub->add_flag("--calibrate-bias", c->o.calibrate_bias,
-                "Beyond the paper: the first CC charge is a reference charge at the initial film resistance; its mean "
-                "residual (after --warmup) is the model's voltage bias, subtracted in later charges");
-  sub->add_option("--reference-after-resyncs", c->o.reference_after_resyncs,
-                  "With --resync and --calibrate-bias: re-synchronisations before the reference charge")
-      ->capture_default_str();
-  sub->add_flag("--average", c->o.average_estimate,
-                "Beyond the paper: report and hold the mean of RCSI's u_hat over each charge's learning window");
-  sub->add_flag("--propagate-growth", c->o.propagate_growth,
-                "Beyond the paper: the reported film resistance follows the growth the model's side current "
-                "predicts (Ramadass law, the cell's constants) between and within RCSI's updates; RCSI sets the level");
-  sub->add_option("--inventory-error-pct", c->o.inventory_error_pct,
-                  "With --resync: the lithium inventory the re-synchronisation assumes is off the cell's nominal one "
-                  "by this percent (how well a BMS must know its cell's inventory)")
-      ->capture_default_str();
-  sub->add_option("--growth-scale", c->o.growth_scale,
-                  "With --propagate-growth: factor on the growth law, to test a cell whose film constants differ "
-                  "from the model's (1 = the model's own)")
-      ->capture_default_str();
-  sub->add_flag("--beyond-paper", c->beyond,
-                "Shorthand for the firmware's best settings, BmsCore::beyond_paper_config (docs/results/firmware-model.md): "
-                "--h-from-model --p0 5e-7 --resync --resync-window 50 --warmup 600 --calibrate-bias --average "
-                "--propagate-growth; an option given explicitly beside it wins (e.g. --resync-window 1, "
-                "--growth-scale 0 for an ablation)");
   sub->add_option("--model-effect", c->model_effects,
                   "Add an effect to the main model NAME=VALUE (repeatable; e.g. the one 'bmssim diagnose' found): "
                   "contact_resistance (ohm), hysteresis (V, half the gap between the OCV branches; starts on the "
                   "charge branch), current_offset (A, what the sensor reads at zero current), current_gain (relative). "
                   "Default: none (the paper's model)");
-  sub->add_option("--points", c->o.mesh.n_neg, "Full model: finite volumes per region")->capture_default_str();
+  sub->add_option("--points", c->o.mesh.n_neg, "--model full only: finite volumes per region")->capture_default_str();
   sub->add_option("--out", c->out, "Output folder (estimates.csv, summary.json)")->required();
   sub->add_flag("--quiet", c->quiet, "No progress lines");
   sub->footer("Example: bmssim simulate --cycles 5 --out out/sim && bmssim estimate --data out/sim/truth.csv "

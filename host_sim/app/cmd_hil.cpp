@@ -51,7 +51,9 @@ struct HilCli {
   std::string bus = "vcan0", out, firmware, fault;
   bool lockstep = true, realtime = false, beyond_paper = false;
   std::string settings = "best";
-  double h = 0.01, persist_every_s = 60.0;
+  fw::Profile profile = fw::Profile::best;
+  fw::Overrides overrides;  // --h: passed to the firmware only when given
+  double persist_every_s = 60.0;
   std::size_t max_ticks = 0;
 };
 
@@ -263,12 +265,9 @@ std::vector<std::string> firmware_args(const HilCli& c, const std::filesystem::p
   // The firmware's NVM here is a file, not flash: no write budget, so that --persist-every-s
   // is what the kill/restart test exercises.
   std::vector<std::string> a = {"--can", c.bus, c.realtime ? "--realtime" : "--lockstep", "--nvm", nvm.string(),
-                                "--h", fmt::format("{}", c.h), "--persist-every-s",
-                                fmt::format("{}", c.persist_every_s), "--flash-endurance-cycles", "1e12"};
-  if (c.beyond_paper)
-    a.emplace_back("--beyond-paper");
-  else
-    a.insert(a.end(), {"--settings", c.settings});
+                                "--persist-every-s", fmt::format("{}", c.persist_every_s), "--flash-endurance-cycles",
+                                "1e12", "--settings", fw::profile_name(c.profile)};
+  if (c.overrides.h_v_per_ohm_m2.given) a.insert(a.end(), {"--h", fmt::format("{}", c.overrides.h_v_per_ohm_m2.value)});
   return a;
 }
 
@@ -466,7 +465,7 @@ bool HilSession::take(const can::RxMessage& msg) {
 nlohmann::json HilSession::hil_json(const hil::FaultSpec& spec, double sim_s) const {
   nlohmann::json h = {{"bus", c_.bus},
                       {"lockstep", !c_.realtime},
-                      {"estimator", c_.beyond_paper ? "beyond-paper" : c_.settings},
+                      {"estimator", fw::profile_name(c_.profile)},
                       {"ticks", n_},
                       {"wall_s", res_.wall_s},
                       {"sim_s", sim_s},
@@ -494,8 +493,13 @@ void HilSession::write_outputs(const hil::FaultSpec& spec) {
   res_.growth_err_pct = growth_error_pct(res_.rows);
   write_estimates_csv(out_.staging() / "estimates.csv", res_);
   EstimateOptions eo;
-  eo.h_v_per_ohm_m2 = c_.h;
-  eo.settings = c_.beyond_paper ? "beyond-paper" : c_.settings;
+  eo.profile = c_.profile;
+  eo.overrides = c_.overrides;
+  // The firmware's configuration (the same make_config call bms-firmware makes).
+  using FirmwareCore = fw::BmsCore<double>;
+  FirmwareCore::Config firmware_config{};
+  (void)fw::make_config<FirmwareCore>(fw::paper_nominal_cell<double>(), c_.profile, c_.overrides, firmware_config);
+  res_.config = summarise_config(firmware_config, 1);
   auto summary = estimate_summary_json(res_, eo);
   const auto& samples = run_.result.samples;
   const double sim_s = samples[n_ - 1].t_s - samples[0].t_s + c_.sim.dt_s;
@@ -547,13 +551,13 @@ Runner add_hil(CLI::App& app) {
       ->capture_default_str();
   sub->add_flag("--lockstep", c->lockstep, "Simulator-driven ticks, as fast as possible (default)");
   sub->add_flag("--realtime", c->realtime, "One measurement every 0.2 s of wall time; the firmware's timer ticks");
-  sub->add_option("--h", c->h, "RCSI Markov parameter passed to the firmware")->capture_default_str();
+  sub->add_option("--h", c->overrides.h_v_per_ohm_m2.value,
+                  "--settings paper: RCSI Markov parameter passed to the firmware (default: the paper's 0.01)");
   sub->add_option("--settings", c->settings,
-                  "Estimator profile of the firmware: best (default) or paper, as `bmssim estimate --settings`")
-      ->check(CLI::IsMember({"best", "paper"}))
+                  "Estimator profile of the firmware: best (default), paper or nominal-growth, as `bmssim estimate "
+                  "--settings`")
       ->capture_default_str();
-  sub->add_flag("--beyond-paper", c->beyond_paper,
-                "Session 5's profile (as `bmssim estimate --beyond-paper`; --h is then not used)");
+  sub->add_flag("--beyond-paper", c->beyond_paper, "The same as --settings nominal-growth (its older name)");
   sub->add_option("--firmware", c->firmware, "Path of bms-firmware (default: beside bmssim in the build tree)");
   sub->add_option("--persist-every-s", c->persist_every_s,
                   "Firmware commits its state to NVM every this many seconds of ticks (and at each CC-charge end)")
@@ -569,7 +573,19 @@ Runner add_hil(CLI::App& app) {
                   "busdown= (ip link down/up) kill= (firmware SIGKILLed, restarted after TICKS).\n"
                   "Example: --fault drop=0.01,crc=0.01,kill=cc_charge+600:25,seed=3");
   sub->add_option("--out", c->out, "Output folder (truth.csv, estimates.csv, summary.json, can.log)")->required();
-  return [c]() { return run_hil(*c); };
+  return [c, sub]() {
+    // The firmware's profile and overrides, refused as bms-firmware refuses them (before any work).
+    if (c->beyond_paper && sub->count("--settings") > 0)
+      throw InputError("--beyond-paper is --settings nominal-growth; give one of them, not both");
+    const std::string settings = c->beyond_paper ? "nominal-growth" : c->settings;
+    if (!fw::parse_profile(settings.c_str(), c->profile))
+      throw InputError("--settings must be 'best', 'paper' or 'nominal-growth' (got '" + settings + "')");
+    c->overrides.h_v_per_ohm_m2.given = sub->count("--h") > 0;
+    const fw::Refusal r = fw::unused_override(c->profile, c->overrides);
+    if (r.option != nullptr)
+      throw InputError(fmt::format("--{} is not used by --settings {}: {}", r.option, fw::profile_name(c->profile), r.reason));
+    return run_hil(*c);
+  };
 }
 
 }  // namespace bms::app

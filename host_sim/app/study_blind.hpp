@@ -1,9 +1,9 @@
 #pragma once
-// `bmssim study blind`: the estimator on truths it does not know (issue 20). Each case draws a
+// `bmssim study blind`: the estimator on truths it does not know. Each case draws a
 // truth (seeded, uniform) from ranges the estimator never sees, simulates it with one noise
 // condition, and runs every estimator arm on the measured columns only: the best profile, each
-// of its features switched off, learning off (the control), the paper's RCSI and session 5's
-// profile. Beside them: the Cramer-Rao bound of the joint unknowns for the same data.
+// of its features switched off, learning off (the control), the paper's RCSI and the
+// nominal-growth profile. Beside them: the Cramer-Rao bound of the joint unknowns for the same data.
 #include <string>
 
 namespace bms::app {

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Footprint of a linked Cortex-M image (issue 5): flash, static RAM, worst-case stack.
+"""Footprint of a linked Cortex-M image: flash, static RAM, worst-case stack.
 
   footprint.py --image ELF --map MAP --build-dir DIR [--tools-prefix arm-none-eabi-]
                [--entry NAME=SYMBOL]... [--isr SYMBOL]... [--exception-frame BYTES]

@@ -33,7 +33,7 @@ def main(argv):
         return 2
     src, dst = argv[1], argv[2]
     out = io.StringIO()
-    out.write("# Replay data of target/ (issue 5): paper cell, one CCCV cycle of the truth model, one row per\n")
+    out.write("# Replay data of target/: paper cell, one CCCV cycle of the truth model, one row per\n")
     out.write("# 0.2 s tick. Made by target/tools/make_replay_csv.py from bmssim simulate --cell paper\n")
     out.write("# --protocol cccv --cycles 1 --noise-v-mv 0.02 --seed 1 (see docs/results/target.md).\n")
     out.write("# voltage_10uv, current_100ua: measured voltage and current as raw HOST_Measurement values\n")

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Proof that the firmware uses no heap, no exceptions and no RTTI (issue 5); run by ctest.
+"""Proof that the firmware uses no heap, no exceptions and no RTTI; run by ctest.
 
   noheap_check.py --nm NM --readelf READELF --objects FILE... [--strict-image ELF]
                   [--image ELF --map MAP] [--json OUT]

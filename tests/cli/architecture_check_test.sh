@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# docs/architecture.md's one-tick list names files and functions that exist (issue 18), and the
+# docs/architecture.md's one-tick list names files and functions that exist, and the
 # check fails when a step names a function that does not, is out of order, or names a tick step
 # otherwise than BmsCore::tick's own list.
 #   architecture_check_test.sh SOURCE_DIR

@@ -125,7 +125,7 @@ B_THICK="$WORK/thickness_1e10.bpx.json"
 bpx_edit 'del p["Negative electrode"]["Particle radius [m]"]' "$B_MISSING"
 bpx_edit 'p["Positive electrode"]["OCP [V]"] = "3.4 + * x"' "$B_BADEXPR"
 bpx_edit 'p["Negative electrode"]["Thickness [m]"] = -1e-5' "$B_RANGE"
-# Issue 21: a solid diffusivity of 1e10 m2/s made the solver crawl forever; 1e10 m thick failed in it.
+# A solid diffusivity of 1e10 m2/s made the solver crawl forever; 1e10 m thick failed in it.
 bpx_edit 'p["Negative electrode"]["Diffusivity [m2.s-1]"] = 1e10' "$B_DIFFUSIVITY"
 bpx_edit 'p["Separator"]["Thickness [m]"] = 1e10' "$B_THICK"
 printf 'This is not JSON at all.\nTime [s],I[A],U[V]\n0,1,3.3\n' >"$B_NOTJSON"

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Integration test: `bmssim estimate --model-effect NAME=VALUE` (issue 7, RCSI with an effect).
+# Integration test: `bmssim estimate --model-effect NAME=VALUE` (RCSI with an effect).
 #
 # Usage: estimate_model_effect_test.sh BMSSIM
 #

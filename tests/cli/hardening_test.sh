@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Hardening of the host tool (issue 21): bad input exits 2 with one line naming it before any
+# Hardening of the host tool: bad input exits 2 with one line naming it before any
 # work; inputs that never end are refused; output folders are built whole (a failed run keeps
 # its finished cycles under "complete": false, an interrupted one leaves nothing); simulate's
 # memory does not grow with the run; an interrupted study stops its children.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Bus-fault sweep of the host-in-the-loop (issue 8 item 3): one clean lock-step run and one
+# Bus-fault sweep of the host-in-the-loop: one clean lock-step run and one
 # run per fault kind, all in one User-Mode Linux session, then the table of
 # docs/results/reliability.md ("Bus faults in the host-in-the-loop") from their summaries.
 #

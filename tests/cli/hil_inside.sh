@@ -5,13 +5,13 @@
 #   replay/    a/can.log's host frames replayed into a fresh firmware, paced by its answers
 #   faults/    one lock-step run with every bus fault (tests/cli/hil_fault_check.py)
 #   realtime/  75 ticks (15 s) with the firmware's own 0.2 s timer
-#   failed.txt a run whose firmware cannot start: exit 1, no truth.csv left (issue 21)
-#   orphan.txt the host SIGKILLed mid-run: its firmware child is gone within 2 s (issue 21)
+#   failed.txt a run whose firmware cannot start: exit 1, no truth.csv left
+#   orphan.txt the host SIGKILLed mid-run: its firmware child is gone within 2 s
 set -euo pipefail
 bmssim="$1"; fw="$2"; src="$3"; work="$4"
 at=cc_charge
 # Fault times in s after the CC charge starts; the learning checks need them after the best
-# profile's 900 s warm-up (BmsCore::best_config).
+# profile's 900 s warm-up (make_config.hpp).
 "$bmssim" hil --bus vcan0 --cycles 1 --quiet --out "$work/a"
 "$bmssim" hil --bus vcan0 --cycles 1 --quiet --out "$work/b"
 bash "$src/tests/cli/hil_replay.sh" "$fw" "$work/a/can.log" "$work/replay"

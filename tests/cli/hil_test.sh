@@ -23,7 +23,7 @@ rc=0
 /usr/bin/python3 "$src/tests/cli/hil_check.py" "$src/firmware/can/bms.dbc" "$work/a" "$work/offline" "$work/b" \
   --replay "$work/replay" --frames-check "$frames_check" 2> >(grep -v 'is not supported' >&2) || rc=1
 /usr/bin/python3 "$src/tests/cli/hil_fault_check.py" "$work/a" "$work/faults" "$work/realtime" || rc=1
-# A failed run: exit 1 and nothing that looks like an output (issue 21).
+# A failed run: exit 1 and nothing that looks like an output.
 if grep -q '^exit=1 truth_left=no partial_left=no ' "$work/failed.txt"; then
   echo "PASS a run whose firmware cannot start exits 1 and leaves no truth.csv: $(cat "$work/failed.txt")"
 else

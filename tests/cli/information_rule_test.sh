@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The information rule (issue 20): `bmssim estimate` builds everything from the nominal cell and
+# The information rule: `bmssim estimate` builds everything from the nominal cell and
 # the measured columns. (1) Replacing every truth column of truth.csv by other values changes none
 # of the estimator's outputs (only the scoring columns); (2) a truth run with --set values that
 # leave the measured columns as they are (each parameter at its nominal value) gives a

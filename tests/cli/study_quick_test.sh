@@ -77,7 +77,7 @@ check(0.001 < dv < 10, "true voltage change for +1 %% IC = %s mV" % dv)
 for arm in ("reduced-paper",):
     v = s["ic"]["identified_r_film_change"][arm]
     check(v["cycle1_change_max_pct"] > true_change, "%s: identified change %s %%" % (arm, v["cycle1_change_max_pct"]))
-# Issue 6's beyond-the-paper targets, on the firmware estimator (reduced-beyond): film error
+# The beyond-the-paper targets, on the firmware estimator (reduced-beyond): film error
 # <= 1 % at sigma_v = 0.2 mV and sigma_i = 5 mA (worst cycle, every seed), and a change of
 # <= 1 % of the identified film for a +-1 % initial-condition error.
 for k in ("v0.2mV", "i5mA"):
@@ -86,7 +86,7 @@ for k in ("v0.2mV", "i5mA"):
 beyond_ic = s["ic"]["identified_r_film_change"]["reduced-beyond"]["worst_cycle_change_max_pct"]
 check(0 <= beyond_ic <= 1.0, "reduced-beyond: identified change for +-1 %% IC %s > 1 %%" % beyond_ic)
 # The best profile (nominal cell only, film and inventory identified): <= 1 % on the nominal truth
-# at both noise levels (issue 20), and a +-1 % model IC error changes it by <= 1 %.
+# at both noise levels, and a +-1 % model IC error changes it by <= 1 %.
 for k in ("v0.2mV", "i5mA"):
     e = levels[k]["arms"]["reduced-best"]["err_worst_cycle_pct"]
     check(e["n"] == 2 and e["max"] <= 1.0, "reduced-best %s: worst-cycle error %s > 1 %%" % (k, e))

@@ -91,7 +91,7 @@ else
 fi
 
 # A BPX cell has no side reaction, but a set initial film is a constant series resistance in
-# the anode's overpotential (issue 16): at 1 A the voltage falls by R_film I / (A a_n L_n).
+# the anode's overpotential: at 1 A the voltage falls by R_film I / (A a_n L_n).
 run_ae() { # OUT ARGS...
   local out=$1; shift
   "$BMSSIM" simulate --cell aboutenergy --protocol csv:drive.csv --points 8 --radial 8 "$@" --out "$out" --quiet 2> "err_$out"

@@ -1,4 +1,4 @@
-// The truth model's switchable effects (issue 7): OCV hysteresis and the lumped thermal model
+// The truth model's switchable effects: OCV hysteresis and the lumped thermal model
 // with Arrhenius properties. Coarse meshes and short protocols keep these fast.
 #include <gtest/gtest.h>
 

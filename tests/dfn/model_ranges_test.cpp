@@ -1,4 +1,4 @@
-// Effects outside physical ranges are input errors naming the effect (issue 21: a contact
+// Effects outside physical ranges are input errors naming the effect (a contact
 // resistance of 1e6 ohm failed deep in the solver with exit 1).
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Issue 3 must-show: offline RLS with P(0) = 1e10 on recorded DFN data recovers the true theta
+// Offline RLS with P(0) = 1e10 on recorded DFN data recovers the true theta
 // of the film subsystem (the paper's figure 7). The record is the truth model's own film
 // resistance u and side-reaction current y0 over the CC charge of one paper cycle; the true
 // theta comes from the film equation's parameters: R(k+1) = R(k) - T M / (a rho F kappa) J_s(k).

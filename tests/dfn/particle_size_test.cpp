@@ -1,4 +1,4 @@
-// The truth model's cathode particle-size distribution (issue 7, About:Energy knee): off it
+// The truth model's cathode particle-size distribution (About:Energy knee): off it
 // adds nothing; on, charge is conserved across the populations, the total surface area is the
 // cell's, and small particles fill before large ones on discharge.
 #include <gtest/gtest.h>

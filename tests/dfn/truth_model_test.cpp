@@ -1,4 +1,4 @@
-// The truth model against physics, itself, the paper and measurements (issue 2's must-show).
+// The truth model against physics, itself, the paper and measurements.
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,4 +1,4 @@
-// The truth's solver cannot hang (issue 21): a model it cannot integrate ends in a
+// The truth's solver cannot hang: a model it cannot integrate ends in a
 // RuntimeFailure that names the limit, the time reached and what to try. Run by ctest with a
 // time limit (tests/CMakeLists.txt), so a regression to a hang fails instead of blocking.
 #include <gtest/gtest.h>

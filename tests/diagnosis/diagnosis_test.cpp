@@ -1,4 +1,4 @@
-// Issue 7: the residual diagnosis. Unit checks of its parts, and short synthetic cases end
+// The residual diagnosis. Unit checks of its parts, and short synthetic cases end
 // to end on a coarse mesh (data and model on the same mesh, so the injected value is exact).
 #include <gtest/gtest.h>
 
@@ -245,7 +245,7 @@ class Synthetic : public ::testing::Test {
   }
 };
 
-// The decision of issue 7 on each listed effect, now against every candidate of the wider
+// The decision on each listed effect, now against every candidate of the wider
 // space: the right name, its size within 20 %, and the held-out residual cut to 20 %.
 struct ListedCase {
   Effect effect;

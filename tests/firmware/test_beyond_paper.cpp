@@ -9,6 +9,7 @@
 #include <random>
 
 #include "bms/fw/bms_core.hpp"
+#include "bms/fw/paper_cell.hpp"
 
 namespace {
 
@@ -16,7 +17,7 @@ using bms::fw::FwStatus;
 using bms::fw::Mode;
 using Model = bms::fw::ReducedCell<double>;
 using Core = bms::fw::BmsCore<double, Model, 1, 0>;
-constexpr double kFilm = 3.391e-3;
+constexpr double kFilm = bms::fw::paper::kInitialFilm_ohm_m2;
 
 TEST(ReducedCellResync, RestoresInventoryAndVoltageAfterAnInitialConditionError) {
   Model nominal, wrong;

@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "bms/fw/bms_core.hpp"
+#include "bms/fw/paper_cell.hpp"
 
 namespace {
 
@@ -162,7 +163,7 @@ TEST(BmsCore, RcsiLearnsOnlyInConstantCurrentChargeAndTracksTheFilm) {
     active_outside += last.rcsi_active;
   }
   EXPECT_EQ(last.mode, Mode::cc_discharge);
-  EXPECT_DOUBLE_EQ(last.r_film_est_ohm_m2, 3.391e-3);  // held
+  EXPECT_DOUBLE_EQ(last.r_film_est_ohm_m2, bms::fw::paper::kInitialFilm_ohm_m2);  // held
   for (int i = 0; i < 3000; ++i) {
     last = rig.core.tick(rig.sample(-2.5));
     active_inside += last.rcsi_active;
@@ -171,7 +172,7 @@ TEST(BmsCore, RcsiLearnsOnlyInConstantCurrentChargeAndTracksTheFilm) {
   EXPECT_EQ(active_outside, 0);
   EXPECT_GT(active_inside, 2900);
   // Identical plant and model: the estimate moves from 3.391e-3 towards the true 3.45e-3.
-  EXPECT_LT(std::abs(last.r_film_est_ohm_m2 - rig.r_true), 0.5 * (rig.r_true - 3.391e-3));
+  EXPECT_LT(std::abs(last.r_film_est_ohm_m2 - rig.r_true), 0.5 * (rig.r_true - bms::fw::paper::kInitialFilm_ohm_m2));
 }
 
 TEST(BmsCore, SaveRestoreContinuesIdentically) {

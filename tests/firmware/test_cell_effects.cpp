@@ -16,7 +16,7 @@ using Plain = bms::fw::ReducedCell<double>;
 using All = bms::fw::EffectsModel<Plain, bms::fw::kAllCellEffects>;
 using bms::fw::EffectParameters;
 
-constexpr double kFilm = 3.391e-3;
+constexpr double kFilm = bms::fw::paper::kInitialFilm_ohm_m2;
 constexpr double kDt = 0.2;
 constexpr double kQnom = 2.3;
 
@@ -289,7 +289,7 @@ TEST(CellEffects, BmsCoreRunsOnTheAugmentedModelInDoubleAndFloat) {
       EXPECT_TRUE(std::isfinite(out.model_voltage_v));
       v_model = out.model_voltage_v;
     }
-    const auto cv = m.step_voltage(v_model, 3.391e-3f, 0.2f);
+    const auto cv = m.step_voltage(v_model, static_cast<float>(bms::fw::paper::kInitialFilm_ohm_m2), 0.2f);
     EXPECT_TRUE(cv.valid);
     EXPECT_NEAR(cv.voltage_v, v_model, 1e-4f);
   }

@@ -1,4 +1,4 @@
-// RCSI with an effect the main model does not declare (issue 7, must-show 3), in seconds:
+// RCSI with an effect the main model does not declare, in seconds:
 // the plant is the reduced model plus a contact resistance or a current-sensor offset, the
 // estimator runs BmsCore on the plain model ("before") and on the model augmented with the
 // effect ("after"). In CC charge a contact resistance adds R_c |I| to the measured voltage,
@@ -12,12 +12,13 @@
 
 #include "bms/fw/bms_core.hpp"
 #include "bms/fw/cell_effects.hpp"
+#include "bms/fw/paper_cell.hpp"
 
 namespace {
 
 using Plain = bms::fw::ReducedCell<double>;
 using Augmented = bms::fw::EffectsModel<Plain, bms::fw::kAllCellEffects>;
-constexpr double kFilm = 3.391e-3;
+constexpr double kFilm = bms::fw::paper::kInitialFilm_ohm_m2;
 constexpr double kDt = 0.2;
 
 bms::fw::EffectParameters<double> effect(double r_c_ohm, double offset_a) {

@@ -66,7 +66,7 @@ TEST(FloatNumerics, ResyncReachesItsToleranceInFloat) {
 
 TEST(FloatNumerics, GrowthSumKeepsGrowingLateInLife) {
   bms::fw::FilmGrowthIdentifier<float>::Config c;
-  c.r_film_nominal_ohm_m2 = 3.391e-3f;
+  c.r_film_nominal_ohm_m2 = static_cast<float>(bms::fw::paper::kInitialFilm_ohm_m2);
   c.growth_nominal_ohm_m2_per_a_m3_s = 1e-9f;
   bms::fw::FilmGrowthIdentifier<float> id(c);
   auto s = id.save();

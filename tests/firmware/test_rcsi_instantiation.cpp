@@ -9,6 +9,7 @@
 
 #include <bms/fw/rcsi_estimator.hpp>
 #include <bms/fw/rls_arx.hpp>
+#include "bms/fw/paper_cell.hpp"
 
 template class bms::fw::RcsiEstimator<double, 1, 1>;
 template class bms::fw::RcsiEstimator<double, 2, 1>;
@@ -55,7 +56,7 @@ TYPED_TEST(RcsiInstantiation, RunsAndLearns) {
   c.p0_y0 = S(5e-7);
   c.theta0.setZero();
   c.theta0(0) = S(1);
-  c.r_film_init_ohm_m2 = S(3.391e-3);
+  c.r_film_init_ohm_m2 = S(bms::fw::paper::kInitialFilm_ohm_m2);
   c.j_side_init_a_m3 = S(-10);
   c.r_film_min_ohm_m2 = S(1e-4);
   c.r_film_max_ohm_m2 = S(1e-1);

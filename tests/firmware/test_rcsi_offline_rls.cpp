@@ -12,6 +12,7 @@
 #include <bms/fw/fw_status.hpp>
 #include <bms/fw/rls.hpp>
 #include <bms/fw/rls_arx.hpp>
+#include "bms/fw/paper_cell.hpp"
 
 namespace {
 
@@ -71,7 +72,7 @@ PaperSequence make_paper_sequence(std::size_t n) {
   PaperSequence s;
   s.r_film_ohm_m2.assign(n, 0.0);
   s.j_side_a_m3.assign(n, 0.0);
-  s.r_film_ohm_m2[0] = 3.391e-3;
+  s.r_film_ohm_m2[0] = bms::fw::paper::kInitialFilm_ohm_m2;
   for (std::size_t k = 0; k < n; ++k) {
     // 15 min of charging (J_s about -10 A/m3, drifting), 15 min of rest/discharge (~0).
     const bool charging = (k / 4500) % 2 == 0;

@@ -10,6 +10,7 @@
 
 #include <bms/fw/fw_status.hpp>
 #include <bms/fw/rcsi_estimator.hpp>
+#include "../common/rcsi_test_config.hpp"
 
 namespace {
 
@@ -21,18 +22,8 @@ using Estimator = bms::fw::RcsiEstimator<double, 2, 1>;
 static_assert(std::is_trivially_copyable<Estimator::State>::value, "State is saved as bytes");
 
 Estimator::Config paper_like_config() {
-  Estimator::Config c;
-  c.markov_v_per_ohm_m2 = 0.01;
-  c.eta = 0.0;
-  c.lambda = 0.999;
-  c.p0_u = 5e-7;
+  Estimator::Config c = bms::test::rcsi_test_config<Estimator>();
   c.p0_y0 = 1e-12;
-  c.p_trace_cap_factor = 1.0;
-  c.theta0 << 1.0, 0.0, -1e-10, 0.0;
-  c.r_film_init_ohm_m2 = 3.391e-3;
-  c.j_side_init_a_m3 = -10.0;
-  c.r_film_min_ohm_m2 = 1e-4;
-  c.r_film_max_ohm_m2 = 1e-1;
   return c;
 }
 

@@ -13,9 +13,9 @@ using Cell = bms::fw::ReducedCell<double>;
 TEST(ReducedCell, RestKeepsOpenCircuitVoltage) {
   Cell c;
   c.init_default();
-  const auto first = c.step_current(0.0, 3.391e-3, 0.2);
+  const auto first = c.step_current(0.0, bms::fw::paper::kInitialFilm_ohm_m2, 0.2);
   for (int i = 0; i < 100; ++i) {
-    const auto r = c.step_current(0.0, 3.391e-3, 0.2);
+    const auto r = c.step_current(0.0, bms::fw::paper::kInitialFilm_ohm_m2, 0.2);
     // Only the side reaction moves a resting cell: microvolts over 20 s.
     EXPECT_NEAR(r.voltage_v, first.voltage_v, 1e-5);
   }
@@ -30,7 +30,7 @@ TEST(ReducedCell, ChargeBalanceAndLithiumLoss) {
   c.init_default();
   const double neg0 = c.mean_stoich_neg(), pos0 = c.mean_stoich_pos();
   const double dt = 0.2, current = 2.5;
-  for (int i = 0; i < 3000; ++i) c.step_current(current, 3.391e-3, dt);
+  for (int i = 0; i < 3000; ++i) c.step_current(current, bms::fw::paper::kInitialFilm_ohm_m2, dt);
   constexpr double F = bms::fw::kFaradayC_mol;
   namespace p = bms::fw::paper;
   const double vol_n = p::kNegative.solid_fraction * p::kNegative.thickness_m * p::kElectrodeArea_m2;
@@ -46,27 +46,27 @@ TEST(ReducedCell, ChargeBalanceAndLithiumLoss) {
 TEST(ReducedCell, VoltageDrivenStepHitsTheVoltage) {
   Cell c;
   c.init_default();
-  for (int i = 0; i < 500; ++i) c.step_current(-2.5, 3.391e-3, 0.2);
-  const double v_target = c.peek_voltage(-1.0, 3.391e-3, 0.2);
+  for (int i = 0; i < 500; ++i) c.step_current(-2.5, bms::fw::paper::kInitialFilm_ohm_m2, 0.2);
+  const double v_target = c.peek_voltage(-1.0, bms::fw::paper::kInitialFilm_ohm_m2, 0.2);
   Cell copy = c;
-  const auto r = c.step_voltage(v_target, 3.391e-3, 0.2);
+  const auto r = c.step_voltage(v_target, bms::fw::paper::kInitialFilm_ohm_m2, 0.2);
   EXPECT_TRUE(r.converged);
   EXPECT_LE(r.newton_iterations, Cell::kMaxNewtonIterations);
   EXPECT_NEAR(r.current_a, -1.0, 1e-6);
   EXPECT_NEAR(r.voltage_v, v_target, 1e-8);
   // The same tick driven by the found current gives the same state.
-  copy.step_current(r.current_a, 3.391e-3, 0.2);
+  copy.step_current(r.current_a, bms::fw::paper::kInitialFilm_ohm_m2, 0.2);
   EXPECT_NEAR(copy.state().ce_mol_m3[0], c.state().ce_mol_m3[0], 1e-9);
 }
 
 TEST(ReducedCell, FilmResistanceEntersAsMinusJTimesR) {
   Cell c;
   c.init_default();
-  for (int i = 0; i < 100; ++i) c.step_current(-2.5, 3.391e-3, 0.2);
+  for (int i = 0; i < 100; ++i) c.step_current(-2.5, bms::fw::paper::kInitialFilm_ohm_m2, 0.2);
   const double dr = 1e-5;
-  const double v0 = c.peek_voltage(-2.5, 3.391e-3, 0.2);
-  const double v1 = c.peek_voltage(-2.5, 3.391e-3 + dr, 0.2);
-  const auto r = c.step_current(-2.5, 3.391e-3, 0.2);
+  const double v0 = c.peek_voltage(-2.5, bms::fw::paper::kInitialFilm_ohm_m2, 0.2);
+  const double v1 = c.peek_voltage(-2.5, bms::fw::paper::kInitialFilm_ohm_m2 + dr, 0.2);
+  const auto r = c.step_current(-2.5, bms::fw::paper::kInitialFilm_ohm_m2, 0.2);
   EXPECT_NEAR((v1 - v0) / dr, r.markov_v_per_ohm_m2, 1e-3 * std::abs(r.markov_v_per_ohm_m2));
   EXPECT_GT(r.markov_v_per_ohm_m2, 0.8);  // charge: H = -j_n about +0.88 V per ohm m2
 }
@@ -74,9 +74,9 @@ TEST(ReducedCell, FilmResistanceEntersAsMinusJTimesR) {
 TEST(ReducedCell, NonFiniteInputLeavesStateUnchanged) {
   Cell c;
   c.init_default();
-  c.step_current(2.5, 3.391e-3, 0.2);
+  c.step_current(2.5, bms::fw::paper::kInitialFilm_ohm_m2, 0.2);
   const Cell::State before = c.state();
-  const auto r = c.step_current(std::nan(""), 3.391e-3, 0.2);
+  const auto r = c.step_current(std::nan(""), bms::fw::paper::kInitialFilm_ohm_m2, 0.2);
   EXPECT_FALSE(r.valid);
   EXPECT_EQ(std::memcmp(&before, &c.state(), sizeof(before)), 0);
 }
@@ -93,7 +93,7 @@ TEST(ReducedCell, RestoreRejectsNonFiniteImages) {
 TEST(ReducedCell, FloatInstantiates) {
   bms::fw::ReducedCell<float> c;
   c.init_default();
-  const auto r = c.step_current(2.5f, 3.391e-3f, 0.2f);
+  const auto r = c.step_current(2.5f, static_cast<float>(bms::fw::paper::kInitialFilm_ohm_m2), 0.2f);
   EXPECT_TRUE(std::isfinite(r.voltage_v));
   EXPECT_NEAR(r.voltage_v, 3.28f, 0.05f);
 }

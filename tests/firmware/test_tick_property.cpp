@@ -1,4 +1,4 @@
-// Property test of the whole tick (issue 8, estimator safety): over random and worst-case
+// Property test of the whole tick (estimator safety): over random and worst-case
 // measurement sequences, with every beyond-paper feature on, no NaN leaves the tick, the film
 // estimate stays inside its configured bounds, theta stays finite and the saved image always
 // restores.

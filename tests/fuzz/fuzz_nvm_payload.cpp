@@ -20,7 +20,7 @@
 
 #include "bms/fw/bms_core.hpp"
 #include "bms/fw/nvm_store.hpp"
-#include "bms/fw/paper_cell_profiles.hpp"
+#include "bms/fw/make_config.hpp"
 #include "bms/app/bms_application.hpp"
 
 namespace fw = bms::fw;

@@ -21,6 +21,7 @@
 
 #include "bms/fw/nvm_store.hpp"
 #include "bms/fw/rcsi_estimator.hpp"
+#include "../common/rcsi_test_config.hpp"
 
 namespace nvm = bms::fw::nvm;
 
@@ -58,16 +59,7 @@ struct MemNvm {
 };
 using Store = nvm::RecordStore<State, kTag, MemNvm>;
 
-Estimator::Config config() {
-  Estimator::Config c;
-  c.lambda = 0.999;
-  c.theta0 << 1.0, 0.0, -1e-10, 0.0;
-  c.r_film_init_ohm_m2 = 3e-3;
-  c.j_side_init_a_m3 = -10.0;
-  c.r_film_min_ohm_m2 = 1e-4;
-  c.r_film_max_ohm_m2 = 1e-1;
-  return c;
-}
+Estimator::Config config() { return bms::test::rcsi_test_config<Estimator>(); }
 
 // Restoring an accepted record must give a usable estimator, or be refused.
 void restore_and_tick(const std::uint8_t* payload) {

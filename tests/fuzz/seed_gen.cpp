@@ -12,6 +12,7 @@
 #include "bms/fw/can_protocol.hpp"
 #include "bms/fw/nvm_store.hpp"
 #include "bms/fw/rcsi_estimator.hpp"
+#include "../common/rcsi_test_config.hpp"
 
 namespace can = bms::fw::can;
 namespace nvm = bms::fw::nvm;
@@ -52,14 +53,7 @@ Frame encoded(const M& m, std::uint8_t counter) {
 using Estimator = bms::fw::RcsiEstimator<double, 2, 1>;
 
 Estimator::State some_state(int ticks) {
-  Estimator::Config c;
-  c.lambda = 0.999;
-  c.theta0 << 1.0, 0.0, -1e-10, 0.0;
-  c.r_film_init_ohm_m2 = 3e-3;
-  c.j_side_init_a_m3 = -10.0;
-  c.r_film_min_ohm_m2 = 1e-4;
-  c.r_film_max_ohm_m2 = 1e-1;
-  Estimator est(c);
+  Estimator est(bms::test::rcsi_test_config<Estimator>());
   for (int k = 0; k < ticks; ++k) {
     est.predict();
     est.update(1e-5 * (k % 7 - 3), -10.0 + 0.1 * (k % 5));
@@ -128,7 +122,7 @@ int main(int argc, char** argv) {
     Frame f{};
     can::Estimate1 e1;
     e1.seq = 17;
-    e1.r_film_ohm_m2 = 3.391e-3;
+    e1.r_film_ohm_m2 = bms::fw::paper::kInitialFilm_ohm_m2;
     e1.mode = bms::fw::Mode::cc_charge;
     e1.valid = true;
     tx.encode(e1, f);

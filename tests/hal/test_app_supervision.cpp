@@ -1,4 +1,4 @@
-// The application's supervision and host commands over the fake HAL (issue 18): the watchdog
+// The application's supervision and host commands over the fake HAL: the watchdog
 // kicked once per completed tick, the tick-overrun fault bit from the tick's measured
 // duration, the internal fault bit on a failed send, ResetEstimator, HOST_Temperature, and
 // the end-of-charge commit restored into a fresh application.

@@ -1,4 +1,4 @@
-// BmsApplication over the fake HAL (issue 21): the tick's sequence window, bounded lock-step
+// BmsApplication over the fake HAL: the tick's sequence window, bounded lock-step
 // triggers, a restarted host, the NVM rollback flag, the NVM fault clearing on recovery, the
 // flash write budget and the end-of-charge commit. A small fake core makes every tick's input
 // visible; the last tests use the real core and the payload the firmware really saves.
@@ -10,7 +10,7 @@
 
 #include "bms/fw/bms_core.hpp"
 #include "bms/fw/can_protocol.hpp"
-#include "bms/fw/paper_cell_profiles.hpp"
+#include "bms/fw/make_config.hpp"
 #include "bms/fw/state_schema.hpp"
 #include "bms/app/bms_application.hpp"
 #include "bms/hal/fake/fake_can.hpp"

@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "bms/fw/can_protocol.hpp"
+#include "bms/fw/paper_cell.hpp"
 #include "bms/hal/can_bus.hpp"
 
 namespace can = bms::fw::can;
@@ -211,7 +212,7 @@ TEST(RoundTrip, Temperature) {
 
 TEST(RoundTrip, Estimate1) {
   const double step = can::sig::kRFilm.factor;
-  for (double r : {0.0, step, 1e-9, 3.391e-3, 3.391e-3 + 1e-9, 0.1, can::sig::kRFilm.max}) {
+  for (double r : {0.0, step, 1e-9, bms::fw::paper::kInitialFilm_ohm_m2, bms::fw::paper::kInitialFilm_ohm_m2 + 1e-9, 0.1, can::sig::kRFilm.max}) {
     for (int mode : {0, 1, 2, 3, 4, 15}) {
       can::Estimate1 e;
       e.seq = 2048;
@@ -228,8 +229,8 @@ TEST(RoundTrip, Estimate1) {
     }
   }
   can::Estimate1 a, b;
-  a.r_film_ohm_m2 = 3.391e-3;
-  b.r_film_ohm_m2 = 3.391e-3 + 1e-9;  // 1e-9 ohm.m2 is resolved (10 steps)
+  a.r_film_ohm_m2 = bms::fw::paper::kInitialFilm_ohm_m2;
+  b.r_film_ohm_m2 = bms::fw::paper::kInitialFilm_ohm_m2 + 1e-9;  // 1e-9 ohm.m2 is resolved (10 steps)
   EXPECT_EQ(raw_of(b, can::sig::kRFilm) - raw_of(a, can::sig::kRFilm), 10);
   a.r_film_ohm_m2 = 1.0;  // saturates
   EXPECT_DOUBLE_EQ(round_trip(a).r_film_ohm_m2, can::sig::kRFilm.max);

@@ -26,7 +26,7 @@ struct Golden {
 
 // Recorded from the hand-written MessageTraits::pack of can_protocol.hpp before the split
 // (the same messages as golden_messages below, in that order). HOST_Control's bits 16..19 held
-// ModeHint until session 8 (decoded and never used: removed); those two frames carry zeros
+// ModeHint once (decoded and never used: removed); those two frames carry zeros
 // there and their CRC is recomputed.
 constexpr Golden kGolden[] = {
       {"control", 0x100, 8, {0xBB, 0x75, 0x00, 0x00, 0x01, 0x28, 0x6B, 0xEE}},

@@ -171,8 +171,8 @@ TEST(FileNvm, CreatesErasedFilePersistsWritesAndRefusesOtherSizes) {
   EXPECT_EQ(nvm.read(0, &x, 1), Status::not_open);
 }
 
-// A process killed while it creates the NVM file must not stop every later start (issue 21:
-// the file was filled in place, so a kill left a short file that open() then refused). The
+// A process killed while it creates the NVM file must not stop every later start
+// (the file was filled in place, so a kill left a short file that open() then refused). The
 // child creates a 4 MiB file over and over; it is SIGKILLed at 40 moments spread over the
 // creation; after each kill the file is either absent or whole, and opening it works.
 TEST(FileNvm, AProcessKilledWhileCreatingTheFileLeavesNoBrokenFile) {

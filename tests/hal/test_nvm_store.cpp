@@ -16,6 +16,7 @@
 
 #include "bms/fw/nvm_store.hpp"
 #include "bms/fw/rcsi_estimator.hpp"
+#include "../common/rcsi_test_config.hpp"
 #include "bms/hal/fake/fake_nvm.hpp"
 #include "bms/hal/linux/file_nvm.hpp"
 #include "bms/hal/nvm.hpp"
@@ -39,16 +40,7 @@ constexpr std::size_t kPage = 64;
 constexpr std::size_t kNvmBytes = 2048;
 constexpr std::size_t kBase = 256;  // not at 0: the store must honour its base offset
 
-Estimator::Config config() {
-  Estimator::Config c;
-  c.lambda = 0.999;
-  c.theta0 << 1.0, 0.0, -1e-10, 0.0;
-  c.r_film_init_ohm_m2 = 3.391e-3;
-  c.j_side_init_a_m3 = -10.0;
-  c.r_film_min_ohm_m2 = 1e-4;
-  c.r_film_max_ohm_m2 = 1e-1;
-  return c;
-}
+Estimator::Config config() { return bms::test::rcsi_test_config<Estimator>(); }
 
 // Successive, all different estimator states: what the firmware saves once per commit.
 std::vector<State> estimator_states(int count) {

@@ -253,7 +253,7 @@ TEST(LockstepTicks, ControlTickTriggerSetsTheFullNumber) {
   EXPECT_FALSE(lt.classify(f, tick));
 }
 
-// ---------------------------------------------------------------- sequence window (issue 21)
+// ---------------------------------------------------------------- sequence window
 
 TEST(Receiver, SeqWindowDropsAStaleFrameBeforeItsCounterCanPushTheGenuineOneOut) {
   // Tick 11's genuine frame has counter 2 (tick 10's had 1). An old CRC-valid frame (Seq 5)

@@ -209,7 +209,7 @@ TEST(BpxReader, OutOfRangeValuesNameFieldValueAndRange) {
             std::string::npos);
 }
 
-// Physically absurd values (issue 21: a solid diffusivity of 1e10 m2/s hung the solver, a
+// Physically absurd values (a solid diffusivity of 1e10 m2/s hung the solver, a
 // thickness of 1e10 m failed deep in it) are input errors naming the field and the range.
 TEST(BpxReader, PhysicallyAbsurdValuesAreInputErrors) {
   EXPECT_EQ(error_after([](json& j) { negative(j)["Diffusivity [m2.s-1]"] = 1e10; }),

@@ -48,20 +48,22 @@ void on_signal(int) { g_stop = 1; }
 void usage(FILE* to) {
   std::fprintf(to,
                "usage: bms-firmware --can IFACE (--lockstep | --realtime) [--nvm FILE] [--h H] [--h-from-model]\n"
-               "                    [--settings best|paper] [--beyond-paper]\n"
+               "                    [--settings best|paper|nominal-growth]\n"
                "                    [--persist-every-s S] [--flash-endurance-cycles N] [--flash-lifetime-years Y]\n"
                "                    [--rcvbuf-bytes N]\n"
                "  --can IFACE          SocketCAN interface (e.g. vcan0)\n"
                "  --lockstep           ticks triggered by the host's HOST_Measurement frames (deterministic)\n"
                "  --realtime           ticks from a 0.2 s timer\n"
                "  --nvm FILE           keep the estimator state in FILE (two slots, CRC); restored at start\n"
-               "  --settings P         estimator profile: best (default; the nominal cell only: film, growth gain\n"
-               "                       and lithium inventory identified together) or paper (the paper's RCSI)\n"
-               "  --h H                with --settings paper: RCSI Markov parameter [V per ohm m2] (default 0.01)\n"
-               "  --h-from-model       H from the model at each charge start\n"
-               "  --beyond-paper       session 5's profile (as bmssim estimate --beyond-paper): H from the model,\n"
-               "                       state re-synchronisation, 600 s warm-up, bias calibration at the nominal\n"
-               "                       initial film, charge-averaged estimate propagated by the nominal growth law\n"
+               "  --settings P         estimator profile (bms/fw/make_config.hpp): best (default; the nominal cell\n"
+               "                       only: film, growth gain and lithium inventory identified together), paper\n"
+               "                       (the paper's RCSI) or nominal-growth (RCSI with H from the model, state\n"
+               "                       re-synchronisation, 600 s warm-up, bias calibration at the nominal initial\n"
+               "                       film, charge-averaged estimate carried by the nominal growth law)\n"
+               "  --beyond-paper       the same as --settings nominal-growth (its older name)\n"
+               "  --h H                with --settings paper: RCSI Markov parameter [V per ohm m2] (default: the\n"
+               "                       paper's 0.01); refused where the profile takes H from the model\n"
+               "  --h-from-model       with --settings paper: H from the model at each charge start\n"
                "  --persist-every-s S  commit the state every S s of ticks (default: the budget's interval;\n"
                "                       0: only at the end of each CC charge and at exit), within the budget\n"
                "  --flash-endurance-cycles N  program/erase cycles the NVM is rated for (default 10000); with\n"
@@ -89,9 +91,11 @@ void enlarge_receive_buffer(int fd, int bytes) {
 
 struct Args {
   std::string iface, nvm_path;
-  bool lockstep = false, realtime = false, h_from_model = false, beyond_paper = false;
-  std::string settings = "best";
-  double h = 0.01, persist_every_s = -1.0, rcvbuf_bytes = 8388608.0;
+  bool lockstep = false, realtime = false;
+  bms::fw::Profile profile = bms::fw::Profile::best;
+  bool profile_given = false;
+  bms::fw::Overrides overrides;
+  double persist_every_s = -1.0, rcvbuf_bytes = 8388608.0;
   double endurance_cycles = 10000.0, lifetime_years = 10.0;
 };
 
@@ -127,14 +131,18 @@ Args parse_args(int argc, char** argv) {
     else if (f == "--nvm") a.nvm_path = value();
     else if (f == "--lockstep") a.lockstep = true;
     else if (f == "--realtime") a.realtime = true;
-    else if (f == "--h-from-model") a.h_from_model = true;
-    else if (f == "--beyond-paper") a.beyond_paper = true;
-    else if (f == "--settings") {
-      a.settings = value();
-      if (a.settings != "best" && a.settings != "paper") bad_argument("--settings must be 'best' or 'paper'", a.settings);
+    else if (f == "--h-from-model") a.overrides.h_from_model = true;
+    else if (f == "--beyond-paper" || f == "--settings") {
+      const std::string v = f == "--settings" ? value() : "nominal-growth";
+      if (a.profile_given) bad_argument("give one of --settings and --beyond-paper, once", v);
+      if (!bms::fw::parse_profile(v.c_str(), a.profile))
+        bad_argument("--settings must be 'best', 'paper' or 'nominal-growth'", v);
+      a.profile_given = true;
     } else if (f == "--h") {
       const std::string v = value();
-      if (!parse_number(v, a.h) || a.h == 0.0) bad_argument("--h must be a nonzero number", v);
+      double h = 0.0;
+      if (!parse_number(v, h) || h == 0.0) bad_argument("--h must be a nonzero number", v);
+      a.overrides.h_v_per_ohm_m2 = h;
     } else if (f == "--persist-every-s") a.persist_every_s = number_in(value(), 0.0, 86400.0, "--persist-every-s must be 0..86400");
     else if (f == "--flash-endurance-cycles")
       a.endurance_cycles = number_in(value(), 100.0, 1e12, "--flash-endurance-cycles must be 100..1e12");
@@ -156,6 +164,12 @@ Args parse_args(int argc, char** argv) {
     usage(stderr);
     std::exit(2);
   }
+  const bms::fw::Refusal r = bms::fw::unused_override(a.profile, a.overrides);
+  if (r.option != nullptr) {
+    std::fprintf(stderr, "bms-firmware: --%s is not used by --settings %s: %s\n", r.option,
+                 bms::fw::profile_name(a.profile), r.reason);
+    std::exit(2);
+  }
   return a;
 }
 
@@ -163,15 +177,12 @@ using Model = bms::fw::ReducedCell<double>;
 using Core = bms::fw::BmsCore<double, Model, 1, 0>;
 using App = bms::app::BmsApplication<Core>;
 
-// The estimator's configuration: a profile of the nominal cell (make_config), or session 5's.
+// The estimator's configuration: a profile of the nominal cell with the overrides (make_config;
+// parse_args has refused an override the profile does not use).
 Core::Config config_for(const Args& a) {
-  const bms::fw::NominalCell cell = bms::fw::paper_nominal_cell<double>();
-  if (a.beyond_paper) return bms::fw::make_beyond_paper_config<Core>(cell);
-  Core::Config cfg = bms::fw::make_config<Core>(cell, a.settings == "paper" ? bms::fw::Profile::paper : bms::fw::Profile::best);
-  if (a.settings == "paper") {
-    cfg.estimator.markov_v_per_ohm_m2 = a.h;
-    cfg.markov_from_model = a.h_from_model;
-  }
+  Core::Config cfg{};
+  const bms::fw::Refusal r = bms::fw::make_config<Core>(bms::fw::paper_nominal_cell<double>(), a.profile, a.overrides, cfg);
+  if (r.option != nullptr) bad_argument(r.reason, std::string("--") + r.option);
   return cfg;
 }
 

@@ -1,6 +1,6 @@
 #pragma once
 // `bmssim baseline`: the reference estimators of the film resistance that RCSI is judged
-// against (issue 6, part 3) on the same data and the same reduced model: an augmented-state
+// against, on the same data and the same reduced model: an augmented-state
 // EKF, a per-cycle batch least-squares fit, and the Cramer-Rao lower bound.
 #include <string>
 #include <vector>

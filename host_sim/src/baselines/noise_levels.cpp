@@ -1,4 +1,5 @@
 #include "baselines/noise_levels.hpp"
+#include "io/statistics.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,13 +11,9 @@ namespace {
 
 double mad_sigma(std::vector<double> x) {
   if (x.size() < 10) return 0.0;
-  auto median = [](std::vector<double>& v) {
-    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-    return v[v.size() / 2];
-  };
-  const double m = median(x);
+  const double m = stats::median(x);
   for (double& v : x) v = std::abs(v - m);
-  return 1.4826 * median(x);
+  return 1.4826 * stats::median(x);
 }
 
 }  // namespace

@@ -1,4 +1,5 @@
 #include "diagnosis/adequacy.hpp"
+#include "io/statistics.hpp"
 
 #include <fmt/format.h>
 
@@ -9,12 +10,6 @@ namespace bms::diagnosis {
 
 namespace {
 
-double median_of(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
 
 // Normal-distribution consistency of the median absolute deviation.
 constexpr double kMadToSigma = 1.4826;
@@ -40,9 +35,9 @@ double measurement_noise_mv(const Record& r) {
     d2.push_back(r.voltage_v[k + 1] - 2.0 * r.voltage_v[k] + r.voltage_v[k - 1]);
   }
   if (d2.empty()) return 0.0;
-  const double med = median_of(d2);
+  const double med = stats::median(d2);
   for (double& x : d2) x = std::abs(x - med);
-  const double sigma_v = kMadToSigma * median_of(d2) / std::sqrt(6.0);
+  const double sigma_v = kMadToSigma * stats::median(d2) / std::sqrt(6.0);
   const double rounding_v = std::isfinite(quantum) ? quantum / std::sqrt(12.0) : 0.0;
   return 1e3 * std::max(sigma_v, rounding_v);
 }

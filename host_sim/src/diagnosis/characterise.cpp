@@ -1,4 +1,5 @@
 #include "diagnosis/characterise.hpp"
+#include "io/statistics.hpp"
 
 #include <fmt/format.h>
 
@@ -31,12 +32,7 @@ void emit(std::vector<ResidualGroup>& out, const std::string& dim, const std::ve
   }
 }
 
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
-}
+double quantile(const std::vector<double>& v, double q) { return v.empty() ? 0.0 : stats::quantile(v, q); }
 
 // Groups by |dV/dt| of the measured voltage, quartiles.
 void group_by_voltage_rate(const Record& r, const std::vector<double>& res, std::vector<ResidualGroup>& groups) {

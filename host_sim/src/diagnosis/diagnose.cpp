@@ -10,6 +10,7 @@
 
 #include "diagnosis/minimise.hpp"
 #include "io/input_error.hpp"
+#include "io/statistics.hpp"
 
 namespace bms::diagnosis {
 
@@ -343,8 +344,7 @@ Setup build_cases(const CellParameters& cell, const std::vector<Record>& records
     const std::size_t n = rec.t_s.size();
     std::vector<double> steps;
     for (std::size_t k = 1; k < n; ++k) steps.push_back(rec.t_s[k] - rec.t_s[k - 1]);
-    std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
-    st.dt_s = std::min(st.dt_s, steps[steps.size() / 2]);
+    st.dt_s = std::min(st.dt_s, stats::median(steps));
     if (records.size() == 1) {
       split_samples(n, settings.blocks, cr.train, cr.validate);
       cr.role = "train+validate";

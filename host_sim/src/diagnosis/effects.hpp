@@ -43,13 +43,13 @@ enum class Effect {
 
 enum class KnobKind { model_switch, drive, parameter, post };
 
-// The listed effects (issue 7) first, then the structural ones, then the parameter re-fits.
+// The listed effects first, then the structural ones, then the parameter re-fits.
 inline constexpr Effect kAllCandidates[] = {
     Effect::contact_resistance,   Effect::hysteresis,   Effect::current_offset,          Effect::current_gain,
     Effect::thermal,              Effect::voltage_offset, Effect::voltage_gain,          Effect::rc_branch,
     Effect::time_skew,            Effect::diffusivity_positive, Effect::diffusivity_negative, Effect::conductivity,
     Effect::electrolyte_diffusivity, Effect::i0_positive, Effect::i0_negative,            Effect::initial_soc};
-// The five effects of issue 7 (`--candidates listed`).
+// The five listed effects (`--candidates listed`).
 inline constexpr Effect kListedCandidates[] = {Effect::contact_resistance, Effect::hysteresis, Effect::current_offset,
                                                Effect::current_gain, Effect::thermal};
 // particle_size (cathode particle-size spread) is scored only when listed in --candidates: each

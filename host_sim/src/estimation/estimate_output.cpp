@@ -10,6 +10,35 @@ namespace bms {
 
 namespace {
 nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+// The configuration that ran (keys as before), only what the profile uses: RCSI's settings
+// where RCSI learns, the identifier's where it does, the observer's where it runs.
+nlohmann::json options_json(const EstimateConfigSummary& c, const EstimateOptions& o) {
+  nlohmann::json j = {{"model", o.model}, {"settings", fw::profile_name(o.profile)}, {"learning", c.learning},
+                      {"identify_growth", c.identify_growth}, {"h_from_model", c.h_from_model}, {"delay", 0},
+                      {"resync", c.resync_at_cv_end}, {"warmup_s", c.warmup_s},
+                      {"voltage_window_v", {c.voltage_min_v, c.voltage_max_v}},
+                      {"model_ic", {{"stoich_neg", o.ic.stoich_neg}, {"stoich_pos", o.ic.stoich_pos},
+                                    {"electrolyte_mol_m3", o.ic.electrolyte_mol_m3}}}};
+  if (!c.filled) return j;
+  if (c.identify_growth) {
+    j["learn_inventory"] = c.learn_inventory;
+    j["model_bias_ohm"] = c.model_bias_ohm;
+    if (c.resync_at_cv_end) j["relinearise_inventory"] = c.relinearise_inventory;
+  } else {
+    j.update({{"nc", c.nc}, {"p0", c.p0_u}, {"p0_y0", c.p0_y0}, {"lambda", c.lambda}, {"eta", c.eta},
+              {"calibrate_bias", c.calibrate_bias}, {"average_estimate", c.average_estimate},
+              {"propagate_growth", c.propagated_growth_ohm_m2_per_a_m3_s != 0.0}});
+    if (!c.h_from_model) j["h"] = c.h_v_per_ohm_m2;
+    if (c.calibrate_bias && c.resync_at_cv_end) j["reference_after_resyncs"] = c.reference_after_resyncs;
+    if (c.propagated_growth_ohm_m2_per_a_m3_s != 0.0)
+      j["propagated_growth_ohm_m2_per_a_m3_s"] = c.propagated_growth_ohm_m2_per_a_m3_s;
+  }
+  if (c.resync_at_cv_end)
+    j.update({{"resync_at_start", c.resync_at_start}, {"resync_window_ticks", c.resync_window_ticks},
+              {"resync_current_a", c.resync_current_a}, {"inventory_error_pct", o.inventory_error_pct.or_else(0.0)}});
+  return j;
+}
 }  // namespace
 
 void write_estimates_csv(const std::filesystem::path& file, const EstimateResult& r, bool with_truth) {
@@ -53,7 +82,7 @@ nlohmann::json estimate_summary_json(const EstimateResult& r, const EstimateOpti
   }
   j["theta"] = r.theta;
   j["growth_err_pct"] = finite_or_null(r.growth_err_pct);
-  if (o.identify_growth && !r.rows.empty()) {
+  if (o.profile == fw::Profile::best && !r.rows.empty()) {
     const auto& last = r.rows.back();
     j["identified"] = {{"film_initial_ohm_m2", last.film_initial_ohm_m2},
                        {"growth_gain", last.growth_gain},
@@ -63,13 +92,7 @@ nlohmann::json estimate_summary_json(const EstimateResult& r, const EstimateOpti
   j["newton_cap_hits"] = r.newton_cap_hits;
   j["wall_s"] = r.wall_s;
   j["ticks"] = r.rows.size();
-  j["options"] = {{"model", o.model}, {"settings", o.settings}, {"learning", o.learning},
-                  {"identify_growth", o.identify_growth}, {"learn_inventory", o.learn_inventory},
-                  {"model_bias_ohm", o.model_bias_ohm}, {"nc", o.nc}, {"p0", o.p0}, {"p0_y0", o.p0_y0 > 0.0 ? o.p0_y0 : o.p0}, {"lambda", o.lambda}, {"eta", o.eta}, {"h", o.h_v_per_ohm_m2},
-                  {"h_from_model", o.markov_from_model}, {"delay", 0}, {"resync", o.resync}, {"resync_at_start", o.resync && o.resync_at_start}, {"resync_window_ticks", o.resync_window_ticks}, {"inventory_error_pct", o.inventory_error_pct}, {"reference_after_resyncs", o.reference_after_resyncs}, {"warmup_s", o.warmup_s}, {"calibrate_bias", o.calibrate_bias}, {"average_estimate", o.average_estimate}, {"propagate_growth", o.propagate_growth}, {"growth_scale", o.growth_scale},
-                  {"resync_current_a", o.resync_current_a},
-                  {"model_ic", {{"stoich_neg", o.ic.stoich_neg}, {"stoich_pos", o.ic.stoich_pos},
-                                {"electrolyte_mol_m3", o.ic.electrolyte_mol_m3}}}};
+  j["options"] = options_json(r.config, o);
   return j;
 }
 

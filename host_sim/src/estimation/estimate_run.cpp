@@ -162,49 +162,11 @@ template <int Nc, class Model>
 void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, const CellParameters& cell,
               double dt_s, EstimateResult& res, const EstimateProgress& progress) {
   using Core = fw::BmsCore<double, Model, Nc, 0>;
-  typename Core::Config cfg;
-  cfg.dt_s = dt_s;
-  cfg.estimator.markov_v_per_ohm_m2 = o.h_v_per_ohm_m2;
-  cfg.estimator.p0_u = o.p0;
-  cfg.estimator.p0_y0 = o.p0_y0 > 0.0 ? o.p0_y0 : o.p0;
-  cfg.estimator.lambda = o.lambda;
-  if (!o.theta0.empty()) {
-    if (o.theta0.size() != static_cast<std::size_t>(2 * Nc))
-      throw InputError(fmt::format("--theta0: needs 2 n_c = {} values (got {})", 2 * Nc, o.theta0.size()));
-    for (int k = 0; k < 2 * Nc; ++k) cfg.estimator.theta0(k) = o.theta0[static_cast<std::size_t>(k)];
-  }
-  cfg.estimator.eta = o.eta;
-  cfg.estimator.r_film_init_ohm_m2 =
-      o.r_film_init_ohm_m2 >= 0.0 ? o.r_film_init_ohm_m2 : cell.side.initial_film_resistance_ohm_m2;
-  cfg.markov_from_model = o.markov_from_model;
-  cfg.resync_at_cv_end = o.resync;
-  cfg.resync_at_start = o.resync && o.resync_at_start;
-  cfg.resync_current_a = o.resync_current_a;
-  cfg.resync_window_ticks = o.resync_window_ticks;
-  cfg.nominal_inventory_mol = o.nominal_inventory_mol;
-  cfg.rcsi_warmup_s = o.warmup_s;
-  cfg.calibrate_bias = o.calibrate_bias;
-  cfg.reference_after_resyncs = o.resync ? o.reference_after_resyncs : 0u;
-  cfg.average_estimate = o.average_estimate;
-  // The nominal cell's Ramadass law per volumetric side current (the cell in use may differ).
-  cfg.nominal_growth_ohm_m2_per_a_m3_s = o.propagate_growth ? o.growth_scale * nominal_growth_ohm_m2_per_a_m3_s(cell) : 0.0;
-  cfg.learning = o.learning;
-  cfg.identify_growth = o.identify_growth;
-  if (o.identify_growth) {
-    // Everything here is the nominal cell's: its initial film, its Ramadass constant, its
-    // inventory (set by run_estimate), the model's design-time bias.
-    const fw::NominalCell nominal{o.nominal_inventory_mol,           cell.side.initial_film_resistance_ohm_m2,
-                                  nominal_growth_ohm_m2_per_a_m3_s(cell), o.model_bias_ohm,
-                                  cell.lower_voltage_v,              cell.upper_voltage_v};
-    const auto best = fw::make_config<Core>(nominal, fw::Profile::best);
-    cfg.identifier = best.identifier;
-    cfg.identifier.learn_inventory = o.learn_inventory;
-    cfg.model_bias_ohm = o.model_bias_ohm;
-    cfg.relinearise_inventory = o.relinearise_inventory;
-  }
-  cfg.detector.v_max = cell.upper_voltage_v;
-  cfg.detector.v_min = cell.lower_voltage_v;
+  typename Core::Config cfg{};
+  const fw::Refusal refused = estimate_config<Core>(cell, o, dt_s, cfg);
+  if (refused.option != nullptr) throw InputError(fmt::format("--{}: {}", refused.option, refused.reason));
   adapt_to_sample_step(cfg, d, dt_s);
+  res.config = summarise_config(cfg, Nc);
   Core core(cfg, model);
   const std::size_t n = d.t_s.size();
   const std::vector<long long> ticks = sample_ticks(d.t_s, dt_s);
@@ -278,7 +240,7 @@ void attach_truth(std::vector<EstimateRow>& rows, const EstimateData& d, double 
 template <class Model>
 void dispatch_nc(Model& model, const MeasuredSeries& d, const EstimateOptions& o, const CellParameters& cell,
                  double dt_s, EstimateResult& res, const EstimateProgress& progress) {
-  switch (o.nc) {
+  switch (o.overrides.nc.or_else(1)) {
     case 1: run_core<1>(model, d, o, cell, dt_s, res, progress); break;
     case 2: run_core<2>(model, d, o, cell, dt_s, res, progress); break;
     case 3: run_core<3>(model, d, o, cell, dt_s, res, progress); break;
@@ -287,7 +249,7 @@ void dispatch_nc(Model& model, const MeasuredSeries& d, const EstimateOptions& o
     case 6: run_core<6>(model, d, o, cell, dt_s, res, progress); break;
     case 7: run_core<7>(model, d, o, cell, dt_s, res, progress); break;
     case 8: run_core<8>(model, d, o, cell, dt_s, res, progress); break;
-    default: throw InputError(fmt::format("--nc must be 1..8 (got {})", o.nc));
+    default: throw InputError(fmt::format("--nc must be 1..8 (got {})", o.overrides.nc.value));
   }
 }
 
@@ -341,53 +303,63 @@ void add_model_effect(EstimateOptions& o, const std::string& spec) {
   o.model_effects_on = true;
 }
 
-void apply_beyond_paper(EstimateOptions& o, const std::function<bool(const char* flag)>& given) {
-  // The inventory is set per cell in run_estimate; a nonzero growth factor marks the switch.
-  const auto cfg = fw::BmsCore<double>::beyond_paper_config(0.0, 1.0);
-  o.markov_from_model = o.markov_from_model || cfg.markov_from_model;
-  if (!given("--p0")) o.p0 = cfg.estimator.p0_u;
-  if (!given("--p0-y0")) o.p0_y0 = cfg.estimator.p0_y0;
-  o.resync = o.resync || cfg.resync_at_cv_end;
-  if (!given("--no-start-resync")) o.resync_at_start = cfg.resync_at_start;
-  if (!given("--resync-window")) o.resync_window_ticks = cfg.resync_window_ticks;
-  if (!given("--resync-current")) o.resync_current_a = cfg.resync_current_a;
-  if (!given("--warmup")) o.warmup_s = cfg.rcsi_warmup_s;
-  o.calibrate_bias = o.calibrate_bias || cfg.calibrate_bias;
-  if (!given("--reference-after-resyncs")) o.reference_after_resyncs = cfg.reference_after_resyncs;
-  o.average_estimate = o.average_estimate || cfg.average_estimate;
-  o.propagate_growth = o.propagate_growth || cfg.nominal_growth_ohm_m2_per_a_m3_s != 0.0;
+fw::NominalCell estimate_nominal_cell(const CellParameters& cell, const EstimateOptions& o) {
+  // The nominal inventory is the cell's design state, not the (possibly wrong) model start.
+  const InitialConditions design = default_initial_conditions(cell);
+  const double inventory_mol = fw::ReducedCell<double>::inventory_of(design.stoich_neg, design.stoich_pos) *
+                               (1.0 + 0.01 * o.inventory_error_pct.or_else(0.0));
+  // The full model is the DFN itself: no design-time bias to remove.
+  const double bias_ohm = o.model == "full" ? 0.0 : fw::kPaperReducedModelBiasOhm;
+  return {inventory_mol,           cell.side.initial_film_resistance_ohm_m2,
+          nominal_growth_ohm_m2_per_a_m3_s(cell), bias_ohm,
+          cell.lower_voltage_v,    cell.upper_voltage_v};
 }
 
-void apply_settings(EstimateOptions& o, const std::function<bool(const char* flag)>& given) {
-  if (o.settings == "paper") {
-    // The paper's RCSI: n_c = 1, eta = 0, P(0) = 5e-7 I, H = 0.01 (the option defaults).
-    o.identify_growth = false;
-    return;
-  }
-  if (o.settings != "best") throw InputError("--settings must be 'best' or 'paper' (got '" + o.settings + "')");
-  const auto cfg = fw::BmsCore<double>::best_config(0.0, 0.0, 0.0, 0.0);
-  o.markov_from_model = true;
-  o.identify_growth = true;
-  o.resync = o.model == "reduced" && cfg.resync_at_cv_end;  // the full model has no observer
-  if (!given("--no-start-resync")) o.resync_at_start = cfg.resync_at_start;
-  if (!given("--resync-window")) o.resync_window_ticks = cfg.resync_window_ticks;
-  if (!given("--resync-current")) o.resync_current_a = cfg.resync_current_a;
-  if (!given("--warmup")) o.warmup_s = cfg.rcsi_warmup_s;
+fw::Overrides estimate_overrides(const EstimateOptions& o) {
+  fw::Overrides v = o.overrides;
+  if (o.model == "full") v.resync = false;  // the full DFN has no state observer
+  return v;
+}
+
+void check_estimate_options(const EstimateOptions& o) {
+  if (o.model != "reduced" && o.model != "full")
+    throw InputError("--model must be 'reduced' or 'full' (got '" + o.model + "')");
+  const fw::Overrides& v = o.overrides;
+  if (o.model == "full" && v.resync.given && v.resync.value)
+    throw InputError("--resync is a feature of the firmware model; use --model reduced");
+  const fw::Refusal r = fw::unused_override(o.profile, estimate_overrides(o));
+  if (r.option != nullptr)
+    throw InputError(fmt::format("--{} is not used by --settings {}: {}", r.option, fw::profile_name(o.profile), r.reason));
+  const bool inventory_used = o.model == "reduced" && (fw::observer_on(o.profile, v) || o.profile == fw::Profile::best);
+  if (o.inventory_error_pct.given && !inventory_used)
+    throw InputError(fmt::format("--inventory-error-pct is not used by --settings {} with --model {}: only the reduced "
+                                 "model's state observer and --settings best read the nominal inventory",
+                                 fw::profile_name(o.profile), o.model));
+  if (o.points_given && o.model != "full") throw InputError("--points is not used by --model reduced (full model only)");
+  auto bad = [](const auto& g, auto ok) { return g.given && !ok(g.value); };
+  const auto finite = [](double x) { return std::isfinite(x); };
+  if (bad(v.nc, [](int n) { return n >= 1 && n <= 8; })) throw InputError(fmt::format("--nc must be 1..8 (got {})", v.nc.value));
+  if (bad(v.p0, [&](double x) { return finite(x) && x > 0.0; })) throw InputError("--p0 must be a positive number");
+  if (bad(v.p0_y0, [&](double x) { return finite(x) && x > 0.0; })) throw InputError("--p0-y0 must be a positive number");
+  if (bad(v.lambda, [](double x) { return x > 0.0 && x <= 1.0; })) throw InputError("--lambda must be in (0, 1]");
+  if (bad(v.eta, [&](double x) { return finite(x) && x >= 0.0; })) throw InputError("--eta must be >= 0");
+  if (bad(v.h_v_per_ohm_m2, [&](double x) { return finite(x) && x != 0.0; })) throw InputError("--h must be nonzero");
+  if (bad(v.warmup_s, [&](double x) { return finite(x) && x >= 0.0; })) throw InputError("--warmup must be >= 0 s");
+  if (bad(v.growth_scale, [&](double x) { return finite(x) && x >= 0.0; })) throw InputError("--growth-scale must be >= 0");
+  if (bad(o.inventory_error_pct, [](double x) { return std::abs(x) < 50.0; }))
+    throw InputError("--inventory-error-pct must be within +-50");
+  if (bad(v.resync_current_a, [&](double x) { return finite(x) && x > 0.0; }))
+    throw InputError("--resync-current must be a positive current in A");
+  if (bad(v.r_film_init_ohm_m2, [&](double x) { return finite(x) && x >= 0.0 && x <= 1.0; }))
+    throw InputError("--r-film-init: must be a finite film resistance in [0, 1] ohm m2");
+  if (bad(v.theta0, [&](const fw::Theta0& t) { return t.count == 2 * v.nc.or_else(1); }))
+    throw InputError(fmt::format("--theta0: needs 2 n_c = {} values (got {})", 2 * v.nc.or_else(1), v.theta0.value.count));
 }
 
 EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, const EstimateOptions& options,
                             const EstimateProgress& progress) {
-  EstimateOptions o = options;
-  if (o.nc < 1 || o.nc > 8) throw InputError(fmt::format("--nc must be 1..8 (got {})", o.nc));
-  if (!(o.p0 > 0.0) || !std::isfinite(o.p0)) throw InputError("--p0 must be a positive number");
-  if (!(o.lambda > 0.0 && o.lambda <= 1.0)) throw InputError("--lambda must be in (0, 1]");
-  if (!(o.eta >= 0.0) || !std::isfinite(o.eta)) throw InputError("--eta must be >= 0");
-  if (!(o.h_v_per_ohm_m2 != 0.0) || !std::isfinite(o.h_v_per_ohm_m2)) throw InputError("--h must be nonzero");
-  if (!(o.warmup_s >= 0.0) || !std::isfinite(o.warmup_s)) throw InputError("--warmup must be >= 0 s");
-  if (!(o.growth_scale >= 0.0) || !std::isfinite(o.growth_scale)) throw InputError("--growth-scale must be >= 0");
-  if (!(std::abs(o.inventory_error_pct) < 50.0)) throw InputError("--inventory-error-pct must be within +-50");
-  if (!(o.resync_current_a > 0.0) || !std::isfinite(o.resync_current_a))
-    throw InputError("--resync-current must be a positive current in A");
+  const EstimateOptions& o = options;
+  check_estimate_options(o);
   const double dt_s = model_tick_s(d);
   const auto wall0 = std::chrono::steady_clock::now();
   EstimateResult res;
@@ -398,11 +370,6 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
       throw InputError("--model reduced is the firmware's model of the paper cell; use --cell paper or --model full");
     fw::ReducedCell<double> model;
     model.init(o.ic.stoich_neg, o.ic.stoich_pos, o.ic.electrolyte_mol_m3);
-    // The nominal inventory is the cell's design state, not the (possibly wrong) model start.
-    const InitialConditions nominal = default_initial_conditions(cell);
-    o.nominal_inventory_mol = fw::ReducedCell<double>::inventory_of(nominal.stoich_neg, nominal.stoich_pos) *
-                              (1.0 + 0.01 * o.inventory_error_pct);
-    if (o.model_bias_ohm < 0.0) o.model_bias_ohm = fw::kPaperReducedModelBiasOhm;
     if (o.model_effects_on) {
       fw::EffectsModel<fw::ReducedCell<double>, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
       dispatch_nc(augmented, measured, o, cell, dt_s, res, progress);
@@ -410,15 +377,10 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
       dispatch_nc(model, measured, o, cell, dt_s, res, progress);
     }
   } else if (o.model == "full") {
-    if (o.resync) throw InputError("--resync is a feature of the firmware model; use --model reduced");
     SolverSettings s;
     s.rtol = o.rtol;
     InitialConditions ic = o.ic;
-    ic.r_film_ohm_m2 = o.r_film_init_ohm_m2 >= 0.0 ? o.r_film_init_ohm_m2 : cell.side.initial_film_resistance_ohm_m2;
-    // The full model is the DFN itself: no design-time bias to remove; its inventory is the nominal one.
-    if (o.model_bias_ohm < 0.0) o.model_bias_ohm = 0.0;
-    const InitialConditions nominal = default_initial_conditions(cell);
-    o.nominal_inventory_mol = fw::ReducedCell<double>::inventory_of(nominal.stoich_neg, nominal.stoich_pos);
+    ic.r_film_ohm_m2 = o.overrides.r_film_init_ohm_m2.or_else(cell.side.initial_film_resistance_ohm_m2);
     FullDfnMainModel model(cell, o.mesh, s, ic, cell.thermal.initial_temperature_k);
     if (o.model_effects_on) {
       fw::EffectsModel<FullDfnMainModel, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
@@ -426,12 +388,10 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
     } else {
       dispatch_nc(model, measured, o, cell, dt_s, res, progress);
     }
-  } else {
-    throw InputError("--model must be 'reduced' or 'full' (got '" + o.model + "')");
   }
   res.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   require_physical_film(res, d);
-  attach_truth(res.rows, d, o.nominal_inventory_mol);
+  attach_truth(res.rows, d, res.config.nominal_inventory_mol);
   res.cycles = score_cycles(res.rows, !d.true_mode.empty(), d.true_mode);
   res.growth_err_pct = growth_error_pct(res.rows);
   return res;

@@ -11,6 +11,7 @@
 #include "io/measured_profile.hpp"
 
 #include "bms/fw/cell_effects.hpp"
+#include "bms/fw/make_config.hpp"
 #include "bms/fw/operating_mode.hpp"
 #include "cell/cell_parameters.hpp"
 #include "sim/cycler.hpp"
@@ -56,43 +57,69 @@ double model_tick_s(const EstimateData& d);
 // 1 ns. Throws InputError when any step is more than 1 % off the median.
 double fixed_tick_s(const EstimateData& d);
 
+// What `bmssim estimate` runs: the main model, an estimator profile of the nominal cell and
+// the typed overrides the user gave (bms/fw/make_config.hpp: one the profile does not use is
+// refused, exit 2 naming it).
 struct EstimateOptions {
   std::string model = "reduced";  // reduced | full
-  std::string settings = "best";  // best | paper (apply_settings) | custom (the flags as given)
-  bool learning = true;           // false: the control run, every RCSI / RLS update off
-  bool identify_growth = false;   // the best profile's FilmGrowthIdentifier instead of ARX RCSI
-  bool learn_inventory = true;    // with identify_growth: the inventory is the third parameter
-  double model_bias_ohm = -1.0;   // with identify_growth: < 0 = the main model's calibrated bias
-  double relinearise_inventory = 1e-3;
-  std::vector<double> theta0;     // paper profile: RCSI's theta(0), 2 n_c values; empty = [1, 0, ..] (hold)  // with identify_growth: BmsCore::Config::relinearise_inventory
-  int nc = 1;                     // subsystem order, 1..8
-  double p0 = 5e-7;
-  double p0_y0 = -1.0;  // < 0: same as p0 (the paper's P(0) = p0 I)
-  double lambda = 1.0;
-  double eta = 0.0;
-  double h_v_per_ohm_m2 = 0.01;
-  bool markov_from_model = false;
-  double r_film_init_ohm_m2 = -1.0;  // < 0: the cell's initial film resistance
+  fw::Profile profile = fw::Profile::best;
+  fw::Overrides overrides;
+  // With the observer or the best profile: the nominal lithium inventory the estimator assumes is
+  // off the cell's by this percent (how well a BMS must know its cell's inventory).
+  fw::Given<double> inventory_error_pct;
   InitialConditions ic;              // of the model (not the truth)
-  bool resync = false;               // state re-synchronisation at the end of each CV phase
-  bool resync_at_start = true;      // with --resync: also at the first sample (power-up from rest)
-  double resync_current_a = 0.25;
-  unsigned resync_window_ticks = 1;  // ticks of measurement each resync fits a line to
-  double nominal_inventory_mol = 0.0;  // set by run_estimate from the cell's nominal state
-  double inventory_error_pct = 0.0;    // with resync: the inventory it assumes is off nominal by this
-  double warmup_s = 0.0;             // RCSI learns only after this long in each CC charge
-  bool calibrate_bias = false;       // first CC charge = reference charge at the initial film resistance
-  unsigned reference_after_resyncs = 1;  // with --resync: resyncs before the reference charge
-  bool average_estimate = false;     // report the mean of u_hat over each charge's learning window
-  bool propagate_growth = false;     // the reported estimate follows the model's predicted film growth
-  double growth_scale = 1.0;         // with propagate_growth: factor on the growth law (robustness studies)
   // Effects added to the main model (bms/fw/cell_effects.hpp), e.g. the one `bmssim diagnose`
   // found; none by default. nominal_capacity_ah is taken from the cell.
   fw::EffectParameters<double> model_effects;
   bool model_effects_on = false;
   DfnMesh mesh;                      // full model only
+  bool points_given = false;         // --points (full model only)
   double rtol = 1e-6;                // full model only
 };
+
+// The effective configuration a run used (written to summary.json's "options").
+struct EstimateConfigSummary {
+  bool filled = false;
+  int nc = 1;
+  double h_v_per_ohm_m2 = 0, p0_u = 0, p0_y0 = 0, lambda = 0, eta = 0;
+  bool h_from_model = false, resync_at_cv_end = false, resync_at_start = false;
+  unsigned resync_window_ticks = 0, reference_after_resyncs = 0;
+  double resync_current_a = 0, warmup_s = 0, nominal_inventory_mol = 0, voltage_min_v = 0, voltage_max_v = 0, dt_s = 0;
+  bool calibrate_bias = false, average_estimate = false, learning = true, identify_growth = false, learn_inventory = true;
+  double propagated_growth_ohm_m2_per_a_m3_s = 0, model_bias_ohm = 0, relinearise_inventory = 0;
+};
+
+template <class Config>
+EstimateConfigSummary summarise_config(const Config& c, int nc) {
+  EstimateConfigSummary s;
+  s.filled = true;
+  s.nc = nc;
+  s.h_v_per_ohm_m2 = c.estimator.markov_v_per_ohm_m2;
+  s.p0_u = c.estimator.p0_u;
+  s.p0_y0 = c.estimator.p0_y0;
+  s.lambda = c.estimator.lambda;
+  s.eta = c.estimator.eta;
+  s.h_from_model = c.markov_from_model;
+  s.resync_at_cv_end = c.resync_at_cv_end;
+  s.resync_at_start = c.resync_at_start;
+  s.resync_window_ticks = c.resync_window_ticks;
+  s.reference_after_resyncs = c.reference_after_resyncs;
+  s.resync_current_a = c.resync_current_a;
+  s.warmup_s = c.rcsi_warmup_s;
+  s.nominal_inventory_mol = c.nominal_inventory_mol;
+  s.voltage_min_v = c.voltage_min_v;
+  s.voltage_max_v = c.voltage_max_v;
+  s.dt_s = c.dt_s;
+  s.calibrate_bias = c.calibrate_bias;
+  s.average_estimate = c.average_estimate;
+  s.learning = c.learning;
+  s.identify_growth = c.identify_growth;
+  s.learn_inventory = c.identifier.learn_inventory;
+  s.propagated_growth_ohm_m2_per_a_m3_s = c.nominal_growth_ohm_m2_per_a_m3_s;
+  s.model_bias_ohm = c.model_bias_ohm;
+  s.relinearise_inventory = c.relinearise_inventory;
+  return s;
+}
 
 struct EstimateRow {
   double t_s;
@@ -124,6 +151,7 @@ struct EstimateResult {
   std::uint32_t status = 0;   // OR of all tick status words
   std::size_t newton_cap_hits = 0;
   std::size_t samples_skipped = 0;  // measured samples less than half a model tick after the previous
+  EstimateConfigSummary config;  // what ran
 };
 
 // Sets one main-model effect from "NAME=VALUE" (contract names: contact_resistance [ohm],
@@ -131,14 +159,28 @@ struct EstimateResult {
 // Throws InputError naming the option and the field for anything else.
 void add_model_effect(EstimateOptions& o, const std::string& spec);
 
-// `--beyond-paper`: the firmware's best settings, read from BmsCore::beyond_paper_config (one
-// source for the firmware and this tool). `given(flag)` says whether the user set that flag
-// explicitly; such a value is kept, so `--beyond-paper --resync-window 1` is an ablation.
-void apply_beyond_paper(EstimateOptions& o, const std::function<bool(const char* flag)>& given);
+// Throws InputError naming the option for an override the profile does not use, or a value out
+// of range; cheap, so callers run it before any long work.
+void check_estimate_options(const EstimateOptions& o);
 
-// `--settings best|paper`: the named profiles (BmsCore::best_config, the paper's RCSI); explicit
-// flags win as with apply_beyond_paper. Throws InputError for another name.
-void apply_settings(EstimateOptions& o, const std::function<bool(const char* flag)>& given);
+// The nominal cell the estimator may know (the information rule): the cell's design inventory
+// (off by --inventory-error-pct), initial film, Ramadass constant and voltage window, and the
+// main model's design-time bias (the reduced model's calibration; 0 for the full DFN).
+fw::NominalCell estimate_nominal_cell(const CellParameters& cell, const EstimateOptions& o);
+
+// The overrides run_estimate hands make_config: the user's, and the observer off for the full
+// model (it has none).
+fw::Overrides estimate_overrides(const EstimateOptions& o);
+
+// The configuration run_estimate runs the core with: make_config over estimate_nominal_cell with
+// estimate_overrides, at the data's tick. A refused override leaves cfg as it was.
+template <class Core>
+fw::Refusal estimate_config(const CellParameters& cell, const EstimateOptions& o, double dt_s,
+                            typename Core::Config& cfg) {
+  const fw::Refusal r = fw::make_config<Core>(estimate_nominal_cell(cell, o), o.profile, estimate_overrides(o), cfg);
+  if (r.option == nullptr) cfg.dt_s = dt_s;
+  return r;
+}
 
 // growth_err_pct of the contract: |(R_est - R_est,ref) - (R_true - R_true,ref)| / |R_true - R_true,ref|
 // x 100, ref = the end of the first CC charge with learning, compared at the end of the last.

@@ -6,6 +6,7 @@
 #include "io/input_error.hpp"
 #include "sim/cycler.hpp"
 #include "sim/sample_recorder.hpp"
+#include "io/statistics.hpp"
 
 namespace bms {
 
@@ -54,12 +55,7 @@ CurrentProfile build_current_profile(const std::vector<double>& ts, const std::v
     const double d1 = current_a[i] - current_a[i - 1], d2 = current_a[i + 1] - current_a[i];
     if (std::abs(d1) <= small && std::abs(d2) <= small) jitter.push_back(std::abs(d2 - d1));
   }
-  double jitter90 = 0.0;
-  if (!jitter.empty()) {
-    const auto k = jitter.begin() + static_cast<long>(0.9 * static_cast<double>(jitter.size() - 1));
-    std::nth_element(jitter.begin(), k, jitter.end());
-    jitter90 = *k;
-  }
+  const double jitter90 = jitter.empty() ? 0.0 : stats::quantile(jitter, 0.9);
   const double follow = std::max(2e-4 * imax, jitter90) + 1e-6;
   std::vector<double> charge(n, 0.0);  // trapezoid charge of the samples from the start [A s]
   for (size_t i = 1; i < n; ++i) charge[i] = charge[i - 1] + 0.5 * (current_a[i] + current_a[i - 1]) * (ts[i] - ts[i - 1]);

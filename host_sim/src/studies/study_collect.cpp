@@ -11,6 +11,7 @@
 #include "io/text_file.hpp"
 #include "sim/truth_output.hpp"
 #include "studies/study_runner.hpp"
+#include "io/statistics.hpp"
 
 namespace bms::study {
 
@@ -74,12 +75,7 @@ std::map<int, std::pair<std::size_t, std::size_t>> cc_segments(const Truth& t) {
   return seg;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return std::nan("");
-  const auto mid = v.begin() + static_cast<long>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
+using stats::median;
 
 json stats(const std::vector<double>& v) {
   std::vector<double> x;
@@ -155,10 +151,7 @@ double quantile_abs(const std::vector<double>& v, double q) {
   std::vector<double> a;
   for (double x : v)
     if (std::isfinite(x)) a.push_back(std::abs(x));
-  if (a.empty()) return std::nan("");
-  const auto k = a.begin() + static_cast<long>(q * static_cast<double>(a.size() - 1));
-  std::nth_element(a.begin(), k, a.end());
-  return *k;
+  return stats::quantile(a, q);
 }
 
 // A y range that shows the body of the curves: the last seconds of a CC phase, where the

@@ -9,8 +9,8 @@ namespace bms::study {
 
 namespace {
 
-// Estimator settings of each arm: extra arguments of `bmssim estimate`. The estimator is being
-// improved in parallel, so this is the one place to change what "paper" and "best" mean.
+// Estimator settings of each arm: the `bmssim estimate` profile it runs (what a profile is, is
+// written once, in firmware/include/bms/fw/make_config.hpp).
 struct Setting {
   const char* name;
   std::vector<std::string> args;
@@ -18,16 +18,16 @@ struct Setting {
 };
 const std::vector<Setting>& estimator_settings() {
   static const std::vector<Setting> s = {
-      {"paper", {"--settings", "paper"}, false},  // the paper's n_c = 1, eta = 0, P(0) = 5e-7 I, H = 0.01
-      {"best", {"--settings", "best"}, false},    // the project's best from the nominal cell only (BmsCore::best_config)
-      // Session 5's firmware profile (RCSI + resync + bias calibration on a reference charge at the
-      // nominal initial film + the nominal growth law): kept as an ablation row.
-      {"beyond", {"--beyond-paper"}, true},
+      {"paper", {"--settings", "paper"}, false},  // the paper's RCSI (make_config.hpp)
+      {"best", {"--settings", "best"}, false},    // the project's best from the nominal cell only (make_config.hpp)
+      // RCSI + the observer + bias calibration on a reference charge at the nominal initial film +
+      // the nominal growth law (make_config.hpp's nominal-growth): kept as an ablation row.
+      {"beyond", {"--settings", "nominal-growth"}, true},
   };
   return s;
 }
 
-// Baselines of `bmssim baseline` (issue 6, item 3) and the per-cycle field each reports.
+// Baselines of `bmssim baseline` and the per-cycle field each reports.
 struct Baseline {
   const char* method;
   const char* metric;

@@ -202,7 +202,7 @@ void write_report(const fs::path& out_dir, const Collected& c, int drawn, const 
        "cycle\" = the largest of the per-cycle values; \"noise's own share\" = RMS over CC charge of the "
        "deviation from the same arm on noise-free data, relative to the true R_film. Arms: reduced-* = "
        "firmware estimator with the firmware's reduced model, full-* = with the full DFN (the paper's "
-       "setting); *-paper = the paper's RCSI settings, *-best = RCSI with H from the model and P(0) scaled per regressor, reduced-beyond = the firmware's best (`estimate --beyond-paper`: RCSI plus state re-synchronisation and bias calibration); ekf / batch = augmented-state EKF and per-cycle batch least squares on the reduced model, crlb = Cramer-Rao bound (its column is the bound itself, not an error).\n\n";
+       "setting); *-paper = the paper's RCSI settings, *-best = `estimate --settings best` (the film, its growth gain and the lithium inventory identified together, from the nominal cell only), reduced-beyond = `estimate --settings nominal-growth` (RCSI plus state re-synchronisation, bias calibration and the nominal growth law); ekf / batch = augmented-state EKF and per-cycle batch least squares on the reduced model, crlb = Cramer-Rao bound (its column is the bound itself, not an error).\n\n";
   r += headline_table(c.summary) + "\n";
   if (!c.missing.empty()) {
     r += fmt::format("Steps without output ({}; not in the numbers): ", c.missing.size());

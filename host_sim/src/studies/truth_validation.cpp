@@ -8,6 +8,7 @@
 #include "cell/paper_cell.hpp"
 #include "io/measured_profile.hpp"
 #include "sim/cell_catalog.hpp"
+#include "io/statistics.hpp"
 
 namespace bms {
 namespace {
@@ -30,11 +31,6 @@ CccvProtocol protocol_for(const CellParameters& cell, int cycles, double current
   return p;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
 
 // Voltages of one mode of one cycle, indexed by samples since the mode began.
 std::vector<double> phase_voltages(const SimulationResult& r, int cycle, Mode mode) {
@@ -47,7 +43,7 @@ std::vector<double> phase_voltages(const SimulationResult& r, int cycle, Mode mo
 double median_abs_diff_mv(const std::vector<double>& a, const std::vector<double>& b) {
   std::vector<double> d;
   for (size_t i = 0; i < std::min(a.size(), b.size()); ++i) d.push_back(1e3 * std::abs(a[i] - b[i]));
-  return median(d);
+  return d.empty() ? 0.0 : stats::median(d);  // no common samples: no difference
 }
 
 }  // namespace

@@ -5,7 +5,7 @@
 //
 // One tick is the numbered step list at the top of tick() (docs/architecture.md uses the same
 // numbers). The parts beyond the paper each sit in their own header with named start, continue
-// and stop conditions, and are switched on by Config alone (the profiles below): LearningGate
+// and stop conditions, and are switched on by Config alone (the profiles of make_config.hpp): LearningGate
 // (learning_gate.hpp), StateResync (state_resync.hpp), BiasCalibration (bias_calibration.hpp),
 // FilmLevel (film_level.hpp), and the `best` profile's FilmGrowthIdentifier.
 // The model answers within the same tick to the u_hat it was given (the film drop is
@@ -73,6 +73,7 @@ class BmsCore {
   using Detector = ModeDetector<Scalar>;
   using Output = TickOutput<Scalar, Nc>;
   using ModelState = typename MainModel::State;
+  static constexpr int kNc = Nc;
 
   struct Config {
     typename Estimator::Config estimator = default_estimator();
@@ -135,8 +136,8 @@ class BmsCore {
     // FilmLevel. Beyond the paper: between and within RCSI's updates the reported film resistance
     // follows the growth the model's own side current predicts, dR_film = -k j_side dt with k this
     // factor: the *nominal* cell's Ramadass law (ReducedCell::nominal_film_growth_ohm_m2_per_a_m3_s()),
-    // assumed, not learned (session 5; a cell whose law differs is tracked only through RCSI's
-    // level: docs/results/blind.md, arm session5). RCSI's data then set the level only. The film
+    // assumed, not learned (the nominal-growth profile; a cell whose law differs is tracked only
+    // through RCSI's level: docs/results/blind.md, arm nominal-growth). RCSI's data then set the level only. The film
     // grows about 0.9 % during each CC charge, and a held or charge-averaged estimate lags it by
     // about half of that. 0: held (the paper).
     Scalar nominal_growth_ohm_m2_per_a_m3_s = Scalar(0);
@@ -157,61 +158,13 @@ class BmsCore {
     bool learning = true;
   };
 
-  // The paper's estimator: RCSI (n_c = 1, eta = 0, P(0) = 5e-7 I, H = 0.01) in CC charge, film
-  // held elsewhere; every part beyond the paper off.
-  static Config paper_config() { return Config{}; }
-
-  // What both beyond-the-paper profiles share: H from the model and the state observer
-  // (re-synchronisation at power-up and at each CV end over a 50-tick window).
-  static Config observer_config(Scalar nominal_inventory_mol) {
-    Config c;
-    c.markov_from_model = true;
-    c.resync_at_cv_end = true;
-    c.resync_at_start = true;
-    c.resync_window_ticks = 50u;
-    c.nominal_inventory_mol = nominal_inventory_mol;
-    return c;
-  }
-
-  // The firmware's settings beyond the paper (docs/results/firmware-model.md): H from the
-  // model, state re-synchronisation at power-up and at each CV end over a 50-tick window,
-  // 600 s warm-up, bias calibrated on the first charge after a re-synchronisation, charge-
-  // averaged estimate, propagated by the model's predicted film growth. `bmssim estimate
-  // --beyond-paper` reads its settings from here (host_sim apply_beyond_paper).
-  static Config beyond_paper_config(Scalar nominal_inventory_mol, Scalar nominal_growth_ohm_m2_per_a_m3_s) {
-    Config c = observer_config(nominal_inventory_mol);
-    c.rcsi_warmup_s = Scalar(600);
-    c.calibrate_bias = true;
-    c.reference_after_resyncs = 1u;
-    c.average_estimate = true;
-    c.nominal_growth_ohm_m2_per_a_m3_s = nominal_growth_ohm_m2_per_a_m3_s;
-    return c;
-  }
-
-  // The project's best estimator (`bmssim estimate --settings best`, the default of estimate, hil,
-  // the demo and the target replay), built from the nominal cell only: H from the model, state
-  // re-synchronisation at power-up and at each CV end over a 50-tick window to the *identified*
-  // inventory, 900 s warm-up (the reduced model's error settles: 0.1-0.3 mV before), and the
-  // film, its growth gain and the inventory identified together
-  // (FilmGrowthIdentifier) against the model's design-time bias. Arguments: the nominal cell's
-  // cyclable lithium, initial film and Ramadass constant, and the main model's calibrated bias.
-  static Config best_config(Scalar nominal_inventory_mol, Scalar r_film_nominal_ohm_m2,
-                            Scalar growth_nominal_ohm_m2_per_a_m3_s, Scalar model_bias_ohm) {
-    Config c = observer_config(nominal_inventory_mol);
-    c.rcsi_warmup_s = Scalar(900);
-    c.identify_growth = true;
-    c.identifier.r_film_nominal_ohm_m2 = r_film_nominal_ohm_m2;
-    c.identifier.growth_nominal_ohm_m2_per_a_m3_s = growth_nominal_ohm_m2_per_a_m3_s;
-    c.estimator.r_film_init_ohm_m2 = r_film_nominal_ohm_m2;
-    c.model_bias_ohm = model_bias_ohm;
-    return c;
-  }
-
+  // The profiles (paper, best, nominal-growth) are built from the nominal cell in one place,
+  // bms/fw/make_config.hpp; a default Config is the paper's RCSI.
   static typename Estimator::Config default_estimator() {
     typename Estimator::Config c;
-    c.markov_v_per_ohm_m2 = Scalar(0.01);
-    c.p0_u = Scalar(5e-7);
-    c.p0_y0 = Scalar(5e-7);
+    c.markov_v_per_ohm_m2 = Scalar(kPaperMarkovVPerOhmM2);
+    c.p0_u = Scalar(kPaperCovarianceP0);
+    c.p0_y0 = Scalar(kPaperCovarianceP0);
     c.theta0 = Estimator::Vector::Zero();
     c.theta0(0) = Scalar(1);  // hold the film at a charge start (u_hat(k) = u_hat(k-1))
     c.r_film_init_ohm_m2 = Scalar(PaperCellTraits::kInitialFilmOhmM2);

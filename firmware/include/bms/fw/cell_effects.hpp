@@ -1,6 +1,6 @@
 #pragma once
 // Cell and sensor effects the reduced model lacks, as a wrapper around any main-system model
-// with the ReducedCell interface (issue 7, build item 1): contact resistance, one-state OCV
+// with the ReducedCell interface: contact resistance, one-state OCV
 // hysteresis, current-sensor offset and gain. The diagnosis (bmssim diagnose) names the effect
 // and estimates its parameter from the data; the firmware then runs
 //   BmsCore<Scalar, EffectsModel<ReducedCell<Scalar>, kEffectContactResistance | ...>>

@@ -1,6 +1,6 @@
 #pragma once
-// The film resistance RCSI's path reports and holds (the paper's profile and session 5's
-// beyond-paper one; the `best` profile reports the FilmGrowthIdentifier's instead): the level
+// The film resistance RCSI's path reports and holds (the paper and nominal-growth profiles; the
+// `best` profile reports the FilmGrowthIdentifier's instead): the level
 // RCSI's data set, optionally averaged over the charge's learning window, plus the growth the
 // model's own side current predicts since that level was set.
 //   average: the mean of u_hat over the window instead of its last value. The film changes by

@@ -1,17 +1,56 @@
 #pragma once
-// One place that turns what a BMS knows of its cell (the nominal numbers of the data sheet and
-// of the model's design, never the cell in use) and an estimator profile into BmsCore's
-// Config. Every caller builds its configuration here: bms-firmware, the board image,
-// `bmssim estimate` and `bmssim hil` (through bms-firmware's --settings).
-//   paper - the paper's RCSI (n_c = 1, eta = 0, P(0) = 5e-7 I, H = 0.01);
-//   best  - BmsCore::best_config: film, growth gain and lithium inventory identified together.
+// The one configuration path. What a BMS knows of its cell (the nominal numbers of the data
+// sheet and of the model's design, never the cell in use), an estimator profile and a typed set
+// of overrides become BmsCore's Config here, and nowhere else: bms-firmware, the board images,
+// `bmssim estimate`, `bmssim hil` (through bms-firmware's --settings), the studies and the
+// replays all call make_config.
+//
+// The profiles, named for what they do:
+//   paper          - the paper's RCSI (n_c = 1, eta = 0, P(0) = kPaperCovarianceP0 I,
+//                    H = kPaperMarkovVPerOhmM2) in CC charge, film held elsewhere;
+//   best           - H from the model, the state observer (re-synchronisation at power-up and at
+//                    each CV end over 50 ticks), 900 s warm-up, and the film, its growth gain and
+//                    the lithium inventory identified together (FilmGrowthIdentifier) against
+//                    the model's design-time bias;
+//   nominal-growth - RCSI with H from the model, the observer, 600 s warm-up, the bias
+//                    calibrated on a reference charge at the nominal initial film, a charge-
+//                    averaged estimate carried between charges by the nominal growth law (it
+//                    assumes the law: docs/results/firmware-model.md). `--beyond-paper` names it too.
+//
+// An override the profile does not use is refused (make_config returns its name): no option is
+// silently ignored (the contract's "exits 2 naming it").
+#include <cstdint>
+#include <cstring>
+
 #include "bms/fw/bms_core.hpp"
 #include "bms/fw/reduced_cell.hpp"
 #include "bms/fw/reduced_model_bias.hpp"
 
 namespace bms::fw {
 
-enum class Profile { paper, best };
+enum class Profile : std::uint8_t { paper, best, nominal_growth };
+
+inline const char* profile_name(Profile p) {
+  switch (p) {
+    case Profile::paper: return "paper";
+    case Profile::best: return "best";
+    case Profile::nominal_growth: return "nominal-growth";
+  }
+  return "?";
+}
+
+/// "paper", "best", "nominal-growth" (or its older name "beyond-paper"); false for anything else.
+inline bool parse_profile(const char* text, Profile& out) {
+  for (Profile p : {Profile::paper, Profile::best, Profile::nominal_growth}) {
+    if (std::strcmp(text, profile_name(p)) == 0) {
+      out = p;
+      return true;
+    }
+  }
+  if (std::strcmp(text, "beyond-paper") != 0) return false;
+  out = Profile::nominal_growth;
+  return true;
+}
 
 /// The nominal cell as the firmware knows it.
 struct NominalCell {
@@ -40,6 +79,113 @@ NominalCell paper_nominal_cell() {
           Cell::kUpperVoltageV};
 }
 
+/// One override: unset keeps the profile's value.
+template <class T>
+struct Given {
+  T value{};
+  bool given = false;
+  Given& operator=(const T& v) {
+    value = v;
+    given = true;
+    return *this;
+  }
+  T or_else(const T& profile_value) const { return given ? value : profile_value; }
+};
+
+/// RCSI's theta(0) = [M1..Mnc, N1..Nnc]: 2 n_c values, n_c <= 8.
+struct Theta0 {
+  double values[16];
+  int count;
+};
+
+/// What a caller may change on a profile, typed. Each field's comment names the option of
+/// `bmssim estimate` (and bms-firmware where it has it) that sets it.
+struct Overrides {
+  // RCSI (paper, nominal-growth): the ARX subsystem model and its RLS.
+  Given<int> nc;                       // --nc: BmsCore's Nc (the caller picks the type)
+  Given<double> h_v_per_ohm_m2;        // --h: not with H from the model
+  Given<bool> h_from_model;            // --h-from-model
+  Given<double> p0, p0_y0;             // --p0 (both regressors), --p0-y0 (the side-current ones)
+  Given<double> lambda, eta;           // --lambda, --eta
+  Given<Theta0> theta0;                // --theta0
+  Given<double> r_film_init_ohm_m2;    // --r-film-init
+  Given<bool> calibrate_bias;          // --calibrate-bias
+  Given<unsigned> reference_after_resyncs;  // --reference-after-resyncs: with the bias calibration and the observer
+  Given<bool> average_estimate;        // --average
+  Given<bool> propagate_growth;        // --propagate-growth
+  Given<double> growth_scale;          // --growth-scale: factor on the nominal law while it propagates
+  // Every profile.
+  Given<bool> learning;                // --no-learning (false)
+  Given<double> warmup_s;              // --warmup
+  Given<bool> resync;                  // --resync: the state observer on (or off: a main model without one)
+  Given<bool> resync_at_start;         // --no-start-resync (false): with the observer
+  Given<unsigned> resync_window_ticks; // --resync-window: with the observer
+  Given<double> resync_current_a;      // --resync-current: with the observer
+  // best: the FilmGrowthIdentifier.
+  Given<bool> learn_inventory;         // --no-inventory (false)
+  Given<double> model_bias_ohm;        // --model-bias-ohm
+  Given<double> relinearise_inventory; // --relinearise
+};
+
+/// An override make_config refused: the option's name (without "--") and why; option nullptr: none.
+struct Refusal {
+  const char* option;
+  const char* reason;
+};
+
+/// Whether the profile, with these overrides, runs the state observer / H from the model.
+inline bool observer_on(Profile p, const Overrides& o) { return o.resync.or_else(p != Profile::paper); }
+inline bool markov_from_model_on(Profile p, const Overrides& o) { return o.h_from_model.or_else(p != Profile::paper); }
+
+/// The first override the profile does not use (with the others given), or {nullptr, nullptr}.
+inline Refusal unused_override(Profile p, const Overrides& o) {
+  const bool rcsi = p != Profile::best;
+  const bool id = p == Profile::best;
+  const bool observer = observer_on(p, o);
+  const bool bias = rcsi && o.calibrate_bias.or_else(p == Profile::nominal_growth);
+  const bool propagate = rcsi && o.propagate_growth.or_else(p == Profile::nominal_growth);
+  const char* not_rcsi = "--settings best identifies the film with its growth law (FilmGrowthIdentifier), not with RCSI";
+  const char* only_best = "only --settings best identifies the growth law (FilmGrowthIdentifier)";
+  const char* no_observer = "the state observer (re-synchronisation) is off";
+  struct Use {
+    const char* option;
+    bool given, used;
+    const char* reason;
+  };
+  const Use uses[] = {
+      {"nc", o.nc.given, rcsi, not_rcsi},
+      {"h", o.h_v_per_ohm_m2.given, rcsi && !markov_from_model_on(p, o),
+       rcsi ? "H is taken from the model at each charge start (--h-from-model or the profile)" : not_rcsi},
+      {"h-from-model", o.h_from_model.given, true, ""},
+      {"p0", o.p0.given, rcsi, not_rcsi},
+      {"p0-y0", o.p0_y0.given, rcsi, not_rcsi},
+      {"lambda", o.lambda.given, rcsi, not_rcsi},
+      {"eta", o.eta.given, rcsi, not_rcsi},
+      {"theta0", o.theta0.given, rcsi, not_rcsi},
+      {"r-film-init", o.r_film_init_ohm_m2.given, rcsi,
+       "--settings best starts the identified film at the nominal cell's initial film"},
+      {"calibrate-bias", o.calibrate_bias.given, rcsi, "--settings best removes the model's design-time bias instead"},
+      {"reference-after-resyncs", o.reference_after_resyncs.given, bias && observer,
+       "it delays the bias calibration's reference charge, which needs --calibrate-bias and the state observer"},
+      {"average", o.average_estimate.given, rcsi, not_rcsi},
+      {"propagate-growth", o.propagate_growth.given, rcsi, "--settings best identifies the growth law instead"},
+      {"growth-scale", o.growth_scale.given, propagate,
+       "it scales the nominal growth law while it propagates the film (--propagate-growth or --settings nominal-growth)"},
+      {"no-learning", o.learning.given, true, ""},
+      {"warmup", o.warmup_s.given, true, ""},
+      {"resync", o.resync.given, true, ""},
+      {"no-start-resync", o.resync_at_start.given, observer, no_observer},
+      {"resync-window", o.resync_window_ticks.given, observer, no_observer},
+      {"resync-current", o.resync_current_a.given, observer, no_observer},
+      {"no-inventory", o.learn_inventory.given, id, only_best},
+      {"model-bias-ohm", o.model_bias_ohm.given, id, only_best},
+      {"relinearise", o.relinearise_inventory.given, id && observer, id ? no_observer : only_best},
+  };
+  for (const Use& u : uses)
+    if (u.given && !u.used) return {u.option, u.reason};
+  return {nullptr, nullptr};
+}
+
 /// The cell's voltage window in the mode detector and the plausibility check.
 template <class Config>
 void apply_voltage_window(const NominalCell& cell, Config& cfg) {
@@ -50,27 +196,133 @@ void apply_voltage_window(const NominalCell& cell, Config& cfg) {
   cfg.voltage_max_v = Scalar(cell.upper_voltage_v + kVoltagePlausibilityMarginV);
 }
 
+namespace profiles {
+
+// What best and nominal-growth share: H from the model and the state observer
+// (re-synchronisation at power-up and at each CV end over a 50-tick window).
+template <class Config>
+void observer(Config& c) {
+  c.markov_from_model = true;
+  c.resync_at_cv_end = true;
+  c.resync_at_start = true;
+  c.resync_window_ticks = 50u;
+}
+
+// best: the film, its growth gain and the inventory identified together; 900 s warm-up (the
+// reduced model's error settles: 0.1-0.3 mV before).
+template <class Config>
+void best(const NominalCell& cell, Config& c) {
+  using Scalar = decltype(Config::dt_s);
+  observer(c);
+  c.rcsi_warmup_s = Scalar(900);
+  c.identify_growth = true;
+  c.identifier.r_film_nominal_ohm_m2 = Scalar(cell.initial_film_ohm_m2);
+  c.identifier.growth_nominal_ohm_m2_per_a_m3_s = Scalar(cell.growth_ohm_m2_per_a_m3_s);
+  c.model_bias_ohm = Scalar(cell.model_bias_ohm);
+}
+
+// nominal-growth: RCSI's level, 600 s warm-up, bias calibrated on the first charge after a
+// re-synchronisation, charge-averaged, carried by the nominal growth law.
+template <class Config>
+void nominal_growth(const NominalCell& cell, Config& c) {
+  using Scalar = decltype(Config::dt_s);
+  observer(c);
+  c.rcsi_warmup_s = Scalar(600);
+  c.calibrate_bias = true;
+  c.reference_after_resyncs = 1u;
+  c.average_estimate = true;
+  c.nominal_growth_ohm_m2_per_a_m3_s = Scalar(cell.growth_ohm_m2_per_a_m3_s);
+}
+
+}  // namespace profiles
+
+/// The profile over the nominal cell, no overrides.
 template <class Core>
 typename Core::Config make_config(const NominalCell& cell, Profile profile) {
   using Scalar = decltype(Core::Config::dt_s);
-  typename Core::Config cfg =
-      profile == Profile::paper
-          ? Core::paper_config()
-          : Core::best_config(Scalar(cell.inventory_mol), Scalar(cell.initial_film_ohm_m2),
-                              Scalar(cell.growth_ohm_m2_per_a_m3_s), Scalar(cell.model_bias_ohm));
+  typename Core::Config cfg{};
+  cfg.estimator.r_film_init_ohm_m2 = Scalar(cell.initial_film_ohm_m2);
+  cfg.nominal_inventory_mol = Scalar(cell.inventory_mol);
+  if (profile == Profile::best) profiles::best(cell, cfg);
+  if (profile == Profile::nominal_growth) profiles::nominal_growth(cell, cfg);
   apply_voltage_window(cell, cfg);
   return cfg;
 }
 
-/// Session 5's profile (`--beyond-paper`): it assumes the nominal growth law (documented in
-/// docs/results/firmware-model.md); kept for comparison.
+namespace detail {
+
+template <class Field, class T>
+void set_if(const Given<T>& g, Field& field) {
+  if (g.given) field = static_cast<Field>(g.value);
+}
+
+// The observer switched on or off by an override: the defaults an observer starts with
+// (power-up re-synchronisation, one re-synchronisation before the reference charge).
+template <class Config>
+void apply_observer(const Overrides& o, Config& cfg) {
+  if (o.resync.given) {
+    const bool on = o.resync.value;
+    const bool was_on = cfg.resync_at_cv_end;
+    cfg.resync_at_cv_end = on;
+    cfg.resync_at_start = on;
+    if (on && !was_on) cfg.reference_after_resyncs = 1u;
+    if (!on) cfg.reference_after_resyncs = 0u;
+  }
+  set_if(o.resync_at_start, cfg.resync_at_start);
+  set_if(o.resync_window_ticks, cfg.resync_window_ticks);
+  set_if(o.resync_current_a, cfg.resync_current_a);
+  set_if(o.reference_after_resyncs, cfg.reference_after_resyncs);
+}
+
 template <class Core>
-typename Core::Config make_beyond_paper_config(const NominalCell& cell) {
+Refusal apply_rcsi(const NominalCell& cell, const Overrides& o, typename Core::Config& cfg) {
   using Scalar = decltype(Core::Config::dt_s);
-  typename Core::Config cfg =
-      Core::beyond_paper_config(Scalar(cell.inventory_mol), Scalar(cell.growth_ohm_m2_per_a_m3_s));
-  apply_voltage_window(cell, cfg);
-  return cfg;
+  if (o.nc.given && o.nc.value != Core::kNc) return {"nc", "the core was built for another n_c"};
+  set_if(o.h_v_per_ohm_m2, cfg.estimator.markov_v_per_ohm_m2);
+  set_if(o.h_from_model, cfg.markov_from_model);
+  set_if(o.p0, cfg.estimator.p0_u);
+  set_if(o.p0, cfg.estimator.p0_y0);
+  set_if(o.p0_y0, cfg.estimator.p0_y0);
+  set_if(o.lambda, cfg.estimator.lambda);
+  set_if(o.eta, cfg.estimator.eta);
+  if (o.theta0.given) {
+    if (o.theta0.value.count != 2 * Core::kNc) return {"theta0", "needs 2 n_c values"};
+    for (int k = 0; k < 2 * Core::kNc; ++k) cfg.estimator.theta0(k) = Scalar(o.theta0.value.values[k]);
+  }
+  set_if(o.r_film_init_ohm_m2, cfg.estimator.r_film_init_ohm_m2);
+  set_if(o.calibrate_bias, cfg.calibrate_bias);
+  set_if(o.average_estimate, cfg.average_estimate);
+  const bool propagate = o.propagate_growth.or_else(cfg.nominal_growth_ohm_m2_per_a_m3_s != Scalar(0));
+  cfg.nominal_growth_ohm_m2_per_a_m3_s =
+      propagate ? Scalar(o.growth_scale.or_else(1.0) * cell.growth_ohm_m2_per_a_m3_s) : Scalar(0);
+  return {nullptr, nullptr};
+}
+
+}  // namespace detail
+
+/// The profile over the nominal cell with the overrides; an override the profile does not use
+/// (or a value that does not fit the core) is refused and cfg is left as it was.
+template <class Core>
+Refusal make_config(const NominalCell& cell, Profile profile, const Overrides& o, typename Core::Config& out) {
+  Refusal r = unused_override(profile, o);
+  if (r.option != nullptr) return r;
+  typename Core::Config cfg = make_config<Core>(cell, profile);
+  if (profile != Profile::best) r = detail::apply_rcsi<Core>(cell, o, cfg);
+  if (r.option != nullptr) return r;
+  detail::set_if(o.learning, cfg.learning);
+  detail::set_if(o.warmup_s, cfg.rcsi_warmup_s);
+  detail::apply_observer(o, cfg);
+  detail::set_if(o.learn_inventory, cfg.identifier.learn_inventory);
+  detail::set_if(o.model_bias_ohm, cfg.model_bias_ohm);
+  detail::set_if(o.relinearise_inventory, cfg.relinearise_inventory);
+  out = cfg;
+  return r;
+}
+
+/// The paper cell's profile (the board images, the replays, the tests).
+template <class Core>
+typename Core::Config paper_cell_config(Profile profile) {
+  return make_config<Core>(paper_nominal_cell<decltype(Core::Config::dt_s)>(), profile);
 }
 
 }  // namespace bms::fw

@@ -58,6 +58,11 @@
 
 namespace bms::fw {
 
+/// The paper's RCSI settings, written once: the Markov parameter H [V per ohm m2] and the RLS
+/// initial covariance P(0) = p0 I (n_c = 1, eta = 0, lambda = 1 are the Config defaults below).
+inline constexpr double kPaperMarkovVPerOhmM2 = 0.01;
+inline constexpr double kPaperCovarianceP0 = 5e-7;
+
 template <typename Scalar = double, int Nc = 1, int D = 1>
 class RcsiEstimator {
   static_assert(std::is_floating_point<Scalar>::value, "Scalar must be a floating-point type");
@@ -74,15 +79,15 @@ class RcsiEstimator {
 
   struct Config {
     // Markov parameter H = dz(k)/du_hat(k-D) [V/(ohm.m2)]; nonzero (paper: 0.01, D = 1).
-    Scalar markov_v_per_ohm_m2 = Scalar(0.01);
+    Scalar markov_v_per_ohm_m2 = Scalar(kPaperMarkovVPerOhmM2);
     // Retrospective regularisation eta >= 0 [V^2/(ohm.m2)^2] (paper: 0).
     Scalar eta = Scalar(0);
     // RLS forgetting factor in (0, 1].
     Scalar lambda = Scalar(1);
     // P(0) diagonal for the M (u_hat) and the N (y0_hat) regressors (paper: 5e-7 for both).
     // Different values rescale regressors of very different size (3e-3 ohm.m2 vs 10 A/m3).
-    Scalar p0_u = Scalar(5e-7);
-    Scalar p0_y0 = Scalar(5e-7);
+    Scalar p0_u = Scalar(kPaperCovarianceP0);
+    Scalar p0_y0 = Scalar(kPaperCovarianceP0);
     // trace(P) <= factor * trace(P(0)); >= 1.
     Scalar p_trace_cap_factor = Scalar(1);
     // theta(0) = [M1..MNc, N1..NNc]. Zero makes u_hat(0) = 0; [1, 0, ...] holds the film.

@@ -1,5 +1,5 @@
 #pragma once
-// Reduced-order DFN for the firmware: the main-system model of RCSI (issue 3).
+// Reduced-order DFN for the firmware: the main-system model of RCSI.
 //
 // What is kept from the truth DFN (host_sim/src/dfn/dfn_model.cpp), in the same finite-volume
 // form so the two can be compared term by term:

@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# An option that the chosen settings do not use exits 2 naming it (the contract): for each
+# profile of `bmssim estimate`, every option it does not use, alone, exits 2 with one line that
+# names the option, before the data is read, and leaves no summary.json; the options it uses
+# run. bms-firmware and `bmssim hil` refuse --h where the profile takes H from the model.
+#   estimate_options_test.sh BMSSIM [BMS_FIRMWARE]
+set -uo pipefail
+BMSSIM="$1"; FW="${2:-}"
+WORK="$(mktemp -d)"
+trap 'rm -rf "$WORK"' EXIT
+source "$(dirname "$0")/input_error_check.sh"
+cd "$WORK" || exit 1
+# A short truth.csv: 60 s of 2.5 A CC charge (enough for the estimator to run, not to learn).
+{ echo "t_s,cycle,mode,current_a,voltage_v,current_meas_a,voltage_meas_v,r_film_ohm_m2"
+  awk 'BEGIN { for (k = 0; k < 300; k++) printf "%.1f,1,cc_charge,-2.5,%.6f,-2.5,%.6f,0.003391\n", 0.2 * k, 3.3 + 1e-5 * k, 3.3 + 1e-5 * k }'
+} > short.csv
+
+# refused PROFILE OPTION [VALUE]: exit 2, one line naming --OPTION, no output.
+refused() {
+  local profile=$1 opt=$2; shift 2
+  check_input_error "$profile-$opt" "--$opt\\b.*not used by --settings $profile" "$WORK/o" -- \
+    "$BMSSIM" estimate --data missing.csv --settings "$profile" "--$opt" "$@" --quiet --out "$WORK/o"
+}
+# accepted PROFILE ARGS...: the run writes its summary.json.
+accepted() {
+  local profile=$1; shift
+  rm -rf "$WORK/a"
+  if "$BMSSIM" estimate --data short.csv --settings "$profile" "$@" --quiet --out "$WORK/a" 2> "$WORK/err_acc" &&
+     [ -s "$WORK/a/summary.json" ]; then pass "$profile accepts $*"
+  else fail "$profile accepts $*" "$(head -1 "$WORK/err_acc")"; fi
+}
+
+# --settings best: the eleven the review found, and the rest only RCSI reads.
+for o in "nc 2" "eta 1" "lambda 0.99" "p0 1e-3" "p0-y0 1e-3" "theta0 0,0" "h 0.02" "calibrate-bias" "average" \
+         "propagate-growth" "growth-scale 2" "r-film-init 0.004" "reference-after-resyncs 2"; do
+  # shellcheck disable=SC2086
+  refused best $o
+done
+# --settings paper: no observer, no bias calibration, no propagation, no identifier.
+for o in "no-start-resync" "resync-window 5" "resync-current 0.2" "reference-after-resyncs 2" "growth-scale 2" \
+         "no-inventory" "model-bias-ohm 0" "relinearise 1" "inventory-error-pct 1"; do
+  # shellcheck disable=SC2086
+  refused paper $o
+done
+# --settings nominal-growth: H from the model, no identifier.
+for o in "h 0.02" "no-inventory" "model-bias-ohm 0" "relinearise 1"; do
+  # shellcheck disable=SC2086
+  refused nominal-growth $o
+done
+# The full model has no observer: its options are refused there.
+check_input_error full-resync-window "--resync-window.*not used" "$WORK/o" -- \
+  "$BMSSIM" estimate --data missing.csv --model full --resync-window 5 --quiet --out "$WORK/o"
+check_input_error reduced-points "--points.*not used" "$WORK/o" -- \
+  "$BMSSIM" estimate --data missing.csv --points 10 --quiet --out "$WORK/o"
+check_input_error custom "--settings must be" "$WORK/o" -- \
+  "$BMSSIM" estimate --data missing.csv --settings custom --quiet --out "$WORK/o"
+
+accepted best --no-inventory --model-bias-ohm 0 --relinearise 1 --warmup 0 --resync-window 5
+accepted paper --p0 1e-3 --h 0.02 --nc 2 --theta0 1,0,0,0 --calibrate-bias --resync --resync-window 5
+accepted nominal-growth --growth-scale 2 --p0 1e-6 --reference-after-resyncs 2
+accepted paper --h-from-model --propagate-growth --growth-scale 0.5
+# what ran is what summary.json says: the paper's p0 under paper, the given one when given.
+python3 - "$WORK/a/summary.json" <<'PY' && pass "summary options are what ran" || fail "summary options" "see above"
+import json, sys
+o = json.load(open(sys.argv[1]))["options"]
+assert o["settings"] == "paper" and o["h_from_model"] is True and "h" not in o, o
+assert o["propagate_growth"] is True and "p0" in o and "learn_inventory" not in o, o
+PY
+
+if [ -n "$FW" ]; then
+  for p in best nominal-growth; do
+    check_input_error "firmware-$p-h" "--h\\b.*not used by --settings $p" "$WORK/o" -- \
+      "$FW" --can vcan0 --lockstep --settings "$p" --h 0.02
+  done
+  check_input_error firmware-settings "--settings must be" "$WORK/o" -- \
+    "$FW" --can vcan0 --lockstep --settings custom
+  check_input_error hil-best-h "--h\\b.*not used by --settings best" "$WORK/o" -- \
+    "$BMSSIM" hil --bus vcan0 --settings best --h 0.02 --quiet --out "$WORK/o"
+fi
+echo "estimate options: $PASSED passed, $FAILED failed"
+[ "$FAILED" -eq 0 ]

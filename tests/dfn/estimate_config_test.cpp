@@ -1,0 +1,219 @@
+// One configuration path: `bmssim estimate` runs the firmware's own configuration for each
+// profile (make_config over the nominal cell, field for field), and an override a profile does
+// not use is refused, for every override.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <functional>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "bms/fw/make_config.hpp"
+#include "estimation/estimate_run.hpp"
+#include "sim/cell_catalog.hpp"
+
+namespace {
+
+namespace fw = bms::fw;
+using Core = fw::BmsCore<double>;
+
+// Every field of BmsCore::Config, named, so a difference says which.
+std::vector<std::pair<std::string, double>> fields(const Core::Config& c) {
+  std::vector<std::pair<std::string, double>> f = {
+      {"estimator.markov_v_per_ohm_m2", c.estimator.markov_v_per_ohm_m2},
+      {"estimator.eta", c.estimator.eta},
+      {"estimator.lambda", c.estimator.lambda},
+      {"estimator.p0_u", c.estimator.p0_u},
+      {"estimator.p0_y0", c.estimator.p0_y0},
+      {"estimator.p_trace_cap_factor", c.estimator.p_trace_cap_factor},
+      {"estimator.r_film_init_ohm_m2", c.estimator.r_film_init_ohm_m2},
+      {"estimator.j_side_init_a_m3", c.estimator.j_side_init_a_m3},
+      {"estimator.r_film_min_ohm_m2", c.estimator.r_film_min_ohm_m2},
+      {"estimator.r_film_max_ohm_m2", c.estimator.r_film_max_ohm_m2},
+      {"detector.rest_current_a", c.detector.rest_current_a},
+      {"detector.cc_tolerance_a", c.detector.cc_tolerance_a},
+      {"detector.cv_band_v", c.detector.cv_band_v},
+      {"detector.v_max", c.detector.v_max},
+      {"detector.v_min", c.detector.v_min},
+      {"detector.debounce_ticks", c.detector.debounce_ticks},
+      {"dt_s", c.dt_s},
+      {"markov_from_model", c.markov_from_model},
+      {"voltage_min_v", c.voltage_min_v},
+      {"voltage_max_v", c.voltage_max_v},
+      {"current_limit_a", c.current_limit_a},
+      {"current_step_limit_a", c.current_step_limit_a},
+      {"stale_limit_ticks", c.stale_limit_ticks},
+      {"catch_up_max_ticks", c.catch_up_max_ticks},
+      {"catch_up_max_steps", c.catch_up_max_steps},
+      {"resync_at_cv_end", c.resync_at_cv_end},
+      {"resync_at_start", c.resync_at_start},
+      {"resync_current_a", c.resync_current_a},
+      {"resync_window_ticks", c.resync_window_ticks},
+      {"nominal_inventory_mol", c.nominal_inventory_mol},
+      {"rcsi_warmup_s", c.rcsi_warmup_s},
+      {"calibrate_bias", c.calibrate_bias},
+      {"reference_after_resyncs", c.reference_after_resyncs},
+      {"average_estimate", c.average_estimate},
+      {"nominal_growth_ohm_m2_per_a_m3_s", c.nominal_growth_ohm_m2_per_a_m3_s},
+      {"identify_growth", c.identify_growth},
+      {"identifier.r_film_nominal_ohm_m2", c.identifier.r_film_nominal_ohm_m2},
+      {"identifier.growth_nominal_ohm_m2_per_a_m3_s", c.identifier.growth_nominal_ohm_m2_per_a_m3_s},
+      {"identifier.prior_r0_ohm_m2", c.identifier.prior_r0_ohm_m2},
+      {"identifier.prior_gain", c.identifier.prior_gain},
+      {"identifier.prior_inventory", c.identifier.prior_inventory},
+      {"identifier.sigma_u_ohm_m2", c.identifier.sigma_u_ohm_m2},
+      {"identifier.r_film_min_ohm_m2", c.identifier.r_film_min_ohm_m2},
+      {"identifier.r_film_max_ohm_m2", c.identifier.r_film_max_ohm_m2},
+      {"identifier.inventory_limit", c.identifier.inventory_limit},
+      {"identifier.learn_inventory", c.identifier.learn_inventory},
+      {"model_bias_ohm", c.model_bias_ohm},
+      {"relinearise_inventory", c.relinearise_inventory},
+      {"learning", c.learning}};
+  for (int k = 0; k < 2; ++k) f.emplace_back("estimator.theta0(" + std::to_string(k) + ")", c.estimator.theta0(k));
+  return f;
+}
+
+const fw::Profile kProfiles[] = {fw::Profile::paper, fw::Profile::best, fw::Profile::nominal_growth};
+
+// bmssim estimate on the paper cell's reduced model, each profile without options, runs exactly
+// the configuration bms-firmware and the board images run (bit for bit).
+TEST(EstimateConfig, EqualsTheFirmwaresForEachProfile) {
+  const bms::CellParameters cell = bms::load_cell("paper");
+  for (fw::Profile p : kProfiles) {
+    bms::EstimateOptions o;
+    o.profile = p;
+    Core::Config estimate{};
+    const fw::Refusal r = bms::estimate_config<Core>(cell, o, 0.2, estimate);
+    ASSERT_EQ(r.option, nullptr) << fw::profile_name(p);
+    const auto a = fields(estimate), b = fields(fw::paper_cell_config<Core>(p));
+    ASSERT_EQ(a.size(), b.size());
+    for (std::size_t i = 0; i < a.size(); ++i)
+      EXPECT_EQ(a[i].second, b[i].second) << fw::profile_name(p) << ": " << a[i].first;
+  }
+}
+
+// The profiles differ where they say they do (the comparison above is not vacuous).
+TEST(EstimateConfig, ProfilesDiffer) {
+  const auto paper = fw::paper_cell_config<Core>(fw::Profile::paper);
+  const auto best = fw::paper_cell_config<Core>(fw::Profile::best);
+  const auto growth = fw::paper_cell_config<Core>(fw::Profile::nominal_growth);
+  EXPECT_FALSE(paper.markov_from_model || paper.resync_at_cv_end || paper.identify_growth);
+  EXPECT_EQ(paper.estimator.markov_v_per_ohm_m2, fw::kPaperMarkovVPerOhmM2);
+  EXPECT_EQ(paper.estimator.p0_u, fw::kPaperCovarianceP0);
+  EXPECT_TRUE(best.identify_growth && best.resync_at_cv_end && best.rcsi_warmup_s == 900.0);
+  EXPECT_TRUE(growth.calibrate_bias && growth.average_estimate && growth.nominal_growth_ohm_m2_per_a_m3_s > 0.0);
+  EXPECT_EQ(growth.rcsi_warmup_s, 600.0);
+  EXPECT_GT(paper.voltage_min_v, 0.0);  // the cell's window, not 0-5 V
+}
+
+// Each override alone, on each profile: refused exactly where the profile does not use it.
+struct OverrideCase {
+  const char* option;
+  std::function<void(fw::Overrides&)> set;
+};
+const std::vector<OverrideCase>& override_cases() {
+  static const std::vector<OverrideCase> c = {
+      {"nc", [](fw::Overrides& o) { o.nc = 1; }},
+      {"h", [](fw::Overrides& o) { o.h_v_per_ohm_m2 = 0.02; }},
+      {"h-from-model", [](fw::Overrides& o) { o.h_from_model = true; }},
+      {"p0", [](fw::Overrides& o) { o.p0 = 1e-3; }},
+      {"p0-y0", [](fw::Overrides& o) { o.p0_y0 = 1e-3; }},
+      {"lambda", [](fw::Overrides& o) { o.lambda = 0.999; }},
+      {"eta", [](fw::Overrides& o) { o.eta = 1.0; }},
+      {"theta0", [](fw::Overrides& o) { o.theta0 = fw::Theta0{{0.0, 0.0}, 2}; }},
+      {"r-film-init", [](fw::Overrides& o) { o.r_film_init_ohm_m2 = 4e-3; }},
+      {"calibrate-bias", [](fw::Overrides& o) { o.calibrate_bias = true; }},
+      {"reference-after-resyncs", [](fw::Overrides& o) { o.reference_after_resyncs = 2u; }},
+      {"average", [](fw::Overrides& o) { o.average_estimate = true; }},
+      {"propagate-growth", [](fw::Overrides& o) { o.propagate_growth = true; }},
+      {"growth-scale", [](fw::Overrides& o) { o.growth_scale = 2.0; }},
+      {"no-learning", [](fw::Overrides& o) { o.learning = false; }},
+      {"warmup", [](fw::Overrides& o) { o.warmup_s = 30.0; }},
+      {"resync", [](fw::Overrides& o) { o.resync = true; }},
+      {"no-start-resync", [](fw::Overrides& o) { o.resync_at_start = false; }},
+      {"resync-window", [](fw::Overrides& o) { o.resync_window_ticks = 3u; }},
+      {"resync-current", [](fw::Overrides& o) { o.resync_current_a = 0.2; }},
+      {"no-inventory", [](fw::Overrides& o) { o.learn_inventory = false; }},
+      {"model-bias-ohm", [](fw::Overrides& o) { o.model_bias_ohm = 0.0; }},
+      {"relinearise", [](fw::Overrides& o) { o.relinearise_inventory = 1.0; }},
+  };
+  return c;
+}
+
+std::set<std::string> expected_unused(fw::Profile p) {
+  switch (p) {
+    case fw::Profile::paper:  // no observer, no bias calibration, no propagation, H given
+      return {"reference-after-resyncs", "growth-scale", "no-start-resync", "resync-window", "resync-current",
+              "no-inventory", "model-bias-ohm", "relinearise"};
+    case fw::Profile::best:  // the eleven, and what only RCSI reads
+      return {"nc", "h", "p0", "p0-y0", "lambda", "eta", "theta0", "r-film-init", "calibrate-bias",
+              "reference-after-resyncs", "average", "propagate-growth", "growth-scale"};
+    case fw::Profile::nominal_growth:  // H from the model; no identifier
+      return {"h", "no-inventory", "model-bias-ohm", "relinearise"};
+  }
+  return {};
+}
+
+TEST(EstimateConfig, EveryUnusedOverrideIsRefusedAndNoUsedOne) {
+  for (fw::Profile p : kProfiles) {
+    const std::set<std::string> unused = expected_unused(p);
+    for (const auto& c : override_cases()) {
+      fw::Overrides o;
+      c.set(o);
+      Core::Config cfg{};
+      const fw::Refusal r = fw::make_config<Core>(fw::paper_nominal_cell<double>(), p, o, cfg);
+      if (unused.count(c.option) != 0) {
+        ASSERT_NE(r.option, nullptr) << fw::profile_name(p) << " --" << c.option << " was accepted";
+        EXPECT_STREQ(r.option, c.option) << fw::profile_name(p);
+        EXPECT_GT(std::strlen(r.reason), 10u);
+      } else {
+        EXPECT_EQ(r.option, nullptr) << fw::profile_name(p) << " --" << c.option << " refused: " << r.reason;
+      }
+    }
+  }
+}
+
+// An accepted override changes the configuration (it does something).
+TEST(EstimateConfig, AcceptedOverridesChangeTheConfiguration) {
+  for (fw::Profile p : kProfiles) {
+    const std::set<std::string> unused = expected_unused(p);
+    const auto base = fields(fw::paper_cell_config<Core>(p));
+    for (const auto& c : override_cases()) {
+      if (unused.count(c.option) != 0) continue;
+      fw::Overrides o;
+      c.set(o);
+      Core::Config cfg{};
+      ASSERT_EQ((fw::make_config<Core>(fw::paper_nominal_cell<double>(), p, o, cfg).option), nullptr);
+      const auto got = fields(cfg);
+      bool changed = false;
+      for (std::size_t i = 0; i < got.size(); ++i) changed = changed || got[i].second != base[i].second;
+      // Redundant switches (a flag the profile already has on, n_c = 1) may leave it as it was.
+      const bool redundant = (std::string(c.option) == "nc") ||
+                             (p != fw::Profile::paper && (std::string(c.option) == "h-from-model" ||
+                                                          std::string(c.option) == "resync")) ||
+                             (p == fw::Profile::nominal_growth &&
+                              (std::string(c.option) == "calibrate-bias" || std::string(c.option) == "average" ||
+                               std::string(c.option) == "propagate-growth"));
+      if (!redundant) {
+        EXPECT_TRUE(changed) << fw::profile_name(p) << " --" << c.option << " changed nothing";
+      }
+    }
+  }
+}
+
+TEST(EstimateConfig, ProfileNames) {
+  fw::Profile p{};
+  ASSERT_TRUE(fw::parse_profile("nominal-growth", p));
+  EXPECT_EQ(p, fw::Profile::nominal_growth);
+  ASSERT_TRUE(fw::parse_profile("beyond-paper", p));  // the older name
+  EXPECT_EQ(p, fw::Profile::nominal_growth);
+  EXPECT_FALSE(fw::parse_profile("custom", p));
+  for (fw::Profile q : kProfiles) {
+    ASSERT_TRUE(fw::parse_profile(fw::profile_name(q), p));
+    EXPECT_EQ(p, q);
+  }
+}
+
+}  // namespace
