@@ -9,6 +9,7 @@
 #include "bms/fw/fw_status.hpp"
 #include "commands.hpp"
 #include "estimation/estimate_output.hpp"
+#include "estimation/design_bias.hpp"
 #include "estimation/estimate_run.hpp"
 #include "io/input_error.hpp"
 #include "io/output_folder.hpp"
@@ -96,6 +97,8 @@ int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
     throw InputError("--r-film-init: must be a finite film resistance in [0, 1] ohm m2");
   const CellParameters cell = load_cell(c.cell);
   c.o.ic = perturbed_initial_conditions(cell, c.ic_error_pct);
+  // A cell other than the paper's: the reduced model's design-time bias from its nominal DFN.
+  c.o.design_bias = [](const CellParameters& nominal) { return design_time_bias(nominal).bias_ohm; };
   const CurrentSign sign = current_sign_option(c.current_sign);
   const EstimateData data = read_estimate_data(c.data, sign);
   const bool quiet = c.quiet;
@@ -157,7 +160,7 @@ Runner add_estimate(CLI::App& app) {
                   "(relative) restarts the film's learning (1 = never: ablation)")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
-  sub->add_option("--cell", c->cell, "Cell of the main model: paper | aboutenergy | FILE.bpx.json")->capture_default_str();
+  sub->add_option("--cell", c->cell, "Cell of the main model: paper | aboutenergy | lco | nmc | FILE.bpx.json")->capture_default_str();
   sub->add_option("--nc", c->o.nc, "Order n_c of the ARX subsystem model (1..8)")->capture_default_str();
   sub->add_option("--p0", c->o.p0, "RLS initial covariance P(0) = p0 I (paper: 5e-7)")->capture_default_str();
   sub->add_option("--p0-y0", c->o.p0_y0, "P(0) for the side-current regressors when it should differ from --p0 "

@@ -13,6 +13,7 @@
 #include "bms/fw/bms_core.hpp"
 #include "bms/fw/make_config.hpp"
 #include "bms/fw/reduced_model_bias.hpp"
+#include "cell/reduced_cell_record.hpp"
 #include "dfn/dfn_model.hpp"
 #include "estimation/full_dfn_main_model.hpp"
 #include "io/csv_table.hpp"
@@ -213,12 +214,23 @@ fw::EffectParameters<double> effect_parameters(const EstimateOptions& o, const C
 
 // Scoring only: the truth's film and, where the file has the stoichiometries, its solid lithium
 // against the estimate (nominal x (1 + nu) less the model's own lithium loss).
-void attach_truth(std::vector<EstimateRow>& rows, const EstimateData& d, double nominal_inventory_mol) {
+// Solid lithium (mol) at mean stoichiometries: for the paper cell ReducedCell<double>'s own
+// function (the same products, so the same numbers as before), else the cell's capacities.
+double inventory_mol_of(const CellParameters& cell, double stoich_neg, double stoich_pos) {
+  if (cell.name == "paper") return fw::ReducedCell<double>::inventory_of(stoich_neg, stoich_pos);
+  const auto cap = [&](const ElectrodeParameters& e) {
+    return e.max_concentration_mol_m3 * e.solid_fraction * e.thickness_m * cell.electrode_area_m2;
+  };
+  return stoich_neg * cap(cell.negative) + stoich_pos * cap(cell.positive);
+}
+
+void attach_truth(std::vector<EstimateRow>& rows, const EstimateData& d, const CellParameters& cell,
+                  double nominal_inventory_mol) {
   for (std::size_t i = 0; i < rows.size(); ++i) {
     auto& r = rows[i];
     if (!d.r_film_true_ohm_m2.empty()) r.r_film_true_ohm_m2 = d.r_film_true_ohm_m2[i];
     if (d.stoich_neg_true.empty() || !(nominal_inventory_mol > 0.0)) continue;
-    const double truth_mol = fw::ReducedCell<double>::inventory_of(d.stoich_neg_true[i], d.stoich_pos_true[i]);
+    const double truth_mol = inventory_mol_of(cell, d.stoich_neg_true[i], d.stoich_pos_true[i]);
     const double est_mol = nominal_inventory_mol * (1.0 + r.inventory_deviation) - r.li_loss_ah * 3600.0 / fw::kFaradayC_mol;
     r.inventory_err_pct = (est_mol - truth_mol) / truth_mol * 100.0;
   }
@@ -237,6 +249,26 @@ void dispatch_nc(Model& model, const MeasuredSeries& d, const EstimateOptions& o
     case 7: run_core<7>(model, d, o, cell, dt_s, res, progress); break;
     case 8: run_core<8>(model, d, o, cell, dt_s, res, progress); break;
     default: throw InputError(fmt::format("--nc must be 1..8 (got {})", o.nc));
+  }
+}
+
+// The firmware's reduced model of cell traits Traits as the main model.
+template <class Traits, class Mesh = fw::ReducedMesh<>>
+void run_reduced(const MeasuredSeries& measured, EstimateOptions& o, const CellParameters& cell, double dt_s,
+                 double default_bias_ohm, EstimateResult& res, const EstimateProgress& progress) {
+  using Model = fw::ReducedCell<double, Traits, Mesh>;
+  Model model;
+  model.init(o.ic.stoich_neg, o.ic.stoich_pos, o.ic.electrolyte_mol_m3);
+  // The nominal inventory is the cell's design state, not the (possibly wrong) model start.
+  const InitialConditions nominal = default_initial_conditions(cell);
+  o.nominal_inventory_mol =
+      Model::inventory_of(nominal.stoich_neg, nominal.stoich_pos) * (1.0 + 0.01 * o.inventory_error_pct);
+  if (o.model_bias_ohm < 0.0) o.model_bias_ohm = default_bias_ohm;
+  if (o.model_effects_on) {
+    fw::EffectsModel<Model, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
+    dispatch_nc(augmented, measured, o, cell, dt_s, res, progress);
+  } else {
+    dispatch_nc(model, measured, o, cell, dt_s, res, progress);
   }
 }
 
@@ -327,22 +359,20 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
   const auto wall0 = std::chrono::steady_clock::now();
   EstimateResult res;
   const MeasuredSeries measured{d.t_s, d.current_a, d.voltage_v, d.cycle};
-  if (o.model == "reduced") {
-    if (cell.name != "paper")
-      throw InputError("--model reduced is the firmware's model of the paper cell; use --cell paper or --model full");
-    fw::ReducedCell<double> model;
-    model.init(o.ic.stoich_neg, o.ic.stoich_pos, o.ic.electrolyte_mol_m3);
-    // The nominal inventory is the cell's design state, not the (possibly wrong) model start.
-    const InitialConditions nominal = default_initial_conditions(cell);
-    o.nominal_inventory_mol = fw::ReducedCell<double>::inventory_of(nominal.stoich_neg, nominal.stoich_pos) *
-                              (1.0 + 0.01 * o.inventory_error_pct);
-    if (o.model_bias_ohm < 0.0) o.model_bias_ohm = fw::kPaperReducedModelBiasOhm;
-    if (o.model_effects_on) {
-      fw::EffectsModel<fw::ReducedCell<double>, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
-      dispatch_nc(augmented, measured, o, cell, dt_s, res, progress);
-    } else {
-      dispatch_nc(model, measured, o, cell, dt_s, res, progress);
+  if (o.model == "reduced" && cell.name == "paper") {
+    // The paper cell: the firmware's compiled-in configuration (PaperCellTraits).
+    run_reduced<fw::PaperCellTraits>(measured, o, cell, dt_s, fw::kPaperReducedModelBiasOhm, res, progress);
+  } else if (o.model == "reduced") {
+    // Any other cell: the firmware's model built from the cell's parameters, as the generated
+    // configuration of a cross build holds them (cell/reduced_cell_record.hpp).
+    const ReducedCellRecord record = make_reduced_cell_record(cell);
+    const RuntimeCellScope scope(record);
+    double bias_ohm = o.model_bias_ohm;
+    if (bias_ohm < 0.0) {
+      if (!o.design_bias) throw InputError(fmt::format("--model reduced --cell {}: needs --model-bias-ohm", cell.name));
+      bias_ohm = o.design_bias(cell);
     }
+    run_reduced<RuntimeCellTraits, AnyCellMesh>(measured, o, cell, dt_s, bias_ohm, res, progress);
   } else if (o.model == "full") {
     if (o.resync) throw InputError("--resync is a feature of the firmware model; use --model reduced");
     SolverSettings s;
@@ -352,7 +382,7 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
     // The full model is the DFN itself: no design-time bias to remove; its inventory is the nominal one.
     if (o.model_bias_ohm < 0.0) o.model_bias_ohm = 0.0;
     const InitialConditions nominal = default_initial_conditions(cell);
-    o.nominal_inventory_mol = fw::ReducedCell<double>::inventory_of(nominal.stoich_neg, nominal.stoich_pos);
+    o.nominal_inventory_mol = inventory_mol_of(cell, nominal.stoich_neg, nominal.stoich_pos);
     FullDfnMainModel model(cell, o.mesh, s, ic, cell.thermal.initial_temperature_k);
     if (o.model_effects_on) {
       fw::EffectsModel<FullDfnMainModel, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
@@ -364,7 +394,7 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
     throw InputError("--model must be 'reduced' or 'full' (got '" + o.model + "')");
   }
   res.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
-  attach_truth(res.rows, d, o.nominal_inventory_mol);
+  attach_truth(res.rows, d, cell, o.nominal_inventory_mol);
   res.cycles = score_cycles(res.rows, !d.true_mode.empty(), d.true_mode);
   res.growth_err_pct = growth_error_pct(res.rows);
   return res;

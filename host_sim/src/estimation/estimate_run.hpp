@@ -73,6 +73,9 @@ struct EstimateOptions {
   // found; none by default. nominal_capacity_ah is taken from the cell.
   fw::EffectParameters<double> model_effects;
   bool model_effects_on = false;
+  // The reduced model's design-time bias of a cell other than the paper's when
+  // model_bias_ohm < 0 (estimation/design_bias.hpp: a converged DFN of the nominal cell).
+  std::function<double(const CellParameters&)> design_bias;
   DfnMesh mesh;                      // full model only
   double rtol = 1e-6;                // full model only
 };
