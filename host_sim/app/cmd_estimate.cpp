@@ -9,6 +9,7 @@
 #include "bms/fw/fw_status.hpp"
 #include "commands.hpp"
 #include "estimation/estimate_output.hpp"
+#include "cell/reduced_cell_record.hpp"
 #include "estimation/design_bias.hpp"
 #include "estimation/estimate_run.hpp"
 #include "io/input_error.hpp"
@@ -56,6 +57,7 @@ nlohmann::json command_summary(const EstimateResult& r, const EstimateOptions& o
     }
     summary["data_layout"] = data.layout_note;
   }
+  if (std::isfinite(r.model_bias_ohm)) summary["model_bias_used_ohm"] = r.model_bias_ohm;
   const auto& fx = o.model_effects;
   summary["options"]["model_effects"] =
       o.model_effects_on ? nlohmann::json{{"contact_resistance_ohm", fx.contact_resistance_ohm},
@@ -97,8 +99,13 @@ int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
     throw InputError("--r-film-init: must be a finite film resistance in [0, 1] ohm m2");
   const CellParameters cell = load_cell(c.cell);
   c.o.ic = perturbed_initial_conditions(cell, c.ic_error_pct);
-  // A cell other than the paper's: the reduced model's design-time bias from its nominal DFN.
-  c.o.design_bias = [](const CellParameters& nominal) { return design_time_bias(nominal).bias_ohm; };
+  if (c.o.model == "reduced" && cell.name != "paper") {
+    // A cell other than the paper's: refuse a file the firmware's model cannot use (naming the
+    // field) before any long work, then its design-time bias from its nominal DFN (recorded in
+    // summary.json as model_bias_used_ohm).
+    (void)make_reduced_cell_record(cell);
+    if (c.o.identify_growth && c.o.model_bias_ohm < 0.0) c.o.design_bias_ohm = design_time_bias(cell).bias_ohm;
+  }
   const CurrentSign sign = current_sign_option(c.current_sign);
   const EstimateData data = read_estimate_data(c.data, sign);
   const bool quiet = c.quiet;

@@ -264,6 +264,7 @@ void run_reduced(const MeasuredSeries& measured, EstimateOptions& o, const CellP
   o.nominal_inventory_mol =
       Model::inventory_of(nominal.stoich_neg, nominal.stoich_pos) * (1.0 + 0.01 * o.inventory_error_pct);
   if (o.model_bias_ohm < 0.0) o.model_bias_ohm = default_bias_ohm;
+  res.model_bias_ohm = o.model_bias_ohm;
   if (o.model_effects_on) {
     fw::EffectsModel<Model, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
     dispatch_nc(augmented, measured, o, cell, dt_s, res, progress);
@@ -368,9 +369,13 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
     const ReducedCellRecord record = make_reduced_cell_record(cell);
     const RuntimeCellScope scope(record);
     double bias_ohm = o.model_bias_ohm;
+    if (bias_ohm < 0.0 && !o.identify_growth) bias_ohm = 0.0;  // only the best profile uses the bias
     if (bias_ohm < 0.0) {
-      if (!o.design_bias) throw InputError(fmt::format("--model reduced --cell {}: needs --model-bias-ohm", cell.name));
-      bias_ohm = o.design_bias(cell);
+      if (!std::isfinite(o.design_bias_ohm))
+        throw InputError(fmt::format("--model reduced --cell {}: needs --model-bias-ohm (bmssim cell-config --cell {} "
+                                     "computes it)",
+                                     cell.name, cell.name));
+      bias_ohm = o.design_bias_ohm;
     }
     run_reduced<RuntimeCellTraits, AnyCellMesh>(measured, o, cell, dt_s, bias_ohm, res, progress);
   } else if (o.model == "full") {

@@ -73,9 +73,10 @@ struct EstimateOptions {
   // found; none by default. nominal_capacity_ah is taken from the cell.
   fw::EffectParameters<double> model_effects;
   bool model_effects_on = false;
-  // The reduced model's design-time bias of a cell other than the paper's when
-  // model_bias_ohm < 0 (estimation/design_bias.hpp: a converged DFN of the nominal cell).
-  std::function<double(const CellParameters&)> design_bias;
+  // The reduced model's design-time bias of a cell other than the paper's, used when
+  // model_bias_ohm < 0 (estimation/design_bias.hpp: a converged DFN of the nominal cell; it may
+  // be negative, so it has its own field); NaN = not computed.
+  double design_bias_ohm = std::nan("");
   DfnMesh mesh;                      // full model only
   double rtol = 1e-6;                // full model only
 };
@@ -109,6 +110,7 @@ struct EstimateResult {
   double wall_s = 0.0;
   std::uint32_t status = 0;   // OR of all tick status words
   std::size_t newton_cap_hits = 0;
+  double model_bias_ohm = std::nan("");  // the design-time bias the reduced model ran with
 };
 
 // Sets one main-model effect from "NAME=VALUE" (contract names: contact_resistance [ohm],
