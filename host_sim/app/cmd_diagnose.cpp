@@ -142,7 +142,7 @@ Runner add_diagnose(CLI::App& app) {
                   "voltage_meas_v; temperature_k when present), or any CSV with time, current and voltage columns "
                   "(picked by name). Repeatable: each record is scored with the parameters fitted on the others")
       ->required();
-  sub->add_option("--cell", o->cell, "paper | aboutenergy | FILE.bpx.json")->required();
+  sub->add_option("--cell", o->cell, "paper | aboutenergy | lco | nmc | FILE.bpx.json")->required();
   sub->add_option("--out", o->out, "Output folder (summary.json, report.md, residual.csv, PNG plots)")->required();
   sub->add_option("--candidates", o->candidates,
                   "all (the five listed effects, voltage_offset, voltage_gain, rc_branch, time_skew and the "

@@ -14,6 +14,8 @@
 #include "estimation/charges.hpp"
 #include "estimation/cycler_input.hpp"
 #include "estimation/estimate_output.hpp"
+#include "cell/reduced_cell_record.hpp"
+#include "estimation/design_bias.hpp"
 #include "estimation/estimate_run.hpp"
 #include "io/input_error.hpp"
 #include "io/output_folder.hpp"
@@ -99,6 +101,7 @@ nlohmann::json command_summary(const EstimateResult& r, const EstimateOptions& o
     }
     summary["data_layout"] = data.layout_note;
   }
+  if (std::isfinite(r.model_bias_ohm)) summary["model_bias_used_ohm"] = r.model_bias_ohm;
   const auto& fx = o.model_effects;
   summary["options"]["model_effects"] =
       o.model_effects_on ? nlohmann::json{{"contact_resistance_ohm", fx.contact_resistance_ohm},
@@ -157,6 +160,14 @@ int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
   check_estimate_options(c.o);  // before any long work: an option the settings do not use exits 2
   const CellParameters cell = load_cell(c.cell);
   c.o.ic = perturbed_initial_conditions(cell, c.ic_error_pct);
+  if (c.o.model == "reduced" && cell.name != "paper") {
+    // A cell other than the paper's: refuse a file the firmware's model cannot use (naming the
+    // field) before any long work, then its design-time bias from its nominal DFN (recorded in
+    // summary.json as model_bias_used_ohm).
+    (void)make_reduced_cell_record(cell);
+    if (c.o.profile == fw::Profile::best && !c.o.overrides.model_bias_ohm.given)
+      c.o.design_bias_ohm = design_time_bias(cell).bias_ohm;
+  }
   const CurrentSign sign = current_sign_option(c.current_sign);
   const EstimateInput input = read_estimate_input(c.data, sign);
   const EstimateData& data = input.data;
@@ -281,7 +292,7 @@ Runner add_estimate(CLI::App& app) {
   sub->add_option("--inventory-error-pct", c->o.inventory_error_pct.value,
                   "Reduced model with the observer or --settings best: the lithium inventory the estimator assumes "
                   "is off the cell's nominal one by this percent (how well a BMS must know its cell's inventory)");
-  sub->add_option("--cell", c->cell, "Cell of the main model: paper | aboutenergy | FILE.bpx.json")->capture_default_str();
+  sub->add_option("--cell", c->cell, "Cell of the main model: paper | aboutenergy | lco | nmc | FILE.bpx.json")->capture_default_str();
   sub->add_option("--ic-error-pct", c->ic_error_pct,
                   "Initial-condition error of the main model (not the data), percent: scales the initial anode and "
                   "cathode stoichiometries and the electrolyte concentration together (paper: +-1)")

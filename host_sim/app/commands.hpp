@@ -15,5 +15,6 @@ Runner add_hil(CLI::App& app);
 Runner add_study(CLI::App& app);
 Runner add_baseline(CLI::App& app);
 Runner add_diagnose(CLI::App& app);
+Runner add_cell_config(CLI::App& app);
 
 }  // namespace bms::app

@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   add(bms::app::add_study);
   add(bms::app::add_baseline);
   add(bms::app::add_diagnose);
+  add(bms::app::add_cell_config);
   bms::install_interrupt_handlers();
   try {
     app.parse(argc, argv);

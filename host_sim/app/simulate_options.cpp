@@ -12,7 +12,7 @@
 namespace bms::app {
 
 void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
-  sub.add_option("--cell", o.cell, "paper | aboutenergy | FILE.bpx.json")->capture_default_str();
+  sub.add_option("--cell", o.cell, "paper | aboutenergy | lco | nmc | FILE.bpx.json")->capture_default_str();
   sub.add_option("--protocol", o.protocol,
                  "cccv (repeated CC-CV discharge/charge: CC discharge at --current-a to --v-min, CV there to "
                  "--cv-end-current-a, CC charge to --v-max, CV there), an experiment as PyBaMM writes one "

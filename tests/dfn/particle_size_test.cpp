@@ -17,6 +17,14 @@ namespace {
 
 const DfnMesh kCoarse{6, 3, 6, 6};
 
+// The About:Energy cell without its side reaction (the paper's, which every cell has): an
+// anode size distribution is not available together with the side reaction.
+CellParameters ae_cell() {
+  CellParameters c = load_cell("aboutenergy");
+  c.side.enabled = false;
+  return c;
+}
+
 // Mean stoichiometry of one cathode population over the electrode, from its shells.
 double population_stoich(const DfnModel& m, const double* y, int pop) {
   const int nr = m.mesh().n_r;
@@ -33,7 +41,7 @@ double population_stoich(const DfnModel& m, const double* y, int pop) {
 }
 
 TEST(ParticleSize, OffAddsNoStateAndLeavesTheResidualUnchanged) {
-  const CellParameters cell = load_cell("aboutenergy");
+  const CellParameters cell = ae_cell();
   DfnModel plain(cell, kCoarse, 298.15);
   ModelEffects off;
   off.particle_size_populations = 5;  // a node count without a spread changes nothing
@@ -54,7 +62,7 @@ TEST(ParticleSize, OffAddsNoStateAndLeavesTheResidualUnchanged) {
 // With a vanishing spread and every population in population 0's state, the shared rows
 // (electrolyte, potentials, particles of population 0) are the plain model's.
 TEST(ParticleSize, VanishingSpreadIsThePlainModel) {
-  const CellParameters cell = load_cell("aboutenergy");
+  const CellParameters cell = ae_cell();
   DfnModel plain(cell, kCoarse, 298.15);
   for (int variant = 0; variant < 2; ++variant) {
     ModelEffects eff;
@@ -92,7 +100,7 @@ TEST(ParticleSize, VanishingSpreadIsThePlainModel) {
 }
 
 TEST(ParticleSize, PopulationsKeepTheSurfaceAreaAndSpreadTheRadius) {
-  const CellParameters cell = load_cell("aboutenergy");
+  const CellParameters cell = ae_cell();
   for (int n : {3, 5}) {
     ModelEffects eff;
     eff.particle_size_sigma = 0.4;
@@ -114,7 +122,7 @@ TEST(ParticleSize, PopulationsKeepTheSurfaceAreaAndSpreadTheRadius) {
 }
 
 TEST(ParticleSize, DischargeConservesChargeAndFillsSmallParticlesFirst) {
-  const CellParameters cell = load_cell("aboutenergy");
+  const CellParameters cell = ae_cell();
   ModelEffects eff;
   eff.particle_size_sigma = 0.5;
   eff.particle_size_negative_sigma = 0.3;  // both electrodes: the anode's states come first
@@ -151,7 +159,7 @@ TEST(ParticleSize, DischargeConservesChargeAndFillsSmallParticlesFirst) {
 }
 
 TEST(ParticleSize, BadValuesAreInputErrors) {
-  const CellParameters cell = load_cell("aboutenergy");
+  const CellParameters cell = ae_cell();
   ModelEffects eff;
   eff.particle_size_sigma = -0.1;
   EXPECT_THROW(DfnModel(cell, kCoarse, 298.15, eff), InputError);

@@ -220,5 +220,20 @@ TEST(SideI0Scale, DoublesBothTheFilmGrowthAndTheLithiumLoss) {
   EXPECT_NEAR(g2.li_loss_ah / g2.film_ohm_m2, g1.li_loss_ah / g1.film_ohm_m2, 1e-6 * g1.li_loss_ah / g1.film_ohm_m2);
 }
 
+// A cell file without side-reaction keys gets SideReactionParameters' defaults, which must be
+// the paper's printed values (firmware/include/bms/fw/paper_cell.hpp).
+TEST(TruthParameters, DefaultSideReactionIsThePapers) {
+  const SideReactionParameters d;
+  const SideReactionParameters p = make_paper_cell().side;
+  EXPECT_EQ(d.reference_potential_v, p.reference_potential_v);
+  EXPECT_EQ(d.exchange_current_a_m2, p.exchange_current_a_m2);
+  EXPECT_EQ(d.transfer_coefficient, p.transfer_coefficient);
+  EXPECT_EQ(d.molar_mass_kg_mol, p.molar_mass_kg_mol);
+  EXPECT_EQ(d.density_kg_m3, p.density_kg_m3);
+  EXPECT_EQ(d.film_conductivity_s_m, p.film_conductivity_s_m);
+  EXPECT_EQ(d.initial_film_resistance_ohm_m2, p.initial_film_resistance_ohm_m2);
+  EXPECT_EQ(d.film_growth_scale, 1.0);
+}
+
 }  // namespace
 }  // namespace bms

@@ -51,7 +51,11 @@ TEST(BpxReader, ReadsTheAboutEnergyLfpCell) {
   EXPECT_DOUBLE_EQ(p.upper_voltage_v, 3.65);
   EXPECT_DOUBLE_EQ(p.nominal_capacity_ah, 2.0);
   EXPECT_DOUBLE_EQ(p.initial_electrolyte_mol_m3, 1000.0);
-  EXPECT_FALSE(p.side.enabled);
+  // No side-reaction keys: the Ramadass reaction with the paper's values.
+  EXPECT_TRUE(p.side.enabled);
+  EXPECT_EQ(p.side.source, "the paper's values");
+  EXPECT_DOUBLE_EQ(p.side.exchange_current_a_m2, 4e-9);
+  EXPECT_DOUBLE_EQ(p.side.initial_film_resistance_ohm_m2, 3.391e-3);
 
   const ElectrodeParameters& n = p.negative;
   EXPECT_DOUBLE_EQ(n.particle_radius_m, 4.8e-6);
@@ -309,6 +313,39 @@ TEST(BpxReader, VersionAndSyntax) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("no/such/file.json: cannot read"), std::string::npos);
   }
+}
+
+// The side reaction's constants under PyBaMM's SEI names in "User-defined"; each missing one
+// keeps the paper's value; a bad one is refused with its full path.
+TEST(BpxReader, SideReactionFromUserDefinedKeys) {
+  json j = lfp_json();
+  json& u = j["Parameterisation"]["User-defined"];
+  u["SEI reaction exchange current density [A.m-2]"] = 2e-9;
+  u["SEI open-circuit potential [V]"] = 0.38;
+  u["SEI partial molar volume [m3.mol-1]"] = 20.0;
+  u["SEI resistivity [Ohm.m]"] = 2e5;        // PyBaMM's example value
+  u["Initial SEI thickness [m]"] = 1e-8;      // -> 2e-3 ohm m2
+  const CellParameters p = read_bpx_text(j.dump(), "lfp.json");
+  EXPECT_TRUE(p.side.enabled);
+  EXPECT_NE(p.side.source.find("User-defined"), std::string::npos);
+  EXPECT_DOUBLE_EQ(p.side.exchange_current_a_m2, 2e-9);
+  EXPECT_DOUBLE_EQ(p.side.reference_potential_v, 0.38);
+  EXPECT_DOUBLE_EQ(p.side.transfer_coefficient, 0.5);  // the paper's
+  EXPECT_DOUBLE_EQ(p.side.molar_mass_kg_mol / p.side.density_kg_m3, 20.0);
+  EXPECT_DOUBLE_EQ(p.side.film_conductivity_s_m, 1.0 / 2e5);
+  EXPECT_DOUBLE_EQ(p.side.initial_film_resistance_ohm_m2, 2e-3);
+
+  EXPECT_NE(error_after([](json& k) {
+              k["Parameterisation"]["User-defined"]["SEI reaction exchange current density [A.m-2]"] = -1.0;
+            }).find("Parameterisation.User-defined.SEI reaction exchange current density [A.m-2]"),
+            std::string::npos);
+  EXPECT_NE(error_after([](json& k) {
+              k["Parameterisation"]["User-defined"]["Initial SEI thickness [m]"] = 1e-9;
+              k["Parameterisation"]["User-defined"]["Initial SEI resistance [Ohm.m2]"] = 1e-3;
+            }).find("give one"),
+            std::string::npos);
+  EXPECT_NE(error_after([](json& k) { k["Parameterisation"]["User-defined"] = 3; }).find("User-defined"),
+            std::string::npos);
 }
 
 // Byte-level mutations of the real file: every outcome is a CellParameters or an InputError.

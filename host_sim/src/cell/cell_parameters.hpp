@@ -48,16 +48,19 @@ struct ElectrolyteParameters {
   double conductivity_activation_j_mol = 0.0;
 };
 
-// Ramadass et al. side reaction in the negative electrode (paper eqs 9-12).
+// Ramadass et al. side reaction in the negative electrode (paper eqs 9-12). The defaults are the
+// paper's printed values (firmware/include/bms/fw/paper_cell.hpp; a test holds them together):
+// a BPX file without side-reaction keys gets these (io/bpx_reader.cpp, docs/parameters.md).
 struct SideReactionParameters {
   bool enabled = false;
+  std::string source = "the paper's values";  // or the BPX file's keys
   double reference_potential_v = 0.4;         // U_sd,ref
   double exchange_current_a_m2 = 4e-9;        // i_0s
   double transfer_coefficient = 0.5;          // alpha
   double molar_mass_kg_mol = 7.3e4;           // M_p (as the paper prints it; see docs)
   double density_kg_m3 = 2.1e3;               // rho_p
   double film_conductivity_s_m = 1.0;         // K_p
-  double initial_film_resistance_ohm_m2 = 0.0;  // R_SEI
+  double initial_film_resistance_ohm_m2 = 3.391e-3;  // R_SEI
   // Factor on the film-growth law dR_film/dt alone (1 = the paper's; `--set film_growth_scale`):
   // it changes the film's resistance per mole of side product, not the lithium the side
   // reaction consumes, so the lithium loss derived from the film stays the same.

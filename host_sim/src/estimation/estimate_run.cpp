@@ -13,6 +13,7 @@
 #include "bms/fw/bms_core.hpp"
 #include "bms/fw/make_config.hpp"
 #include "bms/fw/reduced_model_bias.hpp"
+#include "cell/reduced_cell_record.hpp"
 #include "dfn/dfn_model.hpp"
 #include "estimation/full_dfn_main_model.hpp"
 #include "io/csv_table.hpp"
@@ -226,12 +227,23 @@ fw::EffectParameters<double> effect_parameters(const EstimateOptions& o, const C
 
 // Scoring only: the truth's film and, where the file has the stoichiometries, its solid lithium
 // against the estimate (nominal x (1 + nu) less the model's own lithium loss).
-void attach_truth(std::vector<EstimateRow>& rows, const EstimateData& d, double nominal_inventory_mol) {
+// Solid lithium (mol) at mean stoichiometries: for the paper cell ReducedCell<double>'s own
+// function (the same products, so the same numbers as before), else the cell's capacities.
+double inventory_mol_of(const CellParameters& cell, double stoich_neg, double stoich_pos) {
+  if (cell.name == "paper") return fw::ReducedCell<double>::inventory_of(stoich_neg, stoich_pos);
+  const auto cap = [&](const ElectrodeParameters& e) {
+    return e.max_concentration_mol_m3 * e.solid_fraction * e.thickness_m * cell.electrode_area_m2;
+  };
+  return stoich_neg * cap(cell.negative) + stoich_pos * cap(cell.positive);
+}
+
+void attach_truth(std::vector<EstimateRow>& rows, const EstimateData& d, const CellParameters& cell,
+                  double nominal_inventory_mol) {
   for (std::size_t i = 0; i < rows.size(); ++i) {
     auto& r = rows[i];
     if (!d.r_film_true_ohm_m2.empty()) r.r_film_true_ohm_m2 = d.r_film_true_ohm_m2[i];
     if (d.stoich_neg_true.empty() || !(nominal_inventory_mol > 0.0)) continue;
-    const double truth_mol = fw::ReducedCell<double>::inventory_of(d.stoich_neg_true[i], d.stoich_pos_true[i]);
+    const double truth_mol = inventory_mol_of(cell, d.stoich_neg_true[i], d.stoich_pos_true[i]);
     const double est_mol = nominal_inventory_mol * (1.0 + r.inventory_deviation) - r.li_loss_ah * 3600.0 / fw::kFaradayC_mol;
     r.inventory_err_pct = (est_mol - truth_mol) / truth_mol * 100.0;
   }
@@ -265,6 +277,22 @@ void require_physical_film(const EstimateResult& res, const EstimateData& d) {
                                        "record sampled every {} s: log at 1 s (or finer) and run again",
                                        d.source, film, r.t_s, d.median_step_s));
   }
+}
+
+// The firmware's reduced model of cell traits Traits as the main model.
+template <class Traits, class Mesh = fw::ReducedMesh<>>
+void run_reduced(const MeasuredSeries& measured, const EstimateOptions& o, const CellParameters& cell, double dt_s,
+                 EstimateResult& res, const EstimateProgress& progress) {
+  using Model = fw::ReducedCell<double, Traits, Mesh>;
+  Model model;
+  model.init(o.ic.stoich_neg, o.ic.stoich_pos, o.ic.electrolyte_mol_m3);
+  if (o.model_effects_on) {
+    fw::EffectsModel<Model, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
+    dispatch_nc(augmented, measured, o, cell, dt_s, res, progress);
+  } else {
+    dispatch_nc(model, measured, o, cell, dt_s, res, progress);
+  }
+  res.model_bias_ohm = res.config.model_bias_ohm;
 }
 
 }  // namespace
@@ -306,10 +334,19 @@ void add_model_effect(EstimateOptions& o, const std::string& spec) {
 fw::NominalCell estimate_nominal_cell(const CellParameters& cell, const EstimateOptions& o) {
   // The nominal inventory is the cell's design state, not the (possibly wrong) model start.
   const InitialConditions design = default_initial_conditions(cell);
-  const double inventory_mol = fw::ReducedCell<double>::inventory_of(design.stoich_neg, design.stoich_pos) *
-                               (1.0 + 0.01 * o.inventory_error_pct.or_else(0.0));
-  // The full model is the DFN itself: no design-time bias to remove.
-  const double bias_ohm = o.model == "full" ? 0.0 : fw::kPaperReducedModelBiasOhm;
+  const double inventory_mol =
+      inventory_mol_of(cell, design.stoich_neg, design.stoich_pos) * (1.0 + 0.01 * o.inventory_error_pct.or_else(0.0));
+  // The full model is the DFN itself: no design-time bias to remove. The reduced model of a cell
+  // other than the paper's: the bias its nominal DFN gives (estimation/design_bias.hpp).
+  double bias_ohm = o.model == "full" ? 0.0 : fw::kPaperReducedModelBiasOhm;
+  if (o.model == "reduced" && cell.name != "paper") {
+    bias_ohm = o.design_bias_ohm;
+    if (o.profile == fw::Profile::best && !o.overrides.model_bias_ohm.given && !std::isfinite(bias_ohm))
+      throw InputError(fmt::format("--model reduced --cell {}: needs --model-bias-ohm (bmssim cell-config --cell {} "
+                                   "computes it)",
+                                   cell.name, cell.name));
+    if (!std::isfinite(bias_ohm)) bias_ohm = 0.0;  // a profile that does not use the bias
+  }
   return {inventory_mol,           cell.side.initial_film_resistance_ohm_m2,
           nominal_growth_ohm_m2_per_a_m3_s(cell), bias_ohm,
           cell.lower_voltage_v,    cell.upper_voltage_v};
@@ -365,17 +402,15 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
   EstimateResult res;
   const MeasuredSeries measured{d.t_s, d.current_a, d.voltage_v, d.cycle,
                                 d.median_step_s > dt_s ? d.median_step_s : 0.0};
-  if (o.model == "reduced") {
-    if (cell.name != "paper")
-      throw InputError("--model reduced is the firmware's model of the paper cell; use --cell paper or --model full");
-    fw::ReducedCell<double> model;
-    model.init(o.ic.stoich_neg, o.ic.stoich_pos, o.ic.electrolyte_mol_m3);
-    if (o.model_effects_on) {
-      fw::EffectsModel<fw::ReducedCell<double>, fw::kAllCellEffects> augmented(model, effect_parameters(o, cell));
-      dispatch_nc(augmented, measured, o, cell, dt_s, res, progress);
-    } else {
-      dispatch_nc(model, measured, o, cell, dt_s, res, progress);
-    }
+  if (o.model == "reduced" && cell.name == "paper") {
+    // The paper cell: the firmware's compiled-in configuration (PaperCellTraits).
+    run_reduced<fw::PaperCellTraits>(measured, o, cell, dt_s, res, progress);
+  } else if (o.model == "reduced") {
+    // Any other cell: the firmware's model built from the cell's parameters, as the generated
+    // configuration of a cross build holds them (cell/reduced_cell_record.hpp).
+    const ReducedCellRecord record = make_reduced_cell_record(cell);
+    const RuntimeCellScope scope(record);
+    run_reduced<RuntimeCellTraits, AnyCellMesh>(measured, o, cell, dt_s, res, progress);
   } else if (o.model == "full") {
     SolverSettings s;
     s.rtol = o.rtol;
@@ -391,7 +426,7 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
   }
   res.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   require_physical_film(res, d);
-  attach_truth(res.rows, d, res.config.nominal_inventory_mol);
+  attach_truth(res.rows, d, cell, res.config.nominal_inventory_mol);
   res.cycles = score_cycles(res.rows, !d.true_mode.empty(), d.true_mode);
   res.growth_err_pct = growth_error_pct(res.rows);
   return res;

@@ -72,6 +72,10 @@ struct EstimateOptions {
   // found; none by default. nominal_capacity_ah is taken from the cell.
   fw::EffectParameters<double> model_effects;
   bool model_effects_on = false;
+  // The reduced model's design-time bias of a cell other than the paper's, used when
+  // model_bias_ohm < 0 (estimation/design_bias.hpp: a converged DFN of the nominal cell; it may
+  // be negative, so it has its own field); NaN = not computed.
+  double design_bias_ohm = std::nan("");
   DfnMesh mesh;                      // full model only
   bool points_given = false;         // --points (full model only)
   double rtol = 1e-6;                // full model only
@@ -152,6 +156,7 @@ struct EstimateResult {
   std::size_t newton_cap_hits = 0;
   std::size_t samples_skipped = 0;  // measured samples less than half a model tick after the previous
   EstimateConfigSummary config;  // what ran
+  double model_bias_ohm = std::nan("");  // the design-time bias the reduced model ran with
 };
 
 // Sets one main-model effect from "NAME=VALUE" (contract names: contact_resistance [ohm],

@@ -5,7 +5,10 @@
 //    "Reaction rate constant", i.e. i0_coefficient = F k / (sqrt(c_e0) c_max);
 //  - cell electrode area = "Electrode area" x number of electrode pairs in parallel;
 //  - the simulation starts at 100 % state of charge (negative at its maximum stoichiometry,
-//    positive at its minimum); BPX has no side reaction, so side.enabled = false.
+//    positive at its minimum);
+//  - every cell has the Ramadass side reaction: its constants are read from the optional
+//    "Parameterisation" / "User-defined" section under PyBaMM's SEI parameter names (see
+//    read_side_reaction and docs/parameters.md), else the paper's values apply.
 #include "io/bpx_reader.hpp"
 
 #include <fmt/format.h>
@@ -80,6 +83,14 @@ constexpr Range kVolume{1e-9, 10.0, false, false};              // m3
 constexpr Range kExternalArea{1e-6, 100.0, false, false};       // m2
 constexpr Range kAreaPerVolume{1.0, 1e10, false, false};         // 1/m; 1e5 - 1e7
 constexpr Range kThermodynamicFactor{0.05, 20.0, false, false};  // -; 1 - 3 in carbonate electrolytes
+// Side reaction (Ramadass): PyBaMM's SEI example sets for comparison in the comments.
+constexpr Range kSeiPotential{-1.0, 2.0, false, false};          // V vs Li; 0.4
+constexpr Range kSeiExchange{1e-20, 1.0, false, false};          // A/m2; 1.5e-7 (PyBaMM), 4e-9 (the paper)
+constexpr Range kSeiAlpha{0.0, 1.0, true, true};                 // -; 0.5
+constexpr Range kSeiMolarVolume{1e-7, 1e3, false, false};        // m3/mol; 9.6e-5 (PyBaMM), 34.8 (the paper's printed M/rho)
+constexpr Range kSeiResistivity{1e-6, 1e9, false, false};        // ohm m; 2e5 (PyBaMM), 1 (the paper's 1/K_p)
+constexpr Range kSeiThickness{0.0, 1e-5, false, false};          // m; 5e-9
+constexpr Range kSeiResistance{0.0, 1.0, false, false};          // ohm m2; 3.4e-3 (the paper)
 
 // A unit written another way than the schema's: spellings of the same unit (factor 1) and
 // scaled ones, per schema unit. Compared without spaces, '^' and '*' ("kJ mol^-1" = "kJ.mol-1").
@@ -428,6 +439,44 @@ void read_electrolyte_section(const Section& electrolyte, CellParameters& p) {
   electrolyte.refuse_unknown({});
 }
 
+// The Ramadass side reaction's constants (every cell has one). Keys in the optional
+// "User-defined" section of "Parameterisation", PyBaMM's SEI parameter names where one exists:
+//   "SEI open-circuit potential [V]"                U_sd,ref
+//   "SEI reaction exchange current density [A.m-2]" i_0s
+//   "SEI growth transfer coefficient"               alpha
+//   "SEI partial molar volume [m3.mol-1]"           M_p / rho_p
+//   "SEI resistivity [Ohm.m]"                       1 / K_p
+//   "Initial SEI thickness [m]"                     R_SEI = thickness x resistivity, or
+//   "Initial SEI resistance [Ohm.m2]"               R_SEI itself (this project's key; not both)
+// Each missing key takes the paper's value (SideReactionParameters' defaults); the film-growth
+// law depends on M_p / (rho_p K_p) only, so the molar volume is kept as M_p at the paper's rho_p.
+void read_side_reaction(const Section& params, CellParameters& p) {
+  SideReactionParameters& s = p.side;
+  s = SideReactionParameters{};
+  s.enabled = true;
+  if (params.find("User-defined") == nullptr) return;
+  const Section u = params.section("User-defined");
+  const char* const keys[] = {"SEI open-circuit potential [V]", "SEI reaction exchange current density [A.m-2]",
+                              "SEI growth transfer coefficient", "SEI partial molar volume [m3.mol-1]",
+                              "SEI resistivity [Ohm.m]", "Initial SEI thickness [m]",
+                              "Initial SEI resistance [Ohm.m2]"};
+  bool any = false;
+  for (const char* k : keys) any = any || u.find(k) != nullptr;
+  if (!any) return;
+  s.source = "the file's User-defined SEI keys (the paper's value for each one missing)";
+  s.reference_potential_v = u.number_or(keys[0], kSeiPotential, s.reference_potential_v);
+  s.exchange_current_a_m2 = u.number_or(keys[1], kSeiExchange, s.exchange_current_a_m2);
+  s.transfer_coefficient = u.number_or(keys[2], kSeiAlpha, s.transfer_coefficient);
+  const double molar_volume = u.number_or(keys[3], kSeiMolarVolume, s.molar_mass_kg_mol / s.density_kg_m3);
+  s.molar_mass_kg_mol = molar_volume * s.density_kg_m3;
+  const double resistivity = u.number_or(keys[4], kSeiResistivity, 1.0 / s.film_conductivity_s_m);
+  s.film_conductivity_s_m = 1.0 / resistivity;
+  if (u.find(keys[5]) != nullptr && u.find(keys[6]) != nullptr)
+    u.fail(keys[5], fmt::format("and '{}' both given: give one", u.field(keys[6])));
+  if (u.find(keys[5]) != nullptr) s.initial_film_resistance_ohm_m2 = u.number(keys[5], kSeiThickness) * resistivity;
+  s.initial_film_resistance_ohm_m2 = u.number_or(keys[6], kSeiResistance, s.initial_film_resistance_ohm_m2);
+}
+
 }  // namespace
 
 CellParameters read_bpx_text(std::string_view text, std::string_view name) {
@@ -461,7 +510,7 @@ CellParameters read_bpx_text(std::string_view text, std::string_view name) {
   p.separator.transport_efficiency = separator.number("Transport efficiency", kTransportEfficiency);
   separator.refuse_unknown({"Density [kg.m-3]", "Specific heat capacity [J.K-1.kg-1]", "Thermal conductivity [W.m-1.K-1]"});
 
-  p.side.enabled = false;  // BPX has no side reaction
+  read_side_reaction(params, p);
   return p;
 }
 

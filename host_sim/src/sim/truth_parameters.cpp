@@ -174,7 +174,7 @@ CellParameters TruthSettings::apply(const CellParameters& nominal) const {
     const auto it = values_.find(e.info.name);
     if (it == values_.end()) continue;
     if (e.info.needs_side_reaction && !nominal.side.enabled)
-      throw InputError(fmt::format("--set {}: cell '{}' has no side reaction (a BPX cell has none), so there is "
+      throw InputError(fmt::format("--set {}: cell '{}' has its side reaction switched off, so there is "
                                    "nothing to scale",
                                    e.info.name, nominal.name));
     e.apply(cell, it->second);

@@ -523,6 +523,21 @@ class ReducedCell {
     surface_half = Scalar(0.5 * (face[n] - face[n - 1]));
   }
 
+  // eps^b with the cell's Bruggeman exponent, or (a cell generated from a BPX file, which gives
+  // the transport efficiency of each region) the region's own value.
+  template <class C, class = void>
+  struct HasRegionTransport : std::false_type {};
+  template <class C>
+  struct HasRegionTransport<C, std::void_t<decltype(C::kTransportEfficiencyNeg)>> : std::true_type {};
+  static double transport_efficiency(int k, double eps) {
+    if constexpr (HasRegionTransport<Cell>::value) {
+      return k < kNn ? Cell::kTransportEfficiencyNeg
+                     : (k < kNn + kNs ? Cell::kTransportEfficiencySep : Cell::kTransportEfficiencyPos);
+    } else {
+      return std::pow(eps, Cell::kBruggeman);
+    }
+  }
+
   void build_geometry() {
     static_assert(kNrN <= 16 && kNrP <= 16, "at most 16 shells per particle");
     shells(Cell::kNeg.particle_radius_m, kNrN, vol_n_, g_n_, r2_n_, half_n_);
@@ -538,7 +553,7 @@ class ReducedCell {
       }
       dx_[k] = Scalar(dx);
       eps_[k] = Scalar(eps);
-      te_[k] = Scalar(std::pow(eps, Cell::kBruggeman));
+      te_[k] = Scalar(transport_efficiency(k, eps));
       a_[k] = Scalar(a);
     }
   }

@@ -1,0 +1,104 @@
+// `bmssim cell-config`: the firmware's cell configuration from a parameter set (the generator of
+// the cell as data, cell/reduced_cell_record.hpp). Writes DIR/<name>_cell.hpp (a traits struct
+// for ReducedCell, PaperCellTraits' fields plus the design-time bias and the record's CRC-32)
+// and DIR/summary.json (table errors, bias, what the reduced model leaves out).
+#include <cctype>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "cell/reduced_cell_record.hpp"
+#include "commands.hpp"
+#include "estimation/design_bias.hpp"
+#include "sim/truth_output.hpp"
+#include "io/output_folder.hpp"
+#include "sim/cell_catalog.hpp"
+
+namespace bms::app {
+namespace {
+
+struct CellConfigCli {
+  std::string cell = "aboutenergy";
+  std::string out;
+  double bias_ohm = -1.0;
+  bool quiet = false;
+};
+
+// "aboutenergy" -> "AboutenergyCellTraits"; a file's stem with non-identifier characters dropped.
+std::string type_name_for(const std::string& name) {
+  std::string t;
+  bool upper = true;
+  for (const char ch : name) {
+    if (std::isalnum(static_cast<unsigned char>(ch)) == 0) {
+      upper = true;
+      continue;
+    }
+    t += upper ? static_cast<char>(std::toupper(static_cast<unsigned char>(ch))) : ch;
+    upper = false;
+  }
+  if (t.empty() || std::isdigit(static_cast<unsigned char>(t[0])) != 0) t = "Cell" + t;
+  return t + "CellTraits";
+}
+
+int run_cell_config(const CellConfigCli& c) {
+  const CellParameters cell = load_cell(c.cell);
+  const ReducedCellRecord record = make_reduced_cell_record(cell);
+  OutputFolder folder(c.out);
+  DesignBias bias;
+  if (c.bias_ohm >= 0.0) {
+    bias.bias_ohm = c.bias_ohm;
+  } else {
+    if (!c.quiet) std::fprintf(stderr, "cell-config: design-time bias of '%s' (nominal DFN, 3 cycles)...\n", cell.name.c_str());
+    bias = design_time_bias(cell);
+  }
+  const std::string type = type_name_for(cell.name);
+  const std::string header = fmt::format("{}_cell.hpp", cell.name);
+  write_file_atomically(folder.staging() / header, cell_header_text(record, type, bias.bias_ohm));
+  const nlohmann::json j = {
+      {"cell", cell.name},
+      {"source", cell.source},
+      {"header", header},
+      {"traits", "bms::fw::cells::" + type},
+      {"record_crc32", fmt::format("0x{:08X}", record_crc32(record))},
+      {"model_bias_ohm", bias.bias_ohm},
+      {"model_bias_from", c.bias_ohm >= 0.0 ? "--model-bias-ohm" : "nominal DFN, 3 CCCV cycles at 1C (CV to C/10), 40/40 volumes, rtol 1e-9"},
+      {"model_bias_ticks", bias.ticks},
+      {"ocp_table_nodes", kOcpTableNodes},
+      {"electrolyte_table_nodes", kElectrolyteTableNodes},
+      {"ocp_neg_max_err_v", record.ocp_neg_max_err_v},
+      {"ocp_pos_max_err_v", record.ocp_pos_max_err_v},
+      {"diffusivity_max_rel_err", record.diffusivity_max_rel_err},
+      {"conductivity_max_rel_err", record.conductivity_max_rel_err},
+      {"side_reaction", cell.side.source},
+      {"left_out", record.notes},
+      {"wall_s", bias.wall_s}};
+  write_file_atomically(folder.staging() / "summary.json", j.dump(2) + "\n");
+  folder.commit();
+  if (!c.quiet)
+    std::printf("%s: %s, bias %.6e ohm, OCP table error %.3g / %.3g V\n", cell.name.c_str(),
+                (folder.destination() / header).c_str(), bias.bias_ohm, record.ocp_neg_max_err_v,
+                record.ocp_pos_max_err_v);
+  return 0;
+}
+
+}  // namespace
+
+Runner add_cell_config(CLI::App& app) {
+  auto* sub = app.add_subcommand(
+      "cell-config",
+      "Generate the firmware's cell configuration (a C++ traits header for the reduced model: OCP and "
+      "electrolyte tables with their errors, the side reaction's constants, the design-time model bias) from a "
+      "parameter set");
+  auto c = std::make_shared<CellConfigCli>();
+  sub->add_option("--cell", c->cell, "paper | aboutenergy | lco | nmc | FILE.bpx.json")->capture_default_str();
+  sub->add_option("--out", c->out, "Output folder (<name>_cell.hpp, summary.json)")->required();
+  sub->add_option("--model-bias-ohm", c->bias_ohm,
+                  "Use this design-time bias instead of computing it from the nominal cell's DFN (ohm)");
+  sub->add_flag("--quiet", c->quiet, "No progress output");
+  return [c]() { return run_cell_config(*c); };
+}
+
+}  // namespace bms::app
