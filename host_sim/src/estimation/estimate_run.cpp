@@ -30,7 +30,8 @@ EstimateData read_measured_file(const std::string& file, CurrentSign sign) {
   const double step = dt[dt.size() / 2];
   if (step > kMaxSampleStepS)
     throw InputError(fmt::format("{}: sampled every {} s (the median step); the estimator needs a sample at least "
-                                 "every {} s during a charge: log at {} s or finer",
+                                 "every {} s (coarser records leave the film's growth undetermined): log at {} s or "
+                                 "finer",
                                  file, step, kMaxSampleStepS, kMaxSampleStepS));
   EstimateData d;
   d.source = file;
