@@ -72,7 +72,7 @@ std::vector<ChargeReport> find_charges(const std::vector<EstimateRow>& rows, con
     std::size_t e = i;
     bool learned = rows[i].rcsi_active;
     while (e + 1 < rows.size() && rows[e + 1].mode == fw::Mode::cc_charge) {
-      ++e;
+      ++e;  // not inside `learned || ...`: once learned, the short circuit skipped it and the loop never ended
       learned = learned || rows[e].rcsi_active;
     }
     if (learned_only && !learned) continue;

@@ -31,7 +31,8 @@ EstimateData read_measured_file(const std::string& file, CurrentSign sign) {
   const double step = dt[dt.size() / 2];
   if (step > kMaxSampleStepS)
     throw InputError(fmt::format("{}: sampled every {} s (the median step); the estimator needs a sample at least "
-                                 "every {} s during a charge: log at {} s or finer",
+                                 "every {} s (coarser records leave the film's growth undetermined): log at {} s or "
+                                 "finer",
                                  file, step, kMaxSampleStepS, kMaxSampleStepS));
   EstimateData d;
   d.source = file;
@@ -159,6 +160,32 @@ void tell_missed(Core& core, long long missed) {
   }
 }
 
+// One row of estimates.csv from the tick's output (the truth is attached later, for scoring).
+template <class Output>
+EstimateRow row_of(const Output& out, double t_s, int cycle) {
+  EstimateRow r{};
+  r.t_s = t_s;
+  r.cycle = cycle;
+  r.mode = out.mode;
+  r.rcsi_active = out.rcsi_active;
+  r.r_film_est_ohm_m2 = out.r_film_est_ohm_m2;
+  r.r_film_true_ohm_m2 = std::nan("");
+  r.z_v = out.z_v;
+  r.model_voltage_v = out.model_voltage_v;
+  r.model_current_a = out.model_current_a;
+  r.j_side_a_m3 = out.j_side_a_m3;
+  r.li_loss_ah = out.li_loss_ah;
+  r.film_initial_ohm_m2 = out.film_initial_ohm_m2;
+  r.growth_gain = out.growth_gain;
+  r.inventory_deviation = out.inventory_deviation;
+  r.markov_v_per_ohm_m2 = out.markov_v_per_ohm_m2;
+  r.inventory_sensitivity_v = out.inventory_sensitivity_v;
+  r.growth_ohm_m2 = out.growth_ohm_m2;
+  r.inventory_err_pct = std::nan("");
+  r.status = out.status;
+  return r;
+}
+
 template <int Nc, class Model>
 void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, const CellParameters& cell,
               double dt_s, EstimateResult& res, const EstimateProgress& progress) {
@@ -182,26 +209,7 @@ void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, c
     if (last_tick >= 0) tell_missed(core, ticks[i] - last_tick - 1);
     last_tick = ticks[i];
     const auto out = core.tick({d.voltage_v[i], d.current_a[i], true});
-    EstimateRow r{};
-    r.t_s = d.t_s[i];
-    r.cycle = d.cycle[i];
-    r.mode = out.mode;
-    r.rcsi_active = out.rcsi_active;
-    r.r_film_est_ohm_m2 = out.r_film_est_ohm_m2;
-    r.r_film_true_ohm_m2 = std::nan("");
-    r.z_v = out.z_v;
-    r.model_voltage_v = out.model_voltage_v;
-    r.model_current_a = out.model_current_a;
-    r.j_side_a_m3 = out.j_side_a_m3;
-    r.li_loss_ah = out.li_loss_ah;
-    r.film_initial_ohm_m2 = out.film_initial_ohm_m2;
-    r.growth_gain = out.growth_gain;
-    r.inventory_deviation = out.inventory_deviation;
-    r.markov_v_per_ohm_m2 = out.markov_v_per_ohm_m2;
-    r.inventory_sensitivity_v = out.inventory_sensitivity_v;
-    r.growth_ohm_m2 = out.growth_ohm_m2;
-    r.inventory_err_pct = std::nan("");
-    r.status = out.status;
+    const EstimateRow r = row_of(out, d.t_s[i], d.cycle[i]);
     res.status |= out.status;
     if (fw::has_status(out.status, fw::FwStatus::kModelNotConverged)) ++res.newton_cap_hits;
     res.rows.push_back(r);
