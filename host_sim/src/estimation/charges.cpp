@@ -71,7 +71,10 @@ std::vector<ChargeReport> find_charges(const std::vector<EstimateRow>& rows, con
     if (rows[i].mode != fw::Mode::cc_charge || (i > 0 && rows[i - 1].mode == fw::Mode::cc_charge)) continue;
     std::size_t e = i;
     bool learned = rows[i].rcsi_active;
-    while (e + 1 < rows.size() && rows[e + 1].mode == fw::Mode::cc_charge) learned = learned || rows[++e].rcsi_active;
+    while (e + 1 < rows.size() && rows[e + 1].mode == fw::Mode::cc_charge) {
+      ++e;
+      learned = learned || rows[e].rcsi_active;
+    }
     if (learned_only && !learned) continue;
     const auto j0 = static_cast<std::size_t>(std::lower_bound(data.t_s.begin(), data.t_s.end(), rows[i].t_s) -
                                              data.t_s.begin());
