@@ -34,6 +34,10 @@ struct SimulateOptions {
 };
 
 void register_simulate_options(CLI::App& sub, SimulateOptions& o);
+// A measured current beyond 4x the largest C-rate simulate accepts (a column in mA labelled
+// [A]): InputError naming the file, sample and time. simulate's csv: and diagnose's records.
+void check_record_currents(const std::string& source, const std::vector<double>& t_s,
+                           const std::vector<double>& current_a, const CellParameters& cell);
 nlohmann::json options_json(const SimulateOptions& o);
 
 struct SimulateRun {

@@ -76,6 +76,58 @@ if "$BMSSIM" simulate --protocol csv:dpos.csv --current-sign discharge-positive 
   [ "${end%.*}" -ge 15000 ] && pass "sign_simulate_option (driven to t = $end s)" || fail sign_simulate_option "stopped at $end s"
 else fail sign_simulate_option "exit $?: $(head -n 1 err_sim2)"; fi
 
+# --- 5. Units: a current in mA under an [A] header is refused by diagnose as by simulate.
+awk -F, 'NR == 1 { print; next } { printf "%s,%.3f,%s\n", $1, $2 * 1000, $3 }' m30.csv > milli.csv
+check_input_error milliamps_diagnose 'milli\.csv: sample 1 .*current -?2500 A is beyond .*mA labelled \[A\]' milli_d -- \
+  "$BMSSIM" diagnose --data milli.csv --cell paper --out milli_d
+check_input_error milliamps_simulate 'milli\.csv: sample 1 .*current -?2500 A is beyond .*mA labelled \[A\]' milli_s -- \
+  "$BMSSIM" simulate --protocol csv:milli.csv --quiet --out milli_s
+
+# --- 6. Memory bounded by the samples, not by a grid: 1 ms samples around a three-day rest.
+python3 - <<'PY'
+with open('ms.csv', 'w') as f:
+    f.write('Time [s],Current [A],Voltage [V]\n')
+    for k in range(20000):
+        f.write('%.3f,0,3.3\n' % (k * 0.001 + (259200 if k >= 10000 else 0)))
+PY
+for cmd in estimate simulate; do
+  if [ "$cmd" = estimate ]; then args=(estimate --data ms.csv --cell paper); else args=(simulate --protocol csv:ms.csv); fi
+  /usr/bin/time -o "rss_$cmd" -f %M "$BMSSIM" "${args[@]}" --quiet --out "ms_$cmd" >/dev/null 2>&1
+  kb=$(tail -n 1 "rss_$cmd")
+  if [ -f "ms_$cmd/summary.json" ] && [ "${kb:-999999}" -lt 200000 ]; then pass "memory_${cmd}_gap ($kb kB)"
+  else fail "memory_${cmd}_gap" "$kb kB, summary $(ls "ms_$cmd" 2>&1 | head -c 100)"; fi
+done
+# A record entirely at rest: nothing to diagnose, said before any work.
+check_input_error rest_diagnose 'ms\.csv: no current flows in the record' ms_d -- \
+  "$BMSSIM" diagnose --data ms.csv --cell paper --out ms_d
+
+# --- 7. Checks that need no work run before the work.
+check_input_error rest_forever "--protocol step 'Rest for 1e12 hours'.*longer than a step may run" rest12 -- \
+  timeout 20 "$BMSSIM" simulate --protocol "Rest for 1e12 hours" --quiet --out rest12
+[ ! -e rest12 ] && pass rest_forever_no_folder || fail rest_forever_no_folder "rest12 exists: $(ls rest12)"
+start=$(date +%s)
+check_input_error hil_fault_first "--fault: 'crc=0.6,drop=0.6': the rates add up to more than 1" hf -- \
+  timeout 60 "$BMSSIM" hil --bus uml --fault crc=0.6,drop=0.6 --cycles 1 --out hf
+[ $(($(date +%s) - start)) -lt 5 ] && pass hil_fault_before_boot || fail hil_fault_before_boot "took $(($(date +%s) - start)) s"
+
+# --- 8. Messages that say what to do.
+sed 's/,/;/g; s/\./,/g' m60.csv > eu.csv
+check_input_error european_csv "eu\.csv: line 1: columns separated by ';'.*'\.' as the decimal point" eu_o -- \
+  "$BMSSIM" estimate --data eu.csv --cell paper --quiet --out eu_o
+iconv -f UTF-8 -t UTF-16 m60.csv > u16.csv
+check_input_error utf16 'u16\.csv: NUL bytes in the text \(UTF-16' u16_o -- \
+  "$BMSSIM" estimate --data u16.csv --cell paper --quiet --out u16_o
+"$BMSSIM" simulate --cycles 1e3 --quiet --out c1e3 2> err_c1e3 >/dev/null
+rc=$?
+if [ $rc -eq 2 ] && grep -q "^bmssim: --cycles: '1e3' is not a whole number.*1000, not 1e3" err_c1e3 && [ ! -e c1e3 ]; then
+  pass cycles_1e3
+else fail cycles_1e3 "exit $rc: $(head -n 1 err_c1e3)"; fi
+FIRMWARE=$(dirname "$BMSSIM")/../hal/bms-firmware
+if [ -x "$FIRMWARE" ]; then
+  check_input_error firmware_long_can "--can must name a CAN interface of 1\.\.15 characters" fw_o -- \
+    "$FIRMWARE" --can averyveryverylongcanname --lockstep
+fi
+
 # --- 3. --out never replaces a folder holding the user's files or an input of the run.
 "$BMSSIM" simulate --cycles 1 --dt 1 --points 6 --radial 6 --quiet --out S 2>/dev/null >/dev/null
 check_input_error out_holds_input "--out 'S'.*holds the input .*S/truth\.csv" S_unused -- \

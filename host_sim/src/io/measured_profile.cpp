@@ -58,6 +58,7 @@ struct Layout {
   std::string time, current, voltage, temperature;
   bool negate_current = false;
   bool celsius = false;
+  bool fahrenheit = false;
   double time_scale = 1.0, current_scale = 1.0, voltage_scale = 1.0;
 };
 
@@ -85,7 +86,7 @@ enum class Quantity { other, time, current, voltage, temperature };
 
 Quantity quantity(const std::string& column) {
   const std::string n = normalised(column), q = quantity_of(n), u = unit_of(n);
-  if (q == "t" && (u == "degc" || u == "c" || u == "k")) return Quantity::temperature;
+  if (q == "t" && (u == "degc" || u == "c" || u == "k" || u == "degf" || u == "f")) return Quantity::temperature;
   if (starts_with(q, "temp") || q == "tcell" || q == "celltemperature") return Quantity::temperature;
   if (q == "t" || q == "time" || q == "times" || q == "testtime" || q == "totaltime" || q == "elapsedtime" ||
       q == "ts")
@@ -133,7 +134,12 @@ Layout by_column_names(const CsvTable& table) {
   l.time_scale = unit_scale(table, l.time, "s");
   l.current_scale = unit_scale(table, l.current, "a");
   l.voltage_scale = unit_scale(table, l.voltage, "v");
-  l.celsius = !l.temperature.empty() && unit_of(normalised(l.temperature)) != "k";
+  const std::string tu = l.temperature.empty() ? std::string("k") : unit_of(normalised(l.temperature));
+  l.fahrenheit = tu == "degf" || tu == "f" || tu == "°f" || tu == "fahrenheit";
+  l.celsius = tu.empty() || tu == "degc" || tu == "c" || tu == "°c" || tu == "celsius";
+  if (tu != "k" && !l.celsius && !l.fahrenheit)
+    throw InputError(fmt::format("{}: line 1: column '{}': temperature unit '{}' not understood (K, degC or degF)",
+                                 table.name(), l.temperature, tu));
   l.negate_current = true;
   return l;
 }
@@ -277,7 +283,11 @@ MeasuredProfile parse_measured_profile(std::string_view text, std::string_view n
   }
   check_sign_against_voltage(table, l, p, sign != CurrentSign::by_layout);
   if (!l.temperature.empty()) {
-    if (l.celsius) {
+    if (l.fahrenheit) {
+      check_range(table, l.temperature, p.temperature_k, kMinTemperatureC * 1.8 + 32.0, kMaxTemperatureC * 1.8 + 32.0,
+                  "temperature", "degF");
+      for (double& t : p.temperature_k) t = (t - 32.0) / 1.8 + kCelsiusOffsetK;
+    } else if (l.celsius) {
       check_range(table, l.temperature, p.temperature_k, kMinTemperatureC, kMaxTemperatureC,
                   "temperature", "degC");
       for (double& t : p.temperature_k) t += kCelsiusOffsetK;
