@@ -171,6 +171,7 @@ int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
   const CurrentSign sign = current_sign_option(c.current_sign);
   const EstimateInput input = read_estimate_input(c.data, sign);
   const EstimateData& data = input.data;
+  require_sampling_for_learning(data, c.o.overrides.learning.or_else(true));
   const bool quiet = c.quiet;
   auto progress = [quiet](std::size_t row, std::size_t rows) {
     if (!quiet) std::fprintf(stderr, "estimate: %zu / %zu ticks\n", row, rows);

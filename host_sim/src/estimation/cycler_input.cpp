@@ -20,7 +20,7 @@ void set_sample_clock(EstimateData& d, const std::string& label) {
   for (std::size_t i = 1; i < d.t_s.size(); ++i) dt[i - 1] = d.t_s[i] - d.t_s[i - 1];
   std::nth_element(dt.begin(), dt.begin() + static_cast<long>(dt.size() / 2), dt.end());
   const double step = dt[dt.size() / 2];
-  if (step > kMaxSampleStepS)
+  if (step > kMaxControlSampleStepS)
     throw InputError(fmt::format("{}: sampled every {} s (the median step); the estimator needs a sample at least "
                                  "every {} s during a charge",
                                  label, step, kMaxSampleStepS));

@@ -29,7 +29,7 @@ EstimateData read_measured_file(const std::string& file, CurrentSign sign) {
   for (std::size_t i = 1; i < p.t_s.size(); ++i) dt[i - 1] = p.t_s[i] - p.t_s[i - 1];
   std::nth_element(dt.begin(), dt.begin() + static_cast<long>(dt.size() / 2), dt.end());
   const double step = dt[dt.size() / 2];
-  if (step > kMaxSampleStepS)
+  if (step > kMaxControlSampleStepS)
     throw InputError(fmt::format("{}: sampled every {} s (the median step); the estimator needs a sample at least "
                                  "every {} s (coarser records leave the film's growth undetermined): log at {} s or "
                                  "finer",
@@ -103,6 +103,15 @@ double fixed_tick_s(const EstimateData& d) {
   // Times in a file carry round-off (t = k * 0.2 printed as 3276.6000000000004): the tick
   // is the median step rounded to 1 ns, so 0.2 s data runs with exactly the firmware's 0.2.
   return std::round(med * 1e9) / 1e9;
+}
+
+void require_sampling_for_learning(const EstimateData& d, bool learning) {
+  if (!learning || !(d.median_step_s > kMaxSampleStepS)) return;
+  throw InputError(fmt::format("{}: sampled every {} s (the median step); the estimator learns only from a sample at "
+                               "least every {} s (coarser records leave the film's growth undetermined): log at {} s "
+                               "or finer, or run the control run (--no-learning) for the nominal model and the "
+                               "charges' counted capacity",
+                               d.source, d.median_step_s, kMaxSampleStepS, kMaxSampleStepS));
 }
 
 double model_tick_s(const EstimateData& d) { return d.tick_s > 0.0 ? d.tick_s : fixed_tick_s(d); }

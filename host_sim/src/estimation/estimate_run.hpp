@@ -52,6 +52,14 @@ constexpr double kMaxModelTickS = 1.0;
 // the level only across charges, is what coarser records leave undetermined). A coarser record is
 // refused naming this interval rather than estimated wrong.
 constexpr double kMaxSampleStepS = 2.0;
+// The coarsest sample step a measured record is read and run at (s): a control run
+// (--no-learning: the nominal model and the charges' counted capacity, no film identified) may
+// use records up to this step; learning needs kMaxSampleStepS.
+constexpr double kMaxControlSampleStepS = 60.0;
+
+// Refuses (InputError naming the file and the interval) a record too coarse for what is asked:
+// learning needs a sample every kMaxSampleStepS.
+void require_sampling_for_learning(const EstimateData& d, bool learning);
 
 // The tick the model runs at: EstimateData::tick_s when set, else fixed_tick_s().
 double model_tick_s(const EstimateData& d);
