@@ -129,6 +129,8 @@ EstimateData estimate_data_of(const SimulateRun& run) {
     d.cycle.push_back(s[i].cycle);
     d.current_a.push_back(run.measured.current_a[i]);
     d.voltage_v.push_back(run.measured.voltage_v[i]);
+    d.temperature_k.push_back(run.measured.temperature_k[i]);
+    d.capacity_true_ah.push_back(s[i].capacity_ah);
     d.r_film_true_ohm_m2.push_back(s[i].r_film_ohm_m2);
     d.true_mode.push_back(s[i].mode);
     d.stoich_neg_true.push_back(s[i].stoich_neg);

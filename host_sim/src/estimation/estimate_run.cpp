@@ -39,6 +39,7 @@ EstimateData read_measured_file(const std::string& file, CurrentSign sign) {
     d.t_s.push_back(t);
     d.current_a.push_back((1.0 - w) * p.current_a[j] + w * p.current_a[j + 1]);
     d.voltage_v.push_back((1.0 - w) * p.voltage_v[j] + w * p.voltage_v[j + 1]);
+    if (!p.temperature_k.empty()) d.temperature_k.push_back((1.0 - w) * p.temperature_k[j] + w * p.temperature_k[j + 1]);
   }
   if (d.t_s.size() < 2) throw InputError(file + ": needs at least 2 samples");
   d.cycle.assign(d.t_s.size(), 1);
@@ -62,6 +63,14 @@ EstimateData read_estimate_data(const std::string& file, CurrentSign sign) {
   d.t_s = t.numbers("t_s");
   d.current_a = t.numbers("current_meas_a");
   d.voltage_v = t.numbers("voltage_meas_v");
+  // The sensor's temperature, never the truth's temperature_k (a truth.csv without the column:
+  // none, the model stays at the cell's reference temperature).
+  if (t.has("temperature_meas_k")) {
+    d.temperature_k = t.numbers("temperature_meas_k");
+    for (std::size_t i = 0; i < d.temperature_k.size(); ++i)
+      if (!std::isfinite(d.temperature_k[i]) || d.temperature_k[i] <= 0.0)
+        throw InputError(t.where(i, "temperature_meas_k") + ": must be a positive temperature in K");
+  }
   if (d.t_s.size() < 2) throw InputError(file + ": needs at least 2 samples");
   d.cycle.assign(d.t_s.size(), 1);
   if (t.has("cycle")) {
@@ -73,6 +82,7 @@ EstimateData read_estimate_data(const std::string& file, CurrentSign sign) {
     d.stoich_neg_true = t.numbers("stoich_neg");
     d.stoich_pos_true = t.numbers("stoich_pos");
   }
+  if (t.has("capacity_ah")) d.capacity_true_ah = t.numbers("capacity_ah");
   if (t.has("mode")) {
     for (std::size_t i = 0; i < t.rows(); ++i) {
       Mode m{};
@@ -113,6 +123,7 @@ struct MeasuredSeries {
   const std::vector<double>& t_s;
   const std::vector<double>& current_a;
   const std::vector<double>& voltage_v;
+  const std::vector<double>& temperature_k;  // empty: no temperature measured
   const std::vector<int>& cycle;
 };
 
@@ -167,7 +178,8 @@ void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, c
   res.rows.reserve(n);
   res.theta_rows.reserve(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const auto out = core.tick({d.voltage_v[i], d.current_a[i], true});
+    const double temperature_k = d.temperature_k.empty() ? 0.0 : d.temperature_k[i];
+    const auto out = core.tick({d.voltage_v[i], d.current_a[i], true, temperature_k});
     EstimateRow r{};
     r.t_s = d.t_s[i];
     r.cycle = d.cycle[i];
@@ -326,7 +338,7 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
   const double dt_s = fixed_tick_s(d);
   const auto wall0 = std::chrono::steady_clock::now();
   EstimateResult res;
-  const MeasuredSeries measured{d.t_s, d.current_a, d.voltage_v, d.cycle};
+  const MeasuredSeries measured{d.t_s, d.current_a, d.voltage_v, d.temperature_k, d.cycle};
   if (o.model == "reduced") {
     if (cell.name != "paper")
       throw InputError("--model reduced is the firmware's model of the paper cell; use --cell paper or --model full");

@@ -19,11 +19,13 @@ namespace bms {
 
 struct EstimateData {
   std::vector<double> t_s, current_a, voltage_v;  // measured (what the firmware sees)
+  std::vector<double> temperature_k;              // measured (temperature_meas_k); empty: none
   std::vector<int> cycle;                         // from the file, or 1
   std::vector<double> r_film_true_ohm_m2;         // empty when the file has no truth
   std::vector<fw::Mode> true_mode;                // empty when the file has no mode column
   // Truth mean stoichiometries (scoring the inventory estimate only); empty when absent.
   std::vector<double> stoich_neg_true, stoich_pos_true;
+  std::vector<double> capacity_true_ah;  // the truth's open-circuit capacity (scoring); empty when absent
   std::string source;
   std::string layout_note;  // a measured file: how it was read and resampled
   bool has_truth() const { return !r_film_true_ohm_m2.empty(); }

@@ -40,6 +40,9 @@ struct TickInput {
   Scalar voltage_v;
   Scalar current_a;  // positive = discharge
   bool present;      // false: no measurement arrived for this tick
+  // The cell's measured temperature [K]; 0: none arrived (the model keeps the last accepted one,
+  // at power-up the cell's reference temperature).
+  Scalar temperature_k = Scalar(0);
 };
 
 template <typename Scalar, int Nc>
@@ -251,8 +254,9 @@ class BmsCore {
     // One tick, in this order (the numbering docs/architecture.md uses):
     //   1 validate       validate(): finite, voltage and current plausible, no impossible step; a
     //                    rejected or missing sample keeps every state and counts towards staleness
-    //   2 catch-up       accept_sample(): the model steps over the ticks missed since the last
-    //                    accepted sample (catch_up()); the power-up re-synchronisation window opens
+    //   2 catch-up       accept_sample(): the measured temperature to the model (take_temperature());
+    //                    the model steps over the ticks missed since the last accepted sample
+    //                    (catch_up()); the power-up re-synchronisation window opens
     //   3 detect mode    ModeDetector::update(): debounced operating mode
     //   4 learning gate  open_gate(): LearningGate (CC charge, warm-up, bias ready; at the window's
     //                    start RCSI is reset), BiasCalibration stops at the end of a CC charge
@@ -268,7 +272,7 @@ class BmsCore {
     if (!in.present) return held_output(raise_stale(st));                        // 1
     st |= validate(in);
     if ((st & kTickRejectMask) != 0u) return held_output(raise_stale(st));
-    accept_sample(in);                                                            // 2
+    st |= accept_sample(in);                                                      // 2
     const Mode mode = detector_.update(in.voltage_v, in.current_a);               // 3
     const Gate gate = open_gate(mode);                                            // 4
     const Scalar u = film_in_use(gate.open);                                      // 5
@@ -414,13 +418,26 @@ class BmsCore {
   }
 
   // Step 2.
-  void accept_sample(const TickInput<Scalar>& in) {
+  StatusWord accept_sample(const TickInput<Scalar>& in) {
+    const StatusWord st = take_temperature(in.temperature_k);
     const bool first_sample = !have_sample_;
     if (!first_sample && stale_ticks_ > 0u) catch_up(stale_ticks_, in);
     stale_ticks_ = 0;
     have_sample_ = true;
     last_current_ = in.current_a;
     if (resync_.should_start_at_power_up(first_sample)) resync_.start_at_power_up();
+    return st;
+  }
+
+  // The model's properties follow the measured temperature (a model that takes none ignores it).
+  // 0 means no temperature arrived; a value the model refuses (non-finite, outside its range)
+  // leaves the last accepted temperature in use and raises kTemperatureImplausible.
+  StatusWord take_temperature(Scalar temperature_k) {
+    if (temperature_k == Scalar(0)) return 0u;
+    if constexpr (kTakesTemperature<MainModel, Scalar>) {
+      if (!model_.set_temperature_k(temperature_k)) return bit(FwStatus::kTemperatureImplausible);
+    }
+    return 0u;
   }
 
   // Steps the model over `missed` ticks that had no accepted sample (see
