@@ -303,7 +303,7 @@ TEST(AppSupervision, ACellOutsideTheModelsTemperatureMakesTheEstimateNotValid) {
   st = r.statuses().back();
   EXPECT_NE(st.status_bits & can::status_bit::kEstimateValid, 0);
   EXPECT_EQ(st.fault_bits & can::fault_bit::kEstimator, 0);
-  EXPECT_EQ(r.core.temperature_k, 318.15);
+  EXPECT_NEAR(r.core.temperature_k, 318.15, 0.01);  // the frame carries it to 0.01 K
 }
 
 TEST(AppSupervision, TheEndOfChargeCommitIsRestoredIntoAFreshApplication) {
