@@ -199,6 +199,11 @@ void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, c
     r.inventory_sensitivity_v = out.inventory_sensitivity_v;
     r.growth_ohm_m2 = out.growth_ohm_m2;
     r.inventory_err_pct = std::nan("");
+    r.r_film_sd_ohm_m2 = out.r_film_sd_ohm_m2;
+    r.capacity_est_ah = out.capacity_ah;
+    r.capacity_sd_ah = out.capacity_sd_ah;
+    r.capacity_true_ah = std::nan("");
+    r.innovation_test_ratio = out.innovation_test_ratio;
     r.status = out.status;
     res.status |= out.status;
     if (fw::has_status(out.status, fw::FwStatus::kModelNotConverged)) ++res.newton_cap_hits;
@@ -229,6 +234,7 @@ void attach_truth(std::vector<EstimateRow>& rows, const EstimateData& d, double 
   for (std::size_t i = 0; i < rows.size(); ++i) {
     auto& r = rows[i];
     if (!d.r_film_true_ohm_m2.empty()) r.r_film_true_ohm_m2 = d.r_film_true_ohm_m2[i];
+    if (!d.capacity_true_ah.empty()) r.capacity_true_ah = d.capacity_true_ah[i];
     if (d.stoich_neg_true.empty() || !(nominal_inventory_mol > 0.0)) continue;
     const double truth_mol = fw::ReducedCell<double>::inventory_of(d.stoich_neg_true[i], d.stoich_pos_true[i]);
     const double est_mol = nominal_inventory_mol * (1.0 + r.inventory_deviation) - r.li_loss_ah * 3600.0 / fw::kFaradayC_mol;
@@ -385,14 +391,22 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
 std::vector<CycleScore> score_cycles(const std::vector<EstimateRow>& rows, bool use_true_mode,
                                      const std::vector<fw::Mode>& true_mode) {
   std::map<int, std::vector<double>> errs;
-  std::map<int, std::size_t> last;
+  std::map<int, std::size_t> last, within_2sd, with_sd, learning, misfit;
   for (std::size_t i = 0; i < rows.size(); ++i) {
     const auto& r = rows[i];
+    if (r.rcsi_active) {
+      ++learning[r.cycle];
+      if (fw::has_status(r.status, fw::FwStatus::kModelMisfit)) ++misfit[r.cycle];
+    }
     if (r.mode != fw::Mode::cc_charge) continue;
     if (use_true_mode && true_mode[i] != fw::Mode::cc_charge) continue;
     if (!std::isfinite(r.r_film_true_ohm_m2) || r.r_film_true_ohm_m2 == 0.0) continue;
     errs[r.cycle].push_back(std::abs(r.r_film_est_ohm_m2 - r.r_film_true_ohm_m2) / r.r_film_true_ohm_m2 * 100.0);
     last[r.cycle] = i;
+    if (std::isfinite(r.r_film_sd_ohm_m2)) {
+      ++with_sd[r.cycle];
+      if (std::abs(r.r_film_est_ohm_m2 - r.r_film_true_ohm_m2) <= 2.0 * r.r_film_sd_ohm_m2) ++within_2sd[r.cycle];
+    }
   }
   std::vector<CycleScore> out;
   for (auto& [cycle, e] : errs) {
@@ -407,6 +421,16 @@ std::vector<CycleScore> score_cycles(const std::vector<EstimateRow>& rows, bool 
     s.r_film_true_end_ohm_m2 = rows[last[cycle]].r_film_true_ohm_m2;
     s.r_film_est_end_ohm_m2 = rows[last[cycle]].r_film_est_ohm_m2;
     s.inventory_err_end_pct = rows[last[cycle]].inventory_err_pct;
+    const auto& end = rows[last[cycle]];
+    s.capacity_err_pct = std::isfinite(end.capacity_true_ah) && std::isfinite(end.capacity_est_ah)
+                             ? (end.capacity_est_ah - end.capacity_true_ah) / end.capacity_true_ah * 100.0
+                             : std::nan("");
+    s.film_within_2sd_pct = with_sd[cycle] > 0 ? 100.0 * static_cast<double>(within_2sd[cycle]) /
+                                                     static_cast<double>(with_sd[cycle])
+                                               : std::nan("");
+    s.misfit_pct = learning[cycle] > 0
+                       ? 100.0 * static_cast<double>(misfit[cycle]) / static_cast<double>(learning[cycle])
+                       : 0.0;
     out.push_back(s);
   }
   return out;

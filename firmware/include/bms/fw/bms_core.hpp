@@ -20,6 +20,7 @@
 // The host runs the same core with the full DFN as MainModel (the paper's setting).
 #include <cmath>
 #include <cstdint>
+#include <limits>
 
 #include "bms/fw/bias_calibration.hpp"
 #include "bms/fw/film_growth_identifier.hpp"
@@ -64,6 +65,14 @@ struct TickOutput {
   Scalar markov_v_per_ohm_m2;      // H = dV/dR_film of this tick's model step (0 when not stepped)
   Scalar inventory_sensitivity_v;  // S = dV/dnu of this tick (0 unless the identifier learned)
   Scalar growth_ohm_m2;            // the identifier's G (predicted nominal-law growth so far)
+  // With the identifier (NaN otherwise): 1-sigma of the film in use (regression and stated model
+  // bound); the open-circuit capacity of the identified inventory and its 1-sigma, recomputed
+  // when a learning window closes; the innovation test ratio of this learning tick (PX4 EKF2
+  // style: > 1 fails the test, bit kModelMisfit; 0 outside learning).
+  Scalar r_film_sd_ohm_m2;
+  Scalar capacity_ah;
+  Scalar capacity_sd_ah;
+  Scalar innovation_test_ratio;
   StatusWord status;           // bits raised in this tick (estimator bits 0..7, tick 8..15)
   std::uint32_t tick;          // committed ticks
   std::uint8_t newton_iterations;
@@ -158,6 +167,16 @@ class BmsCore {
     Scalar relinearise_inventory = Scalar(1e-3);
     // LearningGate. The control run: every RCSI / RLS update switched off (the model and its observers run).
     bool learning = true;
+    // Innovation test of the identifier's learning ticks (as PX4 EKF2 gates a fusion): the
+    // residual less the design-time bias, averaged over innovation_time_constant_s (an
+    // exponential mean restarted at each learning window, so the sensor noise averages out), is
+    // compared with innovation_gate x innovation_sd_v, the reduced model's own residual in CC
+    // charge at the right film (0.29 mV rms against the converged DFN, docs/results/firmware-model.md).
+    // test ratio = (mean / (gate sd))^2; above 1 the model does not fit the cell (kModelMisfit).
+    // It only reports: the learning goes on (the estimate's validity is the caller's decision).
+    Scalar innovation_time_constant_s = Scalar(60);
+    Scalar innovation_sd_v = Scalar(3e-4);
+    Scalar innovation_gate = Scalar(5);
   };
 
   // The paper's estimator: RCSI (n_c = 1, eta = 0, P(0) = 5e-7 I, H = 0.01) in CC charge, film
@@ -345,6 +364,8 @@ class BmsCore {
     have_sample_ = (s.flags & 1u) != 0u;
     last_current_ = s.last_current_a;
     last_j_side_ = s.last_j_side_a_m3;
+    capacity_ah_ = std::numeric_limits<Scalar>::quiet_NaN();  // recomputed from the restored inventory
+    identifying_ = false;
     return true;
   }
 
@@ -542,16 +563,50 @@ class BmsCore {
   // Step 9 with Config::identify_growth: the film, its growth gain and the inventory in output-error form.
   Learned identify(const TickInput<Scalar>& in, Scalar u, Scalar z, const ModelStep& step) {
     Learned l{0u, false, Scalar(0)};
+    innovation_ratio_ = Scalar(0);
     if (step.identify) {
-      if (gate_.should_start_identifying(step.identify)) identifier_.begin_charge();
+      const bool start = gate_.should_start_identifying(step.identify);
+      if (start) identifier_.begin_charge();
+      l.status |= innovation_test(z + config_.model_bias_ohm * in.current_a, start);
       l.inventory_sensitivity_v = (step.v_probe_v - step.r.voltage_v) / kInventoryProbe;
-      l.status = identifier_.learn(u, z, step.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
-                                   resync_.inventory_deviation_model(), -config_.model_bias_ohm * in.current_a);
+      l.status |= identifier_.learn(u, z, step.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
+                                    resync_.inventory_deviation_model(), -config_.model_bias_ohm * in.current_a);
       l.active = (l.status & kIdentifierRejectMask) == 0u;
     }
     identifier_.propagate(step.r.j_side_a_m3, config_.dt_s);
     gate_.identified(step.identify);
+    update_capacity(step.identify);
     return l;
+  }
+
+  // The innovation test (Config::innovation_*) on this learning tick's bias-corrected residual.
+  StatusWord innovation_test(Scalar z_corrected_v, bool window_start) {
+    if (!(config_.innovation_sd_v > Scalar(0)) || !std::isfinite(z_corrected_v)) return 0u;
+    const Scalar a = config_.dt_s / (config_.innovation_time_constant_s + config_.dt_s);
+    innovation_mean_v_ = window_start ? z_corrected_v : innovation_mean_v_ + a * (z_corrected_v - innovation_mean_v_);
+    const Scalar limit = config_.innovation_gate * config_.innovation_sd_v;
+    innovation_ratio_ = (innovation_mean_v_ / limit) * (innovation_mean_v_ / limit);
+    return innovation_ratio_ > Scalar(1) ? bit(FwStatus::kModelMisfit) : 0u;
+  }
+
+  // The open-circuit capacity of the identified inventory (less the model's own lithium loss),
+  // at the first tick, every kCapacityEveryTicks learning ticks and when a learning window
+  // closes: two bisections, not every tick.
+  void update_capacity(bool identifying) {
+    const bool window_closed = identifying_ && !identifying;
+    identifying_ = identifying;
+    capacity_ticks_ = identifying ? capacity_ticks_ + 1u : 0u;
+    const bool due = window_closed || capacity_ticks_ >= kCapacityEveryTicks;
+    if constexpr (kGivesCapacity<MainModel, Scalar>) {
+      if (!(due || std::isnan(capacity_ah_)) || !(config_.nominal_inventory_mol > Scalar(0))) return;
+      capacity_ticks_ = 0u;
+      const Scalar n0 = config_.nominal_inventory_mol;
+      const Scalar n = n0 * (Scalar(1) + identifier_.inventory_deviation()) - model_.li_loss_mol();
+      capacity_ah_ = MainModel::open_circuit_capacity_ah(n);
+      // The capacity moves with the inventory nearly one to one near the nominal cell (0.98:
+      // tests/firmware/test_temperature.cpp): its relative sd is the inventory's.
+      capacity_sd_ah_ = capacity_ah_ * identifier_.inventory_sd() * n0 / n;
+    }
   }
 
   // Step 10.
@@ -569,6 +624,7 @@ class BmsCore {
     out.j_side_a_m3 = step.r.j_side_a_m3;
     out.markov_v_per_ohm_m2 = step.r.markov_v_per_ohm_m2;
     out.inventory_sensitivity_v = learned.inventory_sensitivity_v;
+    out.innovation_test_ratio = innovation_ratio_;
     out.newton_iterations = step.r.newton_iterations;
     out.status = st;
     status_ |= st;
@@ -600,6 +656,11 @@ class BmsCore {
     o.markov_v_per_ohm_m2 = Scalar(0);
     o.inventory_sensitivity_v = Scalar(0);
     o.growth_ohm_m2 = id ? identifier_.growth_ohm_m2() : Scalar(0);
+    constexpr Scalar kNan = std::numeric_limits<Scalar>::quiet_NaN();
+    o.r_film_sd_ohm_m2 = id ? identifier_.film_sd_ohm_m2() : kNan;
+    o.capacity_ah = id ? capacity_ah_ : kNan;
+    o.capacity_sd_ah = id ? capacity_sd_ah_ : kNan;
+    o.innovation_test_ratio = Scalar(0);
     o.tick = ticks_;
     o.newton_iterations = 0;
     o.status = 0u;
@@ -634,6 +695,15 @@ class BmsCore {
   bool have_sample_ = false;
   std::uint32_t catch_up_ticks_ = 0u;
   StatusWord status_ = 0u;
+  // Not persisted: recomputed from the persisted parts (capacity at the first tick after a
+  // restore; the innovation mean restarts with the next learning window).
+  Scalar capacity_ah_ = std::numeric_limits<Scalar>::quiet_NaN();
+  Scalar capacity_sd_ah_ = std::numeric_limits<Scalar>::quiet_NaN();
+  Scalar innovation_mean_v_ = Scalar(0);
+  Scalar innovation_ratio_ = Scalar(0);
+  bool identifying_ = false;
+  std::uint32_t capacity_ticks_ = 0u;  // learning ticks since the capacity was last computed
+  static constexpr std::uint32_t kCapacityEveryTicks = 1500u;  // 5 minutes at 0.2 s
 };
 
 }  // namespace bms::fw

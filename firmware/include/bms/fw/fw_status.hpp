@@ -57,6 +57,9 @@ enum class FwStatus : StatusWord {
   // The measured temperature was non-finite or outside the model's range: the model kept the
   // last accepted temperature (the sample itself was used).
   kTemperatureImplausible = 1u << 16,
+  // The innovation test of a learning tick failed (BmsCore::Config::innovation_*): the model's
+  // residual, averaged, is beyond what its own error explains; the estimate is not to be trusted.
+  kModelMisfit = 1u << 17,
 };
 
 inline constexpr StatusWord kTickRejectMask = (1u << 8) | (1u << 9) | (1u << 10);

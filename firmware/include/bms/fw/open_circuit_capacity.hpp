@@ -22,7 +22,7 @@ namespace bms::fw {
 template <typename Scalar, typename OcpNeg, typename OcpPos>
 Scalar equilibrium_stoich_neg(Scalar inventory_mol, Scalar cap_neg_mol, Scalar cap_pos_mol, Scalar voltage_v,
                               const OcpNeg& ocp_neg_v, const OcpPos& ocp_pos_v) {
-  constexpr int kIterations = 48;  // double: interval 1 -> 4e-15; float stops changing earlier
+  constexpr int kIterations = std::numeric_limits<Scalar>::digits;  // the interval to the last bit
   const Scalar edge = Scalar(1e-6);
   Scalar lo = (inventory_mol - cap_pos_mol * (Scalar(1) - edge)) / cap_neg_mol;
   Scalar hi = (inventory_mol - cap_pos_mol * edge) / cap_neg_mol;

@@ -38,6 +38,7 @@
 #include <utility>
 
 #include "bms/fw/dual.hpp"
+#include "bms/fw/open_circuit_capacity.hpp"
 #include "bms/fw/paper_cell.hpp"
 #include "bms/fw/physical_constants.hpp"
 
@@ -129,6 +130,15 @@ inline constexpr bool kTakesTemperature = false;
 template <typename Model, typename Scalar>
 inline constexpr bool kTakesTemperature<
     Model, Scalar, std::void_t<decltype(std::declval<Model&>().set_temperature_k(std::declval<Scalar>()))>> = true;
+
+// Whether a main-system model gives the open-circuit capacity of an inventory (the reduced
+// model does; the host's full DFN does not, and the tick then reports NaN).
+template <typename Model, typename Scalar, typename = void>
+inline constexpr bool kGivesCapacity = false;
+template <typename Model, typename Scalar>
+inline constexpr bool kGivesCapacity<Model, Scalar,
+                                     std::void_t<decltype(Model::open_circuit_capacity_ah(std::declval<Scalar>()))>> =
+    true;
 
 // Result of one model tick.
 template <typename Scalar>
@@ -335,6 +345,14 @@ class ReducedCell {
   // Lithium held in both particles [mol]: the cyclable inventory.
   Scalar solid_inventory_mol() const {
     return mean_stoich_neg() * Scalar(solid_capacity_neg_mol()) + mean_stoich_pos() * Scalar(solid_capacity_pos_mol());
+  }
+  // Open-circuit capacity [Ah] of a cell with this model's electrodes and OCPs holding
+  // `inventory_mol` of cyclable lithium (bms/fw/open_circuit_capacity.hpp; reference temperature).
+  static Scalar open_circuit_capacity_ah(Scalar inventory_mol) {
+    return fw::open_circuit_capacity_ah(
+        inventory_mol, Scalar(solid_capacity_neg_mol()), Scalar(solid_capacity_pos_mol()), Scalar(Cell::kLowerVoltageV),
+        Scalar(Cell::kUpperVoltageV), [](Scalar x) { return Cell::ocp_neg_v(x); },
+        [](Scalar y) { return Cell::ocp_pos_v(y); });
   }
   static Scalar inventory_of(Scalar stoich_neg, Scalar stoich_pos) {
     return stoich_neg * Scalar(solid_capacity_neg_mol()) + stoich_pos * Scalar(solid_capacity_pos_mol());
