@@ -177,6 +177,11 @@ class BmsCore {
     Scalar innovation_time_constant_s = Scalar(60);
     Scalar innovation_sd_v = Scalar(3e-4);
     Scalar innovation_gate = Scalar(5);
+    // 1-sigma of the temperature sensor [K]: in CC charge a temperature error is nearly collinear
+    // with the film (measured about 5 % of the paper cell's film per K), so it enters the film's sd
+    // as |dV/dT / H| x this (the model's sensitivity, probed at each learning tick). A stated
+    // accuracy of the sensor, not learned; 0 leaves it out.
+    Scalar temperature_sd_k = Scalar(0.2);
   };
 
   // The paper's estimator: RCSI (n_c = 1, eta = 0, P(0) = 5e-7 I, H = 0.01) in CC charge, film
@@ -518,6 +523,11 @@ class BmsCore {
     const Scalar v_probe = identify ? model_.inventory_probe_voltage(in.current_a, u, config_.dt_s,
                                                                      kInventoryProbe * config_.nominal_inventory_mol)
                                     : Scalar(0);
+    if constexpr (kProbesTemperature<MainModel, Scalar>) {
+      if (identify && config_.temperature_sd_k > Scalar(0)) {
+        v_warm_v_ = model_.temperature_probe_voltage(in.current_a, u, config_.dt_s, kTemperatureProbeK);
+      }
+    }
     const ModelTickResult<Scalar> r = voltage_driven ? model_.step_voltage(in.voltage_v, u, config_.dt_s)
                                                      : model_.step_current(in.current_a, u, config_.dt_s);
     return ModelStep{r, voltage_driven, identify, v_probe};
@@ -569,6 +579,8 @@ class BmsCore {
       if (start) identifier_.begin_charge();
       l.status |= innovation_test(z + config_.model_bias_ohm * in.current_a, start);
       l.inventory_sensitivity_v = (step.v_probe_v - step.r.voltage_v) / kInventoryProbe;
+      const Scalar per_k = (v_warm_v_ - step.r.voltage_v) / (kTemperatureProbeK * step.r.markov_v_per_ohm_m2);
+      if (config_.temperature_sd_k > Scalar(0) && std::isfinite(per_k)) film_per_kelvin_ohm_m2_ = std::fabs(per_k);
       l.status |= identifier_.learn(u, z, step.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
                                     resync_.inventory_deviation_model(), -config_.model_bias_ohm * in.current_a);
       l.active = (l.status & kIdentifierRejectMask) == 0u;
@@ -577,6 +589,14 @@ class BmsCore {
     gate_.identified(step.identify);
     update_capacity(step.identify);
     return l;
+  }
+
+  // The film's 1-sigma: the identifier's (regression and model bound) and the temperature
+  // sensor's, |dV/dT / H| x temperature_sd_k, in quadrature.
+  Scalar film_sd_ohm_m2() const {
+    const Scalar sd = identifier_.film_sd_ohm_m2();
+    const Scalar t = film_per_kelvin_ohm_m2_ * config_.temperature_sd_k;
+    return std::isfinite(t) ? std::sqrt(sd * sd + t * t) : sd;
   }
 
   // The innovation test (Config::innovation_*) on this learning tick's bias-corrected residual.
@@ -657,7 +677,7 @@ class BmsCore {
     o.inventory_sensitivity_v = Scalar(0);
     o.growth_ohm_m2 = id ? identifier_.growth_ohm_m2() : Scalar(0);
     constexpr Scalar kNan = std::numeric_limits<Scalar>::quiet_NaN();
-    o.r_film_sd_ohm_m2 = id ? identifier_.film_sd_ohm_m2() : kNan;
+    o.r_film_sd_ohm_m2 = id ? film_sd_ohm_m2() : kNan;
     o.capacity_ah = id ? capacity_ah_ : kNan;
     o.capacity_sd_ah = id ? capacity_sd_ah_ : kNan;
     o.innovation_test_ratio = Scalar(0);
@@ -702,6 +722,9 @@ class BmsCore {
   Scalar innovation_mean_v_ = Scalar(0);
   Scalar innovation_ratio_ = Scalar(0);
   bool identifying_ = false;
+  Scalar v_warm_v_ = Scalar(0);                       // this tick's voltage at +kTemperatureProbeK
+  Scalar film_per_kelvin_ohm_m2_ = Scalar(0);         // |dV/dT / H| of the last learning tick
+  static constexpr Scalar kTemperatureProbeK = Scalar(1);
   std::uint32_t capacity_ticks_ = 0u;  // learning ticks since the capacity was last computed
   static constexpr std::uint32_t kCapacityEveryTicks = 1500u;  // 5 minutes at 0.2 s
 };

@@ -131,6 +131,15 @@ template <typename Model, typename Scalar>
 inline constexpr bool kTakesTemperature<
     Model, Scalar, std::void_t<decltype(std::declval<Model&>().set_temperature_k(std::declval<Scalar>()))>> = true;
 
+// Whether a main-system model gives its voltage at a shifted temperature (temperature_probe_voltage).
+template <typename Model, typename Scalar, typename = void>
+inline constexpr bool kProbesTemperature = false;
+template <typename Model, typename Scalar>
+inline constexpr bool kProbesTemperature<
+    Model, Scalar,
+    std::void_t<decltype(std::declval<const Model&>().temperature_probe_voltage(
+        std::declval<Scalar>(), std::declval<Scalar>(), std::declval<Scalar>(), std::declval<Scalar>()))>> = true;
+
 // Whether a main-system model gives the open-circuit capacity of an inventory (the reduced
 // model does; the host's full DFN does not, and the tick then reports NaN).
 template <typename Model, typename Scalar, typename = void>
@@ -323,6 +332,15 @@ class ReducedCell {
       return std::numeric_limits<Scalar>::quiet_NaN();
     ReducedCell shifted = *this;
     shifted.shift(d_inventory_mol * s_.inventory_dir_neg_per_mol, d_inventory_mol * s_.inventory_dir_pos_per_mol);
+    return shifted.peek_voltage(current_a, r_film_ohm_m2, dt_s);
+  }
+
+  // Terminal voltage of this tick had the cell been d_temperature_k warmer (the model's
+  // temperature sensitivity: what a temperature sensor's error does to the voltage). NaN when
+  // the shifted temperature is outside the model's range.
+  Scalar temperature_probe_voltage(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s, Scalar d_temperature_k) const {
+    ReducedCell shifted = *this;
+    if (!shifted.set_temperature_k(temperature_k_ + d_temperature_k)) return std::numeric_limits<Scalar>::quiet_NaN();
     return shifted.peek_voltage(current_a, r_film_ohm_m2, dt_s);
   }
 
