@@ -127,6 +127,37 @@ struct MeasuredSeries {
   const std::vector<int>& cycle;
 };
 
+// One tick's output as a row of estimates.csv (the truth is attached afterwards, to score).
+template <class Output>
+EstimateRow row_of(const Output& out, double t_s, int cycle) {
+  EstimateRow r{};
+  r.t_s = t_s;
+  r.cycle = cycle;
+  r.mode = out.mode;
+  r.rcsi_active = out.rcsi_active;
+  r.r_film_est_ohm_m2 = out.r_film_est_ohm_m2;
+  r.r_film_true_ohm_m2 = std::nan("");
+  r.z_v = out.z_v;
+  r.model_voltage_v = out.model_voltage_v;
+  r.model_current_a = out.model_current_a;
+  r.j_side_a_m3 = out.j_side_a_m3;
+  r.li_loss_ah = out.li_loss_ah;
+  r.film_initial_ohm_m2 = out.film_initial_ohm_m2;
+  r.growth_gain = out.growth_gain;
+  r.inventory_deviation = out.inventory_deviation;
+  r.markov_v_per_ohm_m2 = out.markov_v_per_ohm_m2;
+  r.inventory_sensitivity_v = out.inventory_sensitivity_v;
+  r.growth_ohm_m2 = out.growth_ohm_m2;
+  r.inventory_err_pct = std::nan("");
+  r.r_film_sd_ohm_m2 = out.r_film_sd_ohm_m2;
+  r.capacity_est_ah = out.capacity_ah;
+  r.capacity_sd_ah = out.capacity_sd_ah;
+  r.capacity_true_ah = std::nan("");
+  r.innovation_test_ratio = out.innovation_test_ratio;
+  r.status = out.status;
+  return r;
+}
+
 template <int Nc, class Model>
 void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, const CellParameters& cell,
               double dt_s, EstimateResult& res, const EstimateProgress& progress) {
@@ -180,31 +211,7 @@ void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, c
   for (std::size_t i = 0; i < n; ++i) {
     const double temperature_k = d.temperature_k.empty() ? 0.0 : d.temperature_k[i];
     const auto out = core.tick({d.voltage_v[i], d.current_a[i], true, temperature_k});
-    EstimateRow r{};
-    r.t_s = d.t_s[i];
-    r.cycle = d.cycle[i];
-    r.mode = out.mode;
-    r.rcsi_active = out.rcsi_active;
-    r.r_film_est_ohm_m2 = out.r_film_est_ohm_m2;
-    r.r_film_true_ohm_m2 = std::nan("");
-    r.z_v = out.z_v;
-    r.model_voltage_v = out.model_voltage_v;
-    r.model_current_a = out.model_current_a;
-    r.j_side_a_m3 = out.j_side_a_m3;
-    r.li_loss_ah = out.li_loss_ah;
-    r.film_initial_ohm_m2 = out.film_initial_ohm_m2;
-    r.growth_gain = out.growth_gain;
-    r.inventory_deviation = out.inventory_deviation;
-    r.markov_v_per_ohm_m2 = out.markov_v_per_ohm_m2;
-    r.inventory_sensitivity_v = out.inventory_sensitivity_v;
-    r.growth_ohm_m2 = out.growth_ohm_m2;
-    r.inventory_err_pct = std::nan("");
-    r.r_film_sd_ohm_m2 = out.r_film_sd_ohm_m2;
-    r.capacity_est_ah = out.capacity_ah;
-    r.capacity_sd_ah = out.capacity_sd_ah;
-    r.capacity_true_ah = std::nan("");
-    r.innovation_test_ratio = out.innovation_test_ratio;
-    r.status = out.status;
+    EstimateRow r = row_of(out, d.t_s[i], d.cycle[i]);
     res.status |= out.status;
     if (fw::has_status(out.status, fw::FwStatus::kModelNotConverged)) ++res.newton_cap_hits;
     res.rows.push_back(r);
