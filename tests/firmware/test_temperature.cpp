@@ -56,6 +56,21 @@ TEST(Temperature, AtTheReferenceTheModelIsBitIdenticalToTheIsothermalOne) {
   EXPECT_EQ(a.peek_voltage(-2.5, 3.391e-3, 0.2), b.peek_voltage(-2.5, 3.391e-3, 0.2));
 }
 
+TEST(Temperature, FloatAtTheReferenceIsBitIdenticalAndFollowsATemperatureAwayFromIt) {
+  fw::ReducedCell<float> a, b;
+  a.init_default();
+  b.init_default();
+  ASSERT_TRUE(b.set_temperature_k(298.15f));
+  for (int k = 0; k < 200; ++k) ASSERT_EQ(a.step_current(-2.5f, 3.391e-3f, 0.2f).voltage_v,
+                                          b.step_current(-2.5f, 3.391e-3f, 0.2f).voltage_v) << k;
+  ASSERT_TRUE(b.set_temperature_k(283.15f));
+  const float warm = b.temperature_probe_voltage(-2.5f, 3.391e-3f, 0.2f, 1.0f);
+  const float here = b.peek_voltage(-2.5f, 3.391e-3f, 0.2f);
+  EXPECT_TRUE(std::isfinite(warm));
+  EXPECT_NE(warm, here);
+  EXPECT_FALSE(std::isfinite(b.temperature_probe_voltage(-2.5f, 3.391e-3f, 0.2f, 100.0f)));  // out of range
+}
+
 TEST(Temperature, ColderMeansMoreOverpotentialAndLessSideReaction) {
   Model cold, ref;
   ASSERT_TRUE(cold.set_temperature_k(278.15));
