@@ -1,6 +1,7 @@
 // bmssim diagnose: residual of the truth model against measured data, candidate effects
 // fitted and scored on held-out data, before/after report (contract: diagnose).
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -11,6 +12,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
+#include "simulate_options.hpp"
 #include "diagnosis/diagnose.hpp"
 #include "diagnosis/report.hpp"
 #include "io/input_error.hpp"
@@ -20,6 +22,9 @@
 namespace bms::app {
 
 namespace {
+
+// Below this (A) a whole record is at rest: no effect shows in the voltage.
+constexpr double kRestCurrentA = 1e-3;
 
 struct DiagnoseOptions {
   std::vector<std::string> data;
@@ -97,6 +102,13 @@ int run_diagnose(const DiagnoseOptions& o) {
   std::vector<diagnosis::Record> records;
   for (const auto& d : o.data) {
     records.push_back(diagnosis::load_record(d, sign));
+    check_record_currents(d, records.back().t_s, records.back().current_a, cell);
+    double imax = 0.0;
+    for (double i : records.back().current_a) imax = std::max(imax, std::abs(i));
+    if (!(imax > kRestCurrentA))
+      throw InputError(fmt::format("{}: no current flows in the record (|I| <= {} A throughout): there is nothing to "
+                                   "diagnose; give a record with current steps",
+                                   d, kRestCurrentA));
     diagnosis::set_initial_state(records.back(), cell, o.initial_soc);
   }
   auto log = [q = o.quiet](const std::string& s) {

@@ -8,6 +8,9 @@
 
 #include "bms/fw/fw_status.hpp"
 #include "commands.hpp"
+#include "estimation/aging_report.hpp"
+#include "estimation/charges.hpp"
+#include "estimation/cycler_input.hpp"
 #include "estimation/estimate_output.hpp"
 #include "estimation/estimate_run.hpp"
 #include "io/input_error.hpp"
@@ -32,7 +35,8 @@ void require_accepted_samples(const EstimateResult& r, const std::string& data) 
                          "columns and units (V, A, discharge positive)");
 }
 struct EstimateCli {
-  std::string data, out, cell = "paper", current_sign;
+  std::vector<std::string> data;
+  std::string out, cell = "paper", current_sign;
   EstimateOptions o;
   double ic_error_pct = 0.0;
   bool beyond = false;
@@ -80,6 +84,27 @@ void print_scores(const EstimateResult& r, const EstimateData& data, const std::
                (destination / "estimates.csv").c_str());
 }
 
+// The contract's `charges`; from a cycler's exports, also the comparison with the cycler's own
+// per-cycle capacity and resistance (aging.csv, capacity.png, resistance.png).
+void add_charges(nlohmann::json& summary, const EstimateResult& r, const EstimateInput& input,
+                 const CellParameters& cell, const std::filesystem::path& dir, bool quiet) {
+  const std::vector<ChargeReport> charges = find_charges(r.rows, input.data, cell);
+  summary["charges"] = charges_json(charges);
+  summary["charges_note"] =
+      "capacity_ah: charge counted on the measured current over each charge (CC and CV), not yet the estimator's "
+      "own capacity; r_film_sd_ohm_m2: null, the estimator reports no film uncertainty yet; r_step_ohm: the voltage "
+      "step at the charge's onset over the current";
+  if (input.cycler_cycles.empty()) return;
+  // Every CC charge the mode detector found, learned in or not (a control run learns in none).
+  const AgingComparison a = compare_aging(find_charges(r.rows, input.data, cell, false), input.cycler_cycles);
+  summary["aging"] = aging_json(a);
+  const std::string problem = write_aging_outputs(dir, a);
+  if (!problem.empty()) {
+    summary["aging"]["plots"] = problem;
+    if (!quiet) std::fprintf(stderr, "estimate: %s\n", problem.c_str());
+  }
+}
+
 int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
   c.o.mesh.n_sep = c.o.mesh.n_pos = c.o.mesh.n_neg;
   const auto given = [&sub](const char* flag) { return sub.count(flag) > 0; };
@@ -97,20 +122,22 @@ int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
   const CellParameters cell = load_cell(c.cell);
   c.o.ic = perturbed_initial_conditions(cell, c.ic_error_pct);
   const CurrentSign sign = current_sign_option(c.current_sign);
-  const EstimateData data = read_estimate_data(c.data, sign);
+  const EstimateInput input = read_estimate_input(c.data, sign);
+  const EstimateData& data = input.data;
   const bool quiet = c.quiet;
   auto progress = [quiet](std::size_t row, std::size_t rows) {
     if (!quiet) std::fprintf(stderr, "estimate: %zu / %zu ticks\n", row, rows);
   };
   OutputFolder folder(c.out);
   const EstimateResult r = run_estimate(data, cell, c.o, progress);
-  require_accepted_samples(r, c.data);
+  require_accepted_samples(r, input.label);
   const std::filesystem::path dir = folder.staging();
   write_estimates_csv(dir / "estimates.csv", r, data.has_truth());
-  const nlohmann::json summary = command_summary(r, c.o, data);
+  nlohmann::json summary = command_summary(r, c.o, data);
+  add_charges(summary, r, input, cell, dir, quiet);
   write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
   folder.commit();
-  if (!quiet) print_scores(r, data, c.data, folder.destination());
+  if (!quiet) print_scores(r, data, input.label, folder.destination());
   return 0;
 }
 
@@ -126,8 +153,11 @@ Runner add_estimate(CLI::App& app) {
   auto c = std::make_shared<EstimateCli>();
   sub->add_option("--data", c->data,
                   "truth.csv written by 'bmssim simulate', or a measured file (About:Energy 'Time [s],I[A],U[V]' or "
-                  "any CSV with time, current and voltage columns picked by name; no truth, so no errors)")
-      ->required();
+                  "any CSV with time, current and voltage columns picked by name; no truth, so no errors), or a "
+                  "cycler's exports (Arbin, Maccor, Neware, BioLogic .mpt, NASA PCoE): repeat --data or give a folder "
+                  "for the files of one cell, joined in time order")
+      ->required()
+      ->take_all();
   sub->add_option("--current-sign", c->current_sign,
                   "discharge-positive | charge-positive: the sign of a measured file's current (default: by its "
                   "layout; cycler files charge-positive)");

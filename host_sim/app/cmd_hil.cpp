@@ -517,9 +517,10 @@ void HilSession::write_outputs(const hil::FaultSpec& spec) {
 }
 
 int run_hil(HilCli& c) {
-  if (c.bus == "uml") exec_in_uml();
+  // The options first, before a kernel is booted for --bus uml.
   if (c.realtime && !c.fault.empty()) throw InputError("--fault: lock-step only (drop it or --realtime)");
   const hil::FaultSpec spec = hil::parse_fault_spec(c.fault);
+  if (c.bus == "uml") exec_in_uml();
   // Checked before the long work: the output folder. Every file is written under DIR.partial-PID
   // that replaces DIR whole only when the run succeeded (io/output_folder.hpp).
   OutputFolder out(c.out);

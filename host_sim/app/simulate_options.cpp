@@ -22,7 +22,18 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
                  "times), or csv:FILE (drive with a measured current: truth.csv or About:Energy "
                  "'Time [s],I[A],U[V]' format)")
       ->capture_default_str();
-  sub.add_option("--cycles", o.cycles, "Number of CCCV cycles")->capture_default_str()->check(CLI::Range(1, 100000));
+  sub.add_option("--current-sign", o.current_sign,
+                 "discharge-positive | charge-positive: the sign of a csv:FILE's current (default: by its layout, "
+                 "checked against the voltage's response; a contradiction exits 2)");
+  sub.add_option("--cycles", o.cycles, "Number of CCCV cycles")
+      ->capture_default_str()
+      ->check(CLI::Validator(
+          [](std::string& v) -> std::string {
+            const bool digits = !v.empty() && v.size() <= 6 && v.find_first_not_of("0123456789") == std::string::npos;
+            if (digits && std::stoi(v) >= 1 && std::stoi(v) <= 100000) return {};
+            return "'" + v + "' is not a whole number of cycles from 1 to 100000 (written out: 1000, not 1e3)";
+          },
+          "INT in [1 - 100000]"));
   sub.add_option("--current-a", o.current_a, "CC current magnitude (A)")->capture_default_str();
   sub.add_option("--dt", o.dt_s, "Output sample time (s)")->capture_default_str();
   sub.add_option("--noise-v-mv", o.noise_v_mv, "Voltage measurement noise, standard deviation (mV)")->capture_default_str();
@@ -106,13 +117,7 @@ void check_voltage_window(const CellParameters& cell, const InitialConditions& i
 
 // A measured current far beyond what the cell can carry is bad input, not a solver failure.
 void check_profile_currents(const MeasuredProfile& p, const CellParameters& cell) {
-  const double limit_a = 4.0 * kMaxCRate * cell.nominal_capacity_ah;
-  for (size_t i = 0; i < p.current_a.size(); ++i)
-    if (!(std::abs(p.current_a[i]) <= limit_a))
-      throw InputError(fmt::format("{}: sample {} (t = {:g} s): current {:g} A is beyond {:g}C ({:g} A) for this "
-                                   "cell's {:g} Ah",
-                                   p.source, i + 1, p.t_s[i], p.current_a[i], 4.0 * kMaxCRate, limit_a,
-                                   cell.nominal_capacity_ah));
+  check_record_currents(p.source, p.t_s, p.current_a, cell);
 }
 
 void check_experiment(const Experiment& e, const CellParameters& cell, double v_min, double v_max) {
@@ -121,6 +126,10 @@ void check_experiment(const Experiment& e, const CellParameters& cell, double v_
     if (step.kind == ControlKind::current && c_rate > kMaxCRate)
       throw InputError(fmt::format("--protocol step '{}': {:g} A is {:.3g}C; at most {:g}C for this cell's {:g} Ah",
                                    step.text, std::abs(step.value), c_rate, kMaxCRate, cell.nominal_capacity_ah));
+    if (step.duration_s > e.max_step_s)
+      throw InputError(fmt::format("--protocol step '{}': {:g} s is longer than a step may run ({:g} s); split it "
+                                   "into shorter steps",
+                                   step.text, step.duration_s, e.max_step_s));
     const double v = step.kind == ControlKind::voltage ? step.value : step.until_voltage_v;
     if (std::isfinite(v) && !(v >= v_min - 0.5 && v <= v_max + 0.5))
       throw InputError(fmt::format("--protocol step '{}': {:g} V is outside the cell's window [{:g}, {:g}] V by more "
@@ -202,6 +211,17 @@ void check_cccv_options(const SimulateOptions& o, const CellParameters& cell, co
 
 }  // namespace
 
+void check_record_currents(const std::string& source, const std::vector<double>& t_s,
+                           const std::vector<double>& current_a, const CellParameters& cell) {
+  const double limit_a = 4.0 * kMaxCRate * cell.nominal_capacity_ah;
+  for (size_t i = 0; i < current_a.size(); ++i)
+    if (!(std::abs(current_a[i]) <= limit_a))
+      throw InputError(fmt::format("{}: sample {} (t = {:g} s): current {:g} A is beyond {:g}C ({:g} A) for this "
+                                   "cell's {:g} Ah (a column in mA labelled [A]?)",
+                                   source, i + 1, t_s[i], current_a[i], 4.0 * kMaxCRate, limit_a,
+                                   cell.nominal_capacity_ah));
+}
+
 SimulationPlan plan_simulation(const SimulateOptions& o) {
   require_finite(o.current_a, "--current-a");
   require_finite(o.dt_s, "--dt");
@@ -238,6 +258,8 @@ SimulationPlan plan_simulation(const SimulateOptions& o) {
   if (!(v_min < v_max))
     throw InputError("voltage limits inverted: --v-min " + std::to_string(v_min) + " V must be below --v-max " +
                      std::to_string(v_max) + " V");
+  if (!o.current_sign.empty() && o.protocol.rfind("csv:", 0) != 0)
+    throw InputError("--current-sign: only with --protocol csv:FILE (the sign of the file's current)");
   if (o.protocol == "cccv") {
     check_cccv_options(o, cfg.cell, cfg.ic, v_min, v_max);
     CccvProtocol p;
@@ -249,7 +271,7 @@ SimulationPlan plan_simulation(const SimulateOptions& o) {
     plan.experiment = cccv_experiment(p);
   } else if (o.protocol.rfind("csv:", 0) == 0) {
     plan.driven = true;
-    plan.profile = read_measured_profile(o.protocol.substr(4), ProfileColumns::truth);
+    plan.profile = read_measured_profile(o.protocol.substr(4), ProfileColumns::truth, current_sign_option(o.current_sign));
     check_profile_currents(plan.profile, cfg.cell);
     plan.v_stop_low_v = v_min - kDrivenStopMarginV;
     plan.v_stop_high_v = v_max + kDrivenStopMarginV;

@@ -17,6 +17,7 @@ namespace bms::app {
 struct SimulateOptions {
   std::string cell = "paper";
   std::string protocol = "cccv";
+  std::string current_sign;  // csv:FILE only: discharge-positive | charge-positive ("" = by layout and data)
   int cycles = 1;
   double current_a = 2.5;
   double dt_s = 0.2;
@@ -33,6 +34,10 @@ struct SimulateOptions {
 };
 
 void register_simulate_options(CLI::App& sub, SimulateOptions& o);
+// A measured current beyond 4x the largest C-rate simulate accepts (a column in mA labelled
+// [A]): InputError naming the file, sample and time. simulate's csv: and diagnose's records.
+void check_record_currents(const std::string& source, const std::vector<double>& t_s,
+                           const std::vector<double>& current_a, const CellParameters& cell);
 nlohmann::json options_json(const SimulateOptions& o);
 
 struct SimulateRun {

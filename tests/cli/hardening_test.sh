@@ -52,10 +52,15 @@ if [ "$(cat afile)" = keep ] && [ "$(cat foreign/notes.txt)" = mine ] && [ $(($(
   pass out_checked_first
 else fail out_checked_first "files touched or the check took $(($(date +%s) - start)) s"; fi
 
-# Re-running into an earlier output replaces the folder whole.
-sim --cycles 1 --dt 10 --out run && touch run/stale.txt && sim --cycles 1 --dt 10 --out run
-if [ ! -e run/stale.txt ] && [ -f run/truth.csv ] && grep -q '"complete": true' run/summary.json; then pass rerun_replaces_whole
-else fail rerun_replaces_whole "stale file kept or summary incomplete"; fi
+# Re-running into an earlier output replaces the folder whole (an estimate's files are gone
+# after a simulate into the same folder); a file the user added there stops the run instead.
+sim --cycles 1 --dt 10 --out first && "$BMSSIM" estimate --data first/truth.csv --quiet --out run 2>/dev/null &&
+  sim --cycles 1 --dt 10 --out run
+if [ ! -e run/estimates.csv ] && [ -f run/truth.csv ] && grep -q '"complete": true' run/summary.json; then pass rerun_replaces_whole
+else fail rerun_replaces_whole "an earlier run's file kept or summary incomplete"; fi
+touch run/stale.txt
+check_input_error rerun_user_file "--out 'run'.*no bmssim run wrote" run_unused -- sim --cycles 1 --dt 10 --out run
+[ -e run/stale.txt ] && rm run/stale.txt && pass rerun_user_file_kept || fail rerun_user_file_kept "run/stale.txt gone"
 
 # A runtime failure (too much lithium: the anode fills in the CV charge) into that folder: exit 1,
 # the samples so far kept under "complete": false with the reason; no staging folder left.

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <initializer_list>
 #include <cstdio>
 #include <random>
 
@@ -41,6 +42,31 @@ TEST(Selection, NoneWhenTwoEffectsTie) {
   const auto s = select_effect(10.0, {{Effect::current_offset, true, 0.01, 2.0}, {Effect::current_gain, true, 0.01, 2.3}});
   EXPECT_EQ(s.effect, Effect::none);
   EXPECT_NE(s.reason.find("not identifiable"), std::string::npos);
+}
+
+TEST(Selection, DecidesOnWhatIsLeftNotOnWhatIsGained) {
+  // A CCCV record with a contact resistance: both candidates remove most of a 6.9 mV residual
+  // (gains within 10 % of each other), but contact leaves 0.06 mV above the 0.197 mV floor and
+  // conductivity 0.31 mV: not a tie.
+  SelectionRules rules;
+  rules.floor_mv = 0.197;
+  const auto s = select_effect(6.93, {{Effect::contact_resistance, true, 3e-3, 0.206}, {Effect::conductivity, true, 0.9, 0.367}},
+                               rules);
+  EXPECT_EQ(s.effect, Effect::contact_resistance) << s.reason;
+}
+
+TEST(Selection, TiesWhenBothLeaveTheSameAboveTheFloor) {
+  SelectionRules rules;
+  rules.floor_mv = 0.2;
+  // Both at the floor: nothing in the data separates them.
+  const auto at_floor = select_effect(6.0, {{Effect::contact_resistance, true, 3e-3, 0.205}, {Effect::hysteresis, true, 0.01, 0.215}},
+                                      rules);
+  EXPECT_EQ(at_floor.effect, Effect::none);
+  EXPECT_FALSE(at_floor.identifiable);
+  // Both well above it, within a quarter of each other.
+  const auto above = select_effect(6.0, {{Effect::contact_resistance, true, 3e-3, 1.0}, {Effect::hysteresis, true, 0.01, 1.2}},
+                                   rules);
+  EXPECT_FALSE(above.identifiable) << above.reason;
 }
 
 TEST(Selection, NoneForConfoundedTwinsAtConstantCurrent) {
@@ -123,6 +149,19 @@ TEST(Excitation, TellsConstantCurrentFromACycle) {
 // A few minutes of paper-cell data made by the truth model with one effect. No inverse crime:
 // the data come from a finer mesh and a tighter tolerance than the fitting model, with
 // voltage noise; the diagnosis fits on a coarse search mesh and scores on a finer one.
+enum class Shape { constant, cycle_with_rests, cccv_without_rests, rest_pulse, drive_cycle };
+
+const char* shape_name(Shape s) {
+  switch (s) {
+    case Shape::constant: return "constant";
+    case Shape::cycle_with_rests: return "cycle_with_rests";
+    case Shape::cccv_without_rests: return "cccv_without_rests";
+    case Shape::rest_pulse: return "rest_pulse";
+    case Shape::drive_cycle: return "drive_cycle";
+  }
+  return "?";
+}
+
 class Synthetic : public ::testing::Test {
  protected:
   static constexpr bms::DfnMesh kDataMesh{12, 12, 12, 12};
@@ -130,21 +169,50 @@ class Synthetic : public ::testing::Test {
   static constexpr bms::DfnMesh kFinalMesh{8, 8, 8, 8};
   static constexpr double kNoiseV = 5e-5;  // 0.05 mV: a good cycler's voltage channel
 
-  static std::vector<double> cycle_current(bool constant, std::vector<double>& t, double amplitude_a = 2.5) {
+  // The current of one 900 s record at 1 s of each shape, positive = discharge.
+  static double profile_current_a(Shape shape, int k, double amplitude_a) {
+    switch (shape) {
+      case Shape::constant: return amplitude_a;
+      case Shape::cycle_with_rests:
+        return k < 60 ? 0.0 : k < 420 ? amplitude_a : k < 480 ? 0.0 : k < 840 ? -amplitude_a : 0.0;
+      case Shape::cccv_without_rests:
+        // Discharge, charge, then the current of a constant-voltage hold decaying towards its
+        // cut-off: never at rest.
+        return k < 360 ? amplitude_a : k < 660 ? -amplitude_a : -amplitude_a * std::exp(-(k - 660) / 80.0);
+      case Shape::rest_pulse: {
+        // Rest, then 30 s discharge pulse, 30 s rest, 30 s charge pulse at 3/4, 30 s rest.
+        const int phase = (k - 60) % 120;
+        return k < 60 ? 0.0 : phase < 30 ? amplitude_a : phase < 60 ? 0.0 : phase < 90 ? -0.75 * amplitude_a : 0.0;
+      }
+      case Shape::drive_cycle: {
+        // A drive-like current: acceleration peaks, cruising, and regenerative braking (charge).
+        const double x = 2.0 * M_PI * k;
+        return amplitude_a * (0.35 + 0.5 * std::sin(x / 97.0) + 0.35 * std::sin(x / 31.0 + 1.0) +
+                              0.2 * std::sin(x / 11.0 + 2.0));
+      }
+    }
+    return 0.0;
+  }
+  static std::vector<double> cycle_current(Shape shape, std::vector<double>& t, double amplitude_a = 2.5) {
     std::vector<double> i;
     for (int k = 0; k <= 900; ++k) {
       t.push_back(k);
-      double cur = amplitude_a;
-      if (!constant) cur = k < 60 ? 0.0 : k < 420 ? amplitude_a : k < 480 ? 0.0 : k < 840 ? -amplitude_a : 0.0;
-      i.push_back(cur);
+      i.push_back(profile_current_a(shape, k, amplitude_a));
     }
     return i;
+  }
+  static std::vector<double> cycle_current(bool constant, std::vector<double>& t, double amplitude_a = 2.5) {
+    return cycle_current(constant ? Shape::constant : Shape::cycle_with_rests, t, amplitude_a);
   }
 
   static Record make_data(const bms::ModelEffects& effects, bool constant, const bms::CellParameters& cell,
                           double amplitude_a = 2.5, double depth_ah = 0.0, unsigned seed = 1) {
+    return make_data(effects, constant ? Shape::constant : Shape::cycle_with_rests, cell, amplitude_a, depth_ah, seed);
+  }
+  static Record make_data(const bms::ModelEffects& effects, Shape shape, const bms::CellParameters& cell,
+                          double amplitude_a = 2.5, double depth_ah = 0.0, unsigned seed = 1) {
     std::vector<double> t;
-    const std::vector<double> i = cycle_current(constant, t, amplitude_a);
+    const std::vector<double> i = cycle_current(shape, t, amplitude_a);
     bms::SimulationConfig cfg;
     cfg.cell = cell;
     cfg.mesh = kDataMesh;
@@ -183,6 +251,7 @@ struct ListedCase {
   Effect effect;
   double value;
   double amplitude_a = 2.5;
+  Shape shape = Shape::cycle_with_rests;
 };
 
 class ListedEffect : public Synthetic, public ::testing::WithParamInterface<ListedCase> {};
@@ -191,7 +260,7 @@ TEST_P(ListedEffect, IsNamedWithItsSizeAgainstEveryCandidate) {
   const ListedCase c = GetParam();
   bms::ModelEffects fx;
   if (!set_model_effect(fx, {c.effect, c.value})) GTEST_SKIP() << "not in this build's truth model";
-  Record data = make_data(fx, false, bms::make_paper_cell(), c.amplitude_a);
+  Record data = make_data(fx, c.shape, bms::make_paper_cell(), c.amplitude_a);
   if (c.effect == Effect::current_offset || c.effect == Effect::current_gain) {
     // The sensor reads the true current wrongly: the data's current column is the reading.
     for (auto& x : data.current_a) x = c.effect == Effect::current_offset ? x + c.value : x * (1.0 + c.value);
@@ -211,6 +280,35 @@ INSTANTIATE_TEST_SUITE_P(Synthetic, ListedEffect,
                                            ListedCase{Effect::current_gain, 0.03},
                                            ListedCase{Effect::thermal, 0.05, 5.0}),
                          [](const auto& p) { return std::string(effect_name(p.param.effect)); });
+
+// The same effects on records without the rests the selection used to lean on: a CCCV
+// record (discharge, charge, constant-voltage taper), a rest-pulse record and a drive cycle.
+std::vector<ListedCase> listed_on_shapes(std::initializer_list<Shape> shapes) {
+  std::vector<ListedCase> cases;
+  for (Shape shape : shapes) {
+    cases.push_back({Effect::contact_resistance, 3e-3, 2.5, shape});
+    cases.push_back({Effect::hysteresis, 0.015, 2.5, shape});
+    cases.push_back({Effect::current_offset, 0.02, 2.5, shape});
+    cases.push_back({Effect::current_gain, 0.03, 2.5, shape});
+    cases.push_back({Effect::thermal, 0.05, 5.0, shape});
+  }
+  return cases;
+}
+
+std::string shape_case_name(const ::testing::TestParamInfo<ListedCase>& p) {
+  return std::string(shape_name(p.param.shape)) + "_" + effect_name(p.param.effect);
+}
+
+INSTANTIATE_TEST_SUITE_P(Shapes, ListedEffect,
+                         ::testing::ValuesIn(listed_on_shapes({Shape::cccv_without_rests, Shape::rest_pulse})),
+                         shape_case_name);
+
+// The drive cycle takes 50-100 s a case (every candidate re-fitted over a current that never
+// repeats): a measurement, not a CI test. Run with --gtest_also_run_disabled_tests
+// --gtest_filter='DISABLED_DriveCycle*'; the results are in docs/results/diagnosis.md (the
+// current-sensor offset and gain are not found there yet).
+INSTANTIATE_TEST_SUITE_P(DISABLED_DriveCycle, ListedEffect, ::testing::ValuesIn(listed_on_shapes({Shape::drive_cycle})),
+                         shape_case_name);
 
 TEST_F(Synthetic, AnswersNoneWithoutAnEffect) {
   const std::vector<Record> data{make_data({}, false)};

@@ -337,3 +337,45 @@ TEST(BpxReader, MutatedFilesFailCleanly) {
 
 }  // namespace
 }  // namespace bms
+
+namespace bms {
+namespace {
+
+// A key of the schema with its unit written another way is converted; a unit it does not know,
+// or a key the section does not have, is an input error naming the key (never dropped: an
+// activation energy in kJ/mol read as absent made a -5 C discharge last 5x too long).
+TEST(BpxReader, UnitSpellingsConvertedUnknownKeysRefused) {
+  const CellParameters ref = read_bpx(kLfpFile);
+  json j = lfp_json();
+  const double ea = negative(j)["Diffusivity activation energy [J.mol-1]"].get<double>();
+  ASSERT_GT(ea, 0.0);
+  negative(j).erase("Diffusivity activation energy [J.mol-1]");
+  negative(j)["Diffusivity activation energy [kJ.mol-1]"] = ea / 1000.0;
+  const double ea_rate = positive(j)["Reaction rate constant activation energy [J.mol-1]"].get<double>();
+  positive(j).erase("Reaction rate constant activation energy [J.mol-1]");
+  positive(j)["Reaction rate constant activation energy [J/mol]"] = ea_rate;
+  const double t_m = negative(j)["Thickness [m]"].get<double>();
+  negative(j).erase("Thickness [m]");
+  negative(j)["Thickness [um]"] = t_m * 1e6;
+  const CellParameters p = read_bpx_text(j.dump(), "units.json");
+  EXPECT_NEAR(p.negative.diffusivity_activation_j_mol, ref.negative.diffusivity_activation_j_mol, 1e-9 * ea);
+  EXPECT_DOUBLE_EQ(p.positive.rate_activation_j_mol, ref.positive.rate_activation_j_mol);
+  EXPECT_NEAR(p.negative.thickness_m, ref.negative.thickness_m, 1e-12);
+
+  EXPECT_EQ(error_after([](json& j2) {
+              negative(j2).erase("Diffusivity activation energy [J.mol-1]");
+              negative(j2)["Diffusivity activation energy [kcal/mol]"] = 8.0;
+            }),
+            "lfp.json: field 'Parameterisation.Negative electrode.Diffusivity activation energy [kcal/mol]' has a unit "
+            "this reader cannot convert to the schema's [J.mol-1]; write it in [J.mol-1]");
+  EXPECT_NE(error_after([](json& j2) { positive(j2)["Activation energy [J.mol-1]"] = 3e4; })
+                .find("field 'Parameterisation.Positive electrode.Activation energy [J.mol-1]' is not a key of the BPX "
+                      "schema's section"),
+            std::string::npos);
+  EXPECT_NE(error_after([](json& j2) { j2["Parameterisation"]["Cell"]["Nominal capacity [A.h]"] = 2.0; })
+                .find("'Parameterisation.Cell.Nominal capacity [A.h]' is not a key"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace bms

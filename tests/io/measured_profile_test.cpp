@@ -161,5 +161,29 @@ TEST(MeasuredProfile, BadFilesNameLineAndColumn) {
   EXPECT_THROW(read_measured_profile(kDataDir + "missing.csv", ProfileColumns::truth), InputError);
 }
 
+// A temperature in degF is converted, never read as degC; a unit it does not know is refused.
+TEST(MeasuredProfile, FahrenheitConvertedUnknownTemperatureUnitRefused) {
+  const MeasuredProfile p = parse_measured_profile(
+      "Time [s],Current [A],Voltage [V],Temperature [degF]\n0,0,3.3,77\n1,0,3.3,32\n", "f.csv", ProfileColumns::measured);
+  ASSERT_EQ(p.temperature_k.size(), 2u);
+  EXPECT_NEAR(p.temperature_k[0], 298.15, 1e-9);
+  EXPECT_NEAR(p.temperature_k[1], 273.15, 1e-9);
+  EXPECT_EQ(profile_error("Time [s],Current [A],Voltage [V],Temperature [degR]\n0,0,3.3,500\n1,0,3.3,500\n"),
+            "p.csv: line 1: column 'Temperature [degR]': temperature unit 'degr' not understood (K, degC or degF)");
+}
+
+// The current's sign against the voltage's response: discharge-positive data under a cycler
+// header (read charge-positive) are refused naming the option; the option reads them.
+TEST(MeasuredProfile, SignContradictingTheVoltageRefused) {
+  const std::string text =
+      "Time [s],Current [A],Voltage [V]\n0,0,3.30\n1,2,3.20\n2,0,3.29\n3,2,3.19\n4,0,3.28\n5,2,3.18\n";
+  const std::string e = profile_error(text);
+  EXPECT_NE(e.find("p.csv: the current read as charge-positive contradicts the voltage"), std::string::npos) << e;
+  EXPECT_NE(e.find("give --current-sign discharge-positive"), std::string::npos) << e;
+  const MeasuredProfile p =
+      parse_measured_profile(text, "p.csv", ProfileColumns::measured, CurrentSign::discharge_positive);
+  EXPECT_DOUBLE_EQ(p.current_a[1], 2.0);
+}
+
 }  // namespace
 }  // namespace bms

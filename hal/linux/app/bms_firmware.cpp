@@ -118,7 +118,12 @@ Args parse_args(int argc, char** argv) {
       }
       return argv[++i];
     };
-    if (f == "--can") a.iface = value();
+    if (f == "--can") {
+      a.iface = value();
+      // The kernel's limit (IFNAMSIZ = 16 with the terminating NUL): a bad argument, not a runtime failure.
+      if (a.iface.empty() || a.iface.size() >= 16 || a.iface.find('/') != std::string::npos)
+        bad_argument("--can must name a CAN interface of 1..15 characters without '/'", a.iface);
+    }
     else if (f == "--nvm") a.nvm_path = value();
     else if (f == "--lockstep") a.lockstep = true;
     else if (f == "--realtime") a.realtime = true;

@@ -308,8 +308,9 @@ void how_md(std::ostringstream& md) {
         "added to every search run.\n"
         "- One record: alternate blocks train and validate. Several records: each record is scored with the "
         "parameters fitted on the others.\n"
-        "- Step 1 chooses a first effect if it cuts the held-out RMSE by 20 % and 0.05 mV, no other comes within "
-        "10 % of its gain, and (one constant current) no twin explains it too. Up to two more are added while each "
+        "- Step 1 chooses a first effect if it cuts the held-out RMSE by 20 % and 0.05 mV, no other leaves "
+        "about as much above the floor (within 25 % of it, or half the floor), and (one constant current) no twin "
+        "explains it too. Up to two more are added while each "
         "cuts the held-out RMSE by 10 % more.\n"
         "- `explained` only when the held-out RMSE falls to 20 % of the plain model's; `none` when the plain model "
         "is already within 2x the floor; otherwise `unexplained`, with the residual described.\n";

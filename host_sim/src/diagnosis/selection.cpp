@@ -20,6 +20,13 @@ int twin_class(Effect e) {
     default: return 0;
   }
 }
+
+// What the best leaves (left_best) against what the second leaves (left_second), both above
+// the floor.
+bool ties(double left_best, double left_second, const SelectionRules& rules) {
+  const double apart = left_second - left_best;
+  return apart < std::max(rules.tie_share * left_second, rules.tie_floor_share * rules.floor_mv);
+}
 }  // namespace
 
 Effect constant_current_twin(Effect e) {
@@ -62,13 +69,14 @@ Selection select_effect(double none_mv, const std::vector<CandidateScore>& candi
         rules.min_absolute_gain_mv);
     return s;
   }
-  if (second && excess(second->heldout_rmse_mv) - excess(best->heldout_rmse_mv) < rules.tie_share * gain) {
+  if (second && ties(excess(best->heldout_rmse_mv), excess(second->heldout_rmse_mv), rules)) {
     s.identifiable = false;
     s.reason = fmt::format(
         "not identifiable: {} ({:.3f} mV) and {} ({:.3f} mV) explain the residual equally well "
-        "(held-out RMSE without an effect {:.3f} mV); the data do not separate them",
+        "(they leave {:.3f} and {:.3f} mV above the {:.3f} mV floor; held-out RMSE without an effect {:.3f} mV); "
+        "the data do not separate them",
         effect_name(best->effect), best->heldout_rmse_mv, effect_name(second->effect), second->heldout_rmse_mv,
-        none_mv);
+        excess(best->heldout_rmse_mv), excess(second->heldout_rmse_mv), rules.floor_mv, none_mv);
     return s;
   }
   if (rules.constant_current_only) {

@@ -21,8 +21,13 @@ struct SelectionRules {
   double min_relative_gain = 0.2;
   // ... and by at least this much in absolute terms (below it is noise and mesh error).
   double min_absolute_gain_mv = 0.05;
-  // A different effect within this share of the best one's gain is a tie.
-  double tie_share = 0.1;
+  // Two effects tie when what they leave is within the noise of each other: the structured
+  // residual the best one leaves above the floor, sqrt(rmse^2 - floor^2), is at least
+  // (1 - tie_share) of the second's, or the two differ by less than tie_floor_share of the
+  // floor. The decision is on what is left, not on what is gained: two candidates that both
+  // remove most of a large residual are not a tie when one leaves 5x less than the other.
+  double tie_share = 0.25;
+  double tie_floor_share = 0.5;
   // One constant current only: contact resistance and hysteresis both shift the voltage by a
   // constant, sensor offset and gain both scale the current, so a win of one over its twin
   // would rest on details (the initial hysteresis branch), not on the data.

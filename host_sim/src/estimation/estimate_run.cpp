@@ -23,30 +23,30 @@ namespace bms {
 namespace {
 
 EstimateData read_measured_file(const std::string& file, CurrentSign sign) {
-  const MeasuredProfile p = read_measured_profile(file, ProfileColumns::measured, sign);
+  MeasuredProfile p = read_measured_profile(file, ProfileColumns::measured, sign);
   std::vector<double> dt(p.t_s.size() - 1);
   for (std::size_t i = 1; i < p.t_s.size(); ++i) dt[i - 1] = p.t_s[i] - p.t_s[i - 1];
   std::nth_element(dt.begin(), dt.begin() + static_cast<long>(dt.size() / 2), dt.end());
   const double step = dt[dt.size() / 2];
+  if (step > kMaxSampleStepS)
+    throw InputError(fmt::format("{}: sampled every {} s (the median step); the estimator needs a sample at least "
+                                 "every {} s during a charge: log at {} s or finer",
+                                 file, step, kMaxSampleStepS, kMaxSampleStepS));
   EstimateData d;
   d.source = file;
-  const auto n = static_cast<std::size_t>(std::floor((p.t_s.back() - p.t_s.front()) / step + 1e-9)) + 1;
-  std::size_t j = 0;
-  for (std::size_t k = 0; k < n; ++k) {
-    const double t = p.t_s.front() + step * static_cast<double>(k);
-    while (j + 2 < p.t_s.size() && p.t_s[j + 1] < t) ++j;
-    const double w = std::clamp((t - p.t_s[j]) / (p.t_s[j + 1] - p.t_s[j]), 0.0, 1.0);
-    d.t_s.push_back(t);
-    d.current_a.push_back((1.0 - w) * p.current_a[j] + w * p.current_a[j + 1]);
-    d.voltage_v.push_back((1.0 - w) * p.voltage_v[j] + w * p.voltage_v[j + 1]);
-    if (!p.temperature_k.empty()) d.temperature_k.push_back((1.0 - w) * p.temperature_k[j] + w * p.temperature_k[j + 1]);
-  }
-  if (d.t_s.size() < 2) throw InputError(file + ": needs at least 2 samples");
+  d.median_step_s = step;
+  // At most 1 s, and a whole fraction of the median step, so a record sampled every 30 s is
+  // stepped at exactly 30 ticks per sample; rounded to 1 ns (times carry round-off).
+  d.tick_s = std::round(step / std::ceil(step / kMaxModelTickS - 1e-9) * 1e9) / 1e9;
+  d.t_s = std::move(p.t_s);
+  d.current_a = std::move(p.current_a);
+  d.voltage_v = std::move(p.voltage_v);
+  d.temperature_k = std::move(p.temperature_k);
   d.cycle.assign(d.t_s.size(), 1);
-  d.layout_note = fmt::format("{} layout, current read as {}; {} samples resampled linearly to {} at {} s (the "
-                              "median step)",
-                              p.layout, p.current_negated ? "charge-positive" : "discharge-positive", p.t_s.size(),
-                              d.t_s.size(), step);
+  d.layout_note = fmt::format("{} layout, current read as {}; {} samples, median step {} s, model tick {} s "
+                              "(the ticks between samples are caught up as the firmware catches up missed ticks)",
+                              p.layout, p.current_negated ? "charge-positive" : "discharge-positive", d.t_s.size(),
+                              step, d.tick_s);
   return d;
 }
 
@@ -113,6 +113,8 @@ double fixed_tick_s(const EstimateData& d) {
   return std::round(med * 1e9) / 1e9;
 }
 
+double model_tick_s(const EstimateData& d) { return d.tick_s > 0.0 ? d.tick_s : fixed_tick_s(d); }
+
 namespace {
 
 double nominal_growth_ohm_m2_per_a_m3_s(const CellParameters& cell);
@@ -125,6 +127,7 @@ struct MeasuredSeries {
   const std::vector<double>& voltage_v;
   const std::vector<double>& temperature_k;  // empty: no temperature measured
   const std::vector<int>& cycle;
+  double sample_step_s;  // a measured file's median step when coarser than the tick, else 0
 };
 
 // One tick's output as a row of estimates.csv (the truth is attached afterwards, to score).
@@ -156,6 +159,45 @@ EstimateRow row_of(const Output& out, double t_s, int cycle) {
   r.innovation_test_ratio = out.innovation_test_ratio;
   r.status = out.status;
   return r;
+}
+
+// A record sampled every T s gives the firmware one sample per T s, T / dt_s ticks apart: what
+// the settings count in received samples (the power-up and CV-end re-synchronisation windows,
+// the warm-up, the mode detector's debounce) is converted to the same span of time, and a
+// rest gap of any length is caught up (BmsCore::catch_up, at most catch_up_max_steps model steps).
+template <class Config>
+void adapt_to_sample_step(Config& cfg, const MeasuredSeries& d, double dt_s) {
+  if (!(d.sample_step_s > dt_s)) return;
+  const double per_sample = dt_s / d.sample_step_s;
+  auto samples = [per_sample](double ticks) { return std::max(1.0, std::round(ticks * per_sample)); };
+  cfg.resync_window_ticks = static_cast<std::uint32_t>(samples(cfg.resync_window_ticks));
+  cfg.detector.debounce_ticks = static_cast<std::uint16_t>(samples(cfg.detector.debounce_ticks));
+  cfg.rcsi_warmup_s *= per_sample;
+  cfg.catch_up_max_ticks = 0xFFFFFFFFu;
+  cfg.catch_up_max_steps = 64u;
+}
+
+// Ticks of dt_s from the record's start to each sample (the firmware's clock); a sample less
+// than half a tick after the previous one shares its tick and is skipped (-1).
+std::vector<long long> sample_ticks(const std::vector<double>& t_s, double dt_s) {
+  std::vector<long long> k(t_s.size());
+  long long last = -1;
+  for (std::size_t i = 0; i < t_s.size(); ++i) {
+    const long long ki = std::llround((t_s[i] - t_s.front()) / dt_s);
+    k[i] = ki > last ? ki : -1;
+    if (ki > last) last = ki;
+  }
+  return k;
+}
+
+// The core is told of the ticks that passed without a sample (in chunks: a counter of 32 bits).
+template <class Core>
+void tell_missed(Core& core, long long missed) {
+  while (missed > 0) {
+    const long long chunk = std::min<long long>(missed, 0x7FFFFFFFLL);
+    core.ticks_missed(static_cast<std::uint32_t>(chunk));
+    missed -= chunk;
+  }
 }
 
 template <int Nc, class Model>
@@ -204,11 +246,20 @@ void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, c
   }
   cfg.detector.v_max = cell.upper_voltage_v;
   cfg.detector.v_min = cell.lower_voltage_v;
+  adapt_to_sample_step(cfg, d, dt_s);
   Core core(cfg, model);
   const std::size_t n = d.t_s.size();
+  const std::vector<long long> ticks = sample_ticks(d.t_s, dt_s);
   res.rows.reserve(n);
   res.theta_rows.reserve(n);
+  long long last_tick = -1;
   for (std::size_t i = 0; i < n; ++i) {
+    if (ticks[i] < 0) {
+      ++res.samples_skipped;
+      continue;
+    }
+    if (last_tick >= 0) tell_missed(core, ticks[i] - last_tick - 1);
+    last_tick = ticks[i];
     const double temperature_k = d.temperature_k.empty() ? 0.0 : d.temperature_k[i];
     const auto out = core.tick({d.voltage_v[i], d.current_a[i], true, temperature_k});
     EstimateRow r = row_of(out, d.t_s[i], d.cycle[i]);
@@ -262,6 +313,20 @@ void dispatch_nc(Model& model, const MeasuredSeries& d, const EstimateOptions& o
     case 7: run_core<7>(model, d, o, cell, dt_s, res, progress); break;
     case 8: run_core<8>(model, d, o, cell, dt_s, res, progress); break;
     default: throw InputError(fmt::format("--nc must be 1..8 (got {})", o.nc));
+  }
+}
+
+// A measured record gives no truth to check against: an estimate outside the physical range
+// (a negative film) is a failure of the data's sampling, not a result.
+void require_physical_film(const EstimateResult& res, const EstimateData& d) {
+  if (!(d.tick_s > 0.0)) return;
+  for (const EstimateRow& r : res.rows) {
+    // The identifier's initial film is clipped into the film in use: negative there is the sign.
+    const double film = std::min(r.r_film_est_ohm_m2, r.film_initial_ohm_m2);
+    if (!(film >= 0.0) || !std::isfinite(r.r_film_est_ohm_m2))
+      throw RuntimeFailure(fmt::format("{}: the film estimate left the physical range ({} ohm m2 at t = {} s) on a "
+                                       "record sampled every {} s: log at 1 s (or finer) and run again",
+                                       d.source, film, r.t_s, d.median_step_s));
   }
 }
 
@@ -348,10 +413,11 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
   if (!(std::abs(o.inventory_error_pct) < 50.0)) throw InputError("--inventory-error-pct must be within +-50");
   if (!(o.resync_current_a > 0.0) || !std::isfinite(o.resync_current_a))
     throw InputError("--resync-current must be a positive current in A");
-  const double dt_s = fixed_tick_s(d);
+  const double dt_s = model_tick_s(d);
   const auto wall0 = std::chrono::steady_clock::now();
   EstimateResult res;
-  const MeasuredSeries measured{d.t_s, d.current_a, d.voltage_v, d.temperature_k, d.cycle};
+  const MeasuredSeries measured{d.t_s, d.current_a, d.voltage_v, d.temperature_k, d.cycle,
+                                d.median_step_s > dt_s ? d.median_step_s : 0.0};
   if (o.model == "reduced") {
     if (cell.name != "paper")
       throw InputError("--model reduced is the firmware's model of the paper cell; use --cell paper or --model full");
@@ -389,6 +455,7 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
     throw InputError("--model must be 'reduced' or 'full' (got '" + o.model + "')");
   }
   res.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  require_physical_film(res, d);
   attach_truth(res.rows, d, o.nominal_inventory_mol);
   res.cycles = score_cycles(res.rows, !d.true_mode.empty(), d.true_mode);
   res.growth_err_pct = growth_error_pct(res.rows);

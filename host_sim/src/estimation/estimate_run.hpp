@@ -27,15 +27,32 @@ struct EstimateData {
   std::vector<double> stoich_neg_true, stoich_pos_true;
   std::vector<double> capacity_true_ah;  // the truth's open-circuit capacity (scoring); empty when absent
   std::string source;
-  std::string layout_note;  // a measured file: how it was read and resampled
+  std::string layout_note;  // a measured file: how it was read and sampled
+  // A measured file: the model's tick (s), at most the median sample step and kMaxModelTickS; each
+  // sample is one firmware tick, the ticks between two samples are missed ticks the firmware
+  // catches up on. 0: the data are evenly sampled and run at that step (truth.csv).
+  double tick_s = 0.0;
+  double median_step_s = 0.0;  // a measured file's median sample step
   bool has_truth() const { return !r_film_true_ohm_m2.empty(); }
 };
 
 // Reads truth.csv (current_meas_a, voltage_meas_v; truth columns only for scoring), or a
 // measured file (About:Energy or any cycler CSV with time, current and voltage columns picked
-// by name; no truth): the latter is resampled linearly onto its median time step, the fixed
-// tick the firmware runs at.
+// by name; no truth): the latter is kept as sampled (memory grows with its samples only) and
+// run with a model tick of at most kMaxModelTickS: a sample per firmware tick, the model
+// stepped over the ticks between samples by the firmware's catch-up of missed ticks.
 EstimateData read_estimate_data(const std::string& file, CurrentSign sign = CurrentSign::by_layout);
+
+// The longest model tick a measured record is run at (s): the reduced model's implicit step
+// and the mode detector are accurate at 1 s; a coarser record is stepped at this tick between
+// its samples.
+constexpr double kMaxModelTickS = 1.0;
+// The coarsest sample step the estimator accepts (s): beyond it the firmware sees too few
+// samples per constant-current charge to learn from (measured in docs/results/reliability.md).
+constexpr double kMaxSampleStepS = 60.0;
+
+// The tick the model runs at: EstimateData::tick_s when set, else fixed_tick_s().
+double model_tick_s(const EstimateData& d);
 
 // The fixed tick the firmware model runs the data at: the median sample step rounded to
 // 1 ns. Throws InputError when any step is more than 1 % off the median.
@@ -114,6 +131,7 @@ struct EstimateResult {
   double wall_s = 0.0;
   std::uint32_t status = 0;   // OR of all tick status words
   std::size_t newton_cap_hits = 0;
+  std::size_t samples_skipped = 0;  // measured samples less than half a model tick after the previous
 };
 
 // Sets one main-model effect from "NAME=VALUE" (contract names: contact_resistance [ohm],

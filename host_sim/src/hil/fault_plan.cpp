@@ -116,6 +116,8 @@ FaultSpec parse_fault_spec(const std::string& text) {
       bad(item, "unknown fault (drop, dup, reorder, crc, length, unknown, burst, stale, range, nan, busdown, kill, seed)");
     }
   }
+  // Checked with the syntax, before any work (FaultPlan checks it again).
+  if (f.drop + f.dup + f.reorder + f.crc + f.length + f.unknown > 1.0) bad(text, "the rates add up to more than 1");
   return f;
 }
 

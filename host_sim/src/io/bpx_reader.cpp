@@ -13,7 +13,9 @@
 #include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "io/expression.hpp"
@@ -79,6 +81,53 @@ constexpr Range kExternalArea{1e-6, 100.0, false, false};       // m2
 constexpr Range kAreaPerVolume{1.0, 1e10, false, false};         // 1/m; 1e5 - 1e7
 constexpr Range kThermodynamicFactor{0.05, 20.0, false, false};  // -; 1 - 3 in carbonate electrolytes
 
+// A unit written another way than the schema's: spellings of the same unit (factor 1) and
+// scaled ones, per schema unit. Compared without spaces, '^' and '*' ("kJ mol^-1" = "kJ.mol-1").
+struct UnitSpelling {
+  std::string_view schema, other;
+  double factor;  // value in the schema's unit = factor x value in the other
+};
+constexpr UnitSpelling kUnitSpellings[] = {
+    {"J.mol-1", "J/mol", 1.0},         {"J.mol-1", "kJ.mol-1", 1e3},      {"J.mol-1", "kJ/mol", 1e3},
+    {"m2.s-1", "m2/s", 1.0},           {"m2.s-1", "cm2.s-1", 1e-4},       {"m2.s-1", "cm2/s", 1e-4},
+    {"mol.m-3", "mol/m3", 1.0},        {"mol.m-3", "mol.L-1", 1e3},       {"mol.m-3", "mol/L", 1e3},
+    {"mol.m-3", "mol.dm-3", 1e3},      {"mol.m-3", "M", 1e3},             {"m", "mm", 1e-3},
+    {"m", "um", 1e-6},                 {"m", "µm", 1e-6},                  {"m", "cm", 1e-2},
+    {"m", "nm", 1e-9},                 {"m-1", "1/m", 1.0},                {"m-1", "cm-1", 1e2},
+    {"S.m-1", "S/m", 1.0},             {"S.m-1", "mS.cm-1", 0.1},          {"S.m-1", "mS/cm", 0.1},
+    {"S.m-1", "S.cm-1", 100.0},        {"S.m-1", "S/cm", 100.0},           {"A.h", "Ah", 1.0},
+    {"A.h", "mA.h", 1e-3},             {"A.h", "mAh", 1e-3},               {"m2", "cm2", 1e-4},
+    {"m3", "cm3", 1e-6},               {"m3", "L", 1e-3},                  {"m3", "mL", 1e-6},
+    {"V", "mV", 1e-3},                 {"V.K-1", "V/K", 1.0},              {"V.K-1", "mV.K-1", 1e-3},
+    {"V.K-1", "mV/K", 1e-3},           {"kg.m-3", "kg/m3", 1.0},           {"kg.m-3", "g.cm-3", 1e3},
+    {"kg.m-3", "g/cm3", 1e3},          {"J.K-1.kg-1", "J.kg-1.K-1", 1.0},  {"J.K-1.kg-1", "J/(kg.K)", 1.0},
+    {"J.K-1.kg-1", "J/kg/K", 1.0},     {"J.K-1.kg-1", "J/(K.kg)", 1.0},    {"mol.m-2.s-1", "mol/(m2.s)", 1.0},
+    {"mol.m-2.s-1", "mol/m2/s", 1.0},  {"W.m-1.K-1", "W/(m.K)", 1.0},      {"W.m-1.K-1", "W/m/K", 1.0},
+};
+
+std::string unit_text(std::string_view u) {
+  std::string out;
+  for (char c : u)
+    if (c != ' ' && c != '^') out.push_back(c == '*' ? '.' : c);
+  return out;
+}
+
+// "Diffusivity [m2.s-1]" -> {"Diffusivity", "m2.s-1"}; no unit: {key, ""}.
+std::pair<std::string, std::string> split_key(std::string_view key) {
+  const auto open = key.rfind(" [");
+  if (open == std::string_view::npos || key.back() != ']') return {std::string(key), {}};
+  return {std::string(key.substr(0, open)), std::string(key.substr(open + 2, key.size() - open - 3))};
+}
+
+// The factor from `other` to the schema's unit, or NaN when it is not one this reader knows.
+double unit_factor(std::string_view schema, std::string_view other) {
+  const std::string s = unit_text(schema), o = unit_text(other);
+  if (s == o) return 1.0;
+  for (const auto& u : kUnitSpellings)
+    if (unit_text(u.schema) == s && unit_text(u.other) == o) return u.factor;
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
 // One JSON object of the file, with its dotted path for messages.
 class Section {
  public:
@@ -92,9 +141,43 @@ class Section {
     throw InputError(fmt::format("{}: field '{}' {}", file_, field(key), problem));
   }
 
+  // The value of `key`, or of the same quantity with its unit written another way (converted
+  // by factor_ on reading it); nullptr when absent. A unit it cannot convert fails naming the key.
   const json* find(std::string_view key) const {
+    factor_ = 1.0;
+    used_key_ = std::string(key);
     const auto it = j_.find(key);
-    return it == j_.end() ? nullptr : &*it;
+    if (it != j_.end()) {
+      used_.insert(std::string(key));
+      return &*it;
+    }
+    const auto [quantity, unit] = split_key(key);
+    if (unit.empty()) return nullptr;
+    for (auto e = j_.begin(); e != j_.end(); ++e) {
+      const auto [q, u] = split_key(e.key());
+      if (q != quantity || u.empty()) continue;
+      const double f = unit_factor(unit, u);
+      if (!std::isfinite(f))
+        fail(e.key(), fmt::format("has a unit this reader cannot convert to the schema's [{}]; write it in [{}]",
+                                  unit, unit));
+      used_.insert(e.key());
+      used_key_ = e.key();
+      factor_ = f;
+      return &*e;
+    }
+    return nullptr;
+  }
+
+  // Every key of the section must be one the schema has (read above, or in `unused`, the
+  // schema's keys this model does not need): an unknown one is never dropped silently.
+  void refuse_unknown(std::initializer_list<std::string_view> unused) const {
+    for (auto e = j_.begin(); e != j_.end(); ++e) {
+      if (used_.count(e.key()) != 0) continue;
+      bool known = false;
+      for (std::string_view u : unused) known = known || split_key(e.key()).first == split_key(u).first;
+      if (!known) fail(e.key(), "is not a key of the BPX schema's section (a typing error, or a unit in place of the "
+                                "quantity's name?); remove or rename it");
+    }
   }
   const json& get(std::string_view key) const {
     const json* v = find(key);
@@ -108,17 +191,23 @@ class Section {
     return Section(v, field(key), file_);
   }
 
-  double number(std::string_view key, Range range) const { return checked(key, get(key), range); }
+  double number(std::string_view key, Range range) const {
+    const json& v = get(key);
+    return checked(used_key_, v, range, factor_);
+  }
   double number_or(std::string_view key, Range range, double fallback) const {
     const json* v = find(key);
-    return v == nullptr ? fallback : checked(key, *v, range);
+    return v == nullptr ? fallback : checked(used_key_, *v, range, factor_);
   }
 
   // A number, a Python-style expression in x, or an {"x": [...], "y": [...]} table.
-  ScalarFunctionPtr function(std::string_view key) const { return to_function(key, get(key)); }
+  ScalarFunctionPtr function(std::string_view key) const {
+    const json& v = get(key);
+    return scaled(to_function(used_key_, v), factor_);
+  }
   ScalarFunctionPtr function_or_null(std::string_view key) const {
     const json* v = find(key);
-    return v == nullptr ? nullptr : to_function(key, *v);
+    return v == nullptr ? nullptr : scaled(to_function(used_key_, *v), factor_);
   }
 
   // Functions can only be checked at sample points; a few well-chosen ones catch "x / 0",
@@ -133,9 +222,12 @@ class Section {
   }
 
  private:
-  double checked(std::string_view key, const json& v, Range range) const {
+  static ScalarFunctionPtr scaled(ScalarFunctionPtr f, double factor) {
+    return factor == 1.0 ? f : std::make_shared<ScaledFunction>(std::move(f), factor);
+  }
+  double checked(std::string_view key, const json& v, Range range, double factor = 1.0) const {
     if (!v.is_number()) fail(key, fmt::format("must be a number, not {}", v.type_name()));
-    const double x = v.get<double>();
+    const double x = factor * v.get<double>();
     if (!range.contains(x)) {
       fail(key, fmt::format("= {} is out of range (allowed: {})", x, range.text()));
     }
@@ -175,6 +267,9 @@ class Section {
   const json& j_;
   std::string path_;
   const std::string& file_;
+  mutable std::set<std::string> used_;
+  mutable std::string used_key_;  // the key find() read (the schema's, or its other spelling)
+  mutable double factor_ = 1.0;   // to the schema's unit
 };
 
 void check_version(const Section& header) {
@@ -248,6 +343,7 @@ ElectrodeParameters read_electrode(const Section& s, double c_e0, bool negative)
       s.check_function("Entropic change coefficient [V.K-1]", *e.entropic_v_k, x, kEntropic);
     }
   }
+  s.refuse_unknown({"Density [kg.m-3]", "Specific heat capacity [J.K-1.kg-1]", "Thermal conductivity [W.m-1.K-1]"});
   return e;
 }
 
@@ -302,6 +398,7 @@ void read_cell_section(const Section& cell, CellParameters& p) {
   th.density_kg_m3 = cell.number_or("Density [kg.m-3]", kDensity, 0.0);
   th.volume_m3 = cell.number_or("Volume [m3]", kVolume, 0.0);
   th.external_area_m2 = cell.number_or("External surface area [m2]", kExternalArea, 0.0);
+  cell.refuse_unknown({"Thermal conductivity [W.m-1.K-1]"});
 }
 
 void read_electrolyte_section(const Section& electrolyte, CellParameters& p) {
@@ -328,6 +425,7 @@ void read_electrolyte_section(const Section& electrolyte, CellParameters& p) {
       electrolyte.number_or("Diffusivity activation energy [J.mol-1]", kActivation, 0.0);
   el.conductivity_activation_j_mol =
       electrolyte.number_or("Conductivity activation energy [J.mol-1]", kActivation, 0.0);
+  electrolyte.refuse_unknown({});
 }
 
 }  // namespace
@@ -361,6 +459,7 @@ CellParameters read_bpx_text(std::string_view text, std::string_view name) {
   p.separator.thickness_m = separator.number("Thickness [m]", kThickness);
   p.separator.porosity = separator.number("Porosity", kSeparatorPorosity);
   p.separator.transport_efficiency = separator.number("Transport efficiency", kTransportEfficiency);
+  separator.refuse_unknown({"Density [kg.m-3]", "Specific heat capacity [J.K-1.kg-1]", "Thermal conductivity [W.m-1.K-1]"});
 
   p.side.enabled = false;  // BPX has no side reaction
   return p;

@@ -92,6 +92,8 @@ CsvTable parse_csv(std::string_view text, std::string_view name,
                    const std::vector<std::string>& text_columns) {
   constexpr std::string_view kBom = "\xEF\xBB\xBF";
   if (text.substr(0, kBom.size()) == kBom) text.remove_prefix(kBom.size());
+  if (text.find('\0') != std::string_view::npos)
+    throw InputError(fmt::format("{}: NUL bytes in the text (UTF-16 or a binary file?): save it as UTF-8 CSV", name));
 
   std::vector<std::string_view> lines;
   while (!text.empty()) {
@@ -118,6 +120,10 @@ CsvTable parse_csv(std::string_view text, std::string_view name,
     t.columns_.emplace_back(header);
   }
 
+  if (t.columns_.size() == 1 && lines[0].find(';') != std::string_view::npos)
+    throw InputError(fmt::format("{}: line 1: columns separated by ';' (a European CSV?): save it with ',' between "
+                                 "columns and '.' as the decimal point",
+                                 name));
   t.rows_ = lines.size() - 1;
   t.data_.resize(t.columns_.size());
   for (std::size_t c = 0; c < t.columns_.size(); ++c) {

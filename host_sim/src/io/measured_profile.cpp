@@ -58,6 +58,7 @@ struct Layout {
   std::string time, current, voltage, temperature;
   bool negate_current = false;
   bool celsius = false;
+  bool fahrenheit = false;
   double time_scale = 1.0, current_scale = 1.0, voltage_scale = 1.0;
 };
 
@@ -85,7 +86,7 @@ enum class Quantity { other, time, current, voltage, temperature };
 
 Quantity quantity(const std::string& column) {
   const std::string n = normalised(column), q = quantity_of(n), u = unit_of(n);
-  if (q == "t" && (u == "degc" || u == "c" || u == "k")) return Quantity::temperature;
+  if (q == "t" && (u == "degc" || u == "c" || u == "k" || u == "degf" || u == "f")) return Quantity::temperature;
   if (starts_with(q, "temp") || q == "tcell" || q == "celltemperature") return Quantity::temperature;
   if (q == "t" || q == "time" || q == "times" || q == "testtime" || q == "totaltime" || q == "elapsedtime" ||
       q == "ts")
@@ -133,7 +134,12 @@ Layout by_column_names(const CsvTable& table) {
   l.time_scale = unit_scale(table, l.time, "s");
   l.current_scale = unit_scale(table, l.current, "a");
   l.voltage_scale = unit_scale(table, l.voltage, "v");
-  l.celsius = !l.temperature.empty() && unit_of(normalised(l.temperature)) != "k";
+  const std::string tu = l.temperature.empty() ? std::string("k") : unit_of(normalised(l.temperature));
+  l.fahrenheit = tu == "degf" || tu == "f" || tu == "°f" || tu == "fahrenheit";
+  l.celsius = tu.empty() || tu == "degc" || tu == "c" || tu == "°c" || tu == "celsius";
+  if (tu != "k" && !l.celsius && !l.fahrenheit)
+    throw InputError(fmt::format("{}: line 1: column '{}': temperature unit '{}' not understood (K, degC or degF)",
+                                 table.name(), l.temperature, tu));
   l.negate_current = true;
   return l;
 }
@@ -206,6 +212,34 @@ void check_range(const CsvTable& table, const std::string& column, const std::ve
   }
 }
 
+// The voltage's response settles the current's sign: at a step of the current the voltage
+// steps the other way (positive = discharge: more discharge current, lower voltage). Steps of
+// over a tenth of the largest current are weighed by |dI dV|; when four fifths of that weight
+// (and at least 3 steps) say the sign read is wrong, the file is refused naming the option.
+void check_sign_against_voltage(const CsvTable& table, const Layout& l, const MeasuredProfile& p, bool given) {
+  double imax = 0.0;
+  for (double x : p.current_a) imax = std::max(imax, std::abs(x));
+  double agree = 0.0, contradict = 0.0;
+  std::size_t steps = 0, against = 0, first = 0;
+  for (std::size_t i = 1; i < p.current_a.size(); ++i) {
+    const double di = p.current_a[i] - p.current_a[i - 1], dv = p.voltage_v[i] - p.voltage_v[i - 1];
+    if (!(std::abs(di) > 0.1 * imax) || dv == 0.0) continue;
+    ++steps;
+    if (di * dv > 0.0) {
+      contradict += std::abs(di * dv);
+      if (against++ == 0) first = i;
+    } else {
+      agree += std::abs(di * dv);
+    }
+  }
+  if (steps < 3 || contradict <= 4.0 * agree) return;
+  throw InputError(fmt::format(
+      "{}: the current read as {} contradicts the voltage: at {} steps the voltage moves with the current "
+      "read as discharge (first at line {}); {} --current-sign {}",
+      table.name(), l.negate_current ? "charge-positive" : "discharge-positive", fmt::format("{} of {}", against, steps), CsvTable::line_of_row(first),
+      given ? "check the file or" : "give", l.negate_current ? "discharge-positive" : "charge-positive"));
+}
+
 }  // namespace
 
 bool parse_current_sign(std::string_view text, CurrentSign& out) {
@@ -249,8 +283,13 @@ MeasuredProfile parse_measured_profile(std::string_view text, std::string_view n
   if (l.negate_current) {
     for (double& i : p.current_a) i = -i;
   }
+  check_sign_against_voltage(table, l, p, sign != CurrentSign::by_layout);
   if (!l.temperature.empty()) {
-    if (l.celsius) {
+    if (l.fahrenheit) {
+      check_range(table, l.temperature, p.temperature_k, kMinTemperatureC * 1.8 + 32.0, kMaxTemperatureC * 1.8 + 32.0,
+                  "temperature", "degF");
+      for (double& t : p.temperature_k) t = (t - 32.0) / 1.8 + kCelsiusOffsetK;
+    } else if (l.celsius) {
       check_range(table, l.temperature, p.temperature_k, kMinTemperatureC, kMaxTemperatureC,
                   "temperature", "degC");
       for (double& t : p.temperature_k) t += kCelsiusOffsetK;

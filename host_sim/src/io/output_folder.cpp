@@ -2,10 +2,14 @@
 
 #include <unistd.h>
 
+#include <fstream>
+#include <iomanip>
+#include <map>
 #include <string>
 #include <system_error>
 
 #include "io/input_error.hpp"
+#include "io/text_file.hpp"
 
 namespace bms {
 
@@ -17,15 +21,51 @@ std::string with_suffix(const fs::path& dir, const char* what) {
   return dir.filename().string() + "." + what + "-" + std::to_string(static_cast<long>(getpid()));
 }
 
-// A folder a bmssim run may replace: empty, or files only with a summary.json among them
-// (every command writes one; none writes subfolders).
+// Written by commit(): the name and size of every file the run wrote, one per line.
+constexpr const char* kManifest = ".bmssim-files";
+
+// A folder a bmssim run may replace: empty, or exactly the files a run wrote there (its
+// manifest lists each with its size): a summary.json alone does not tell (a cycler export
+// may carry its own), nor a file added or changed since.
 bool replaceable(const fs::path& dir) {
   std::error_code ec;
   if (fs::is_empty(dir, ec) && !ec) return true;
-  if (!fs::is_regular_file(dir / "summary.json", ec)) return false;
-  for (const auto& entry : fs::directory_iterator(dir, ec))
-    if (!entry.is_regular_file(ec)) return false;
+  std::ifstream manifest(dir / kManifest);
+  if (!manifest) return false;
+  std::map<std::string, std::uintmax_t> listed;
+  std::string name;
+  std::uintmax_t size = 0;
+  while (manifest >> std::quoted(name) >> size) listed[name] = size;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    const std::string n = entry.path().filename().string();
+    if (n == kManifest) continue;
+    if (entry.is_symlink(ec) || !entry.is_regular_file(ec)) return false;
+    const auto it = listed.find(n);
+    if (it == listed.end() || it->second != entry.file_size(ec)) return false;
+  }
   return !ec;
+}
+
+// The input read so far that lives in `dir` (or below it), or "".
+std::string input_inside(const fs::path& dir) {
+  std::error_code ec;
+  const fs::path d = fs::weakly_canonical(fs::absolute(dir, ec), ec);
+  for (const fs::path& f : input_files_read()) {
+    auto fi = f.begin();
+    bool inside = true;
+    for (auto di = d.begin(); di != d.end() && inside; ++di, ++fi) inside = fi != f.end() && *fi == *di;
+    if (inside && fi != f.end()) return f.string();
+  }
+  return {};
+}
+
+void write_manifest(const fs::path& staging) {
+  std::error_code ec;
+  std::ofstream out(staging / kManifest);
+  for (const auto& entry : fs::directory_iterator(staging, ec))
+    if (entry.is_regular_file(ec) && entry.path().filename() != kManifest)
+      out << std::quoted(entry.path().filename().string()) << ' ' << entry.file_size(ec) << '\n';
+  if (!out.flush()) throw RuntimeFailure("cannot write " + (staging / kManifest).string() + ": disk full?");
 }
 
 }  // namespace
@@ -38,10 +78,14 @@ OutputFolder::OutputFolder(fs::path dir, const char* option) : dir_(std::move(di
   if (dir_.filename() == "." || dir_.filename() == ".." || dir_ == dir_.root_path())
     throw InputError(name + ": name a folder of its own (it is replaced whole)");
   std::error_code ec;
+  if (fs::is_symlink(fs::symlink_status(dir_, ec)))
+    throw InputError(name + ": is a symbolic link (it would be replaced by a folder); name the folder itself");
   const auto st = fs::status(dir_, ec);
   if (fs::exists(st) && !fs::is_directory(st)) throw InputError(name + ": exists and is not a folder");
+  if (const std::string input = input_inside(dir_); !input.empty())
+    throw InputError(name + ": holds the input " + input + " (it would be deleted); choose another folder");
   if (fs::is_directory(st) && !replaceable(dir_))
-    throw InputError(name + ": a folder that no bmssim run wrote (subfolders, or no summary.json); choose a new or empty folder");
+    throw InputError(name + ": holds files no bmssim run wrote there (or changed since); choose a new or empty folder");
   fs::path parent = dir_.parent_path();
   if (parent.empty()) parent = ".";
   fs::create_directories(parent, ec);
@@ -61,6 +105,12 @@ OutputFolder::~OutputFolder() {
 void OutputFolder::commit() {
   std::error_code ec;
   fs::path old;
+  // Checked again: the run may have read more inputs, and the folder may have changed since.
+  if (const std::string input = input_inside(dir_); !input.empty())
+    throw InputError(dir_.string() + ": holds the input " + input + " (it would be deleted); choose another folder");
+  if (fs::is_symlink(fs::symlink_status(dir_, ec)) || (fs::is_directory(dir_, ec) && !replaceable(dir_)))
+    throw InputError(dir_.string() + ": changed during the run (files no bmssim run wrote, or a link); not replaced");
+  write_manifest(staging_);
   if (fs::exists(dir_, ec)) {
     old = dir_.parent_path().empty() ? fs::path(with_suffix(dir_, "old")) : dir_.parent_path() / with_suffix(dir_, "old");
     fs::rename(dir_, old, ec);

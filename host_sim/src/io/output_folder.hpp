@@ -11,8 +11,10 @@ namespace bms {
 class OutputFolder {
  public:
   // Throws InputError naming `option` when DIR cannot be an output folder: an existing file,
-  // a non-empty folder that no bmssim run wrote (no summary.json in it), a parent that cannot
-  // be created or written.
+  // a symbolic link (dangling or not), a folder holding an input this run read
+  // (input_files_read()), a non-empty folder holding anything but the files a bmssim run
+  // wrote there (its .bmssim-files manifest, names and sizes), a parent that cannot be created
+  // or written. commit() checks the same again before it replaces anything.
   OutputFolder(std::filesystem::path dir, const char* option = "--out");
   ~OutputFolder();
   OutputFolder(const OutputFolder&) = delete;

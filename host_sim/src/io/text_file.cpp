@@ -11,6 +11,15 @@
 
 namespace bms {
 
+namespace {
+std::vector<std::filesystem::path>& inputs() {
+  static std::vector<std::filesystem::path> files;
+  return files;
+}
+}  // namespace
+
+const std::vector<std::filesystem::path>& input_files_read() { return inputs(); }
+
 std::string read_text_file(const std::filesystem::path& file, std::uintmax_t max_bytes) {
   std::error_code ec;
   const auto st = std::filesystem::status(file, ec);
@@ -27,6 +36,7 @@ std::string read_text_file(const std::filesystem::path& file, std::uintmax_t max
                                  max_bytes));
   }
   std::ifstream in(file, std::ios::binary);
+  inputs().push_back(std::filesystem::weakly_canonical(std::filesystem::absolute(file, ec), ec));
   if (!in) {
     throw InputError(fmt::format("{}: cannot read: {}", file.string(), std::strerror(errno)));
   }

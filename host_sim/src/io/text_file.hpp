@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace bms {
 
@@ -13,5 +14,9 @@ constexpr std::uintmax_t kMaxInputFileBytes = std::uintmax_t{2} << 30;
 // before opening it when FILE is not a regular file (a FIFO would block, /dev/zero never
 // ends) or is larger than max_bytes.
 std::string read_text_file(const std::filesystem::path& file, std::uintmax_t max_bytes = kMaxInputFileBytes);
+
+// Every file read_text_file has read in this process (absolute, symbolic links resolved): an
+// output folder must never replace a folder an input lives in (io/output_folder.hpp).
+const std::vector<std::filesystem::path>& input_files_read();
 
 }  // namespace bms

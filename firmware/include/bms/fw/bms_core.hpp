@@ -301,6 +301,7 @@ class BmsCore {
     const Gate gate = open_gate(mode);                                            // 4
     const Scalar u = film_in_use(gate.open);                                      // 5
     const ModelStep step = step_model(in, mode, u, gate.open);                    // 6
+    last_voltage_driven_ = step.voltage_driven;
     if (!step.r.valid) return model_failed(st, gate.open);
     if (!step.r.converged) st |= bit(FwStatus::kModelNotConverged);
     st |= resync_step(in, u, step.voltage_driven);                                // 7
@@ -371,6 +372,7 @@ class BmsCore {
     last_j_side_ = s.last_j_side_a_m3;
     capacity_ah_ = std::numeric_limits<Scalar>::quiet_NaN();  // recomputed from the restored inventory
     identifying_ = false;
+    last_voltage_driven_ = false;  // not in the image: the next catch-up is current-driven
     return true;
   }
 
@@ -451,6 +453,7 @@ class BmsCore {
     stale_ticks_ = 0;
     have_sample_ = true;
     last_current_ = in.current_a;
+    last_voltage_ = in.voltage_v;
     if (resync_.should_start_at_power_up(first_sample)) resync_.start_at_power_up();
     return st;
   }
@@ -467,21 +470,26 @@ class BmsCore {
   }
 
   // Steps the model over `missed` ticks that had no accepted sample (see
-  // Config::catch_up_max_ticks).
+  // Config::catch_up_max_ticks). In a CV phase (the last tick was voltage-driven and the
+  // voltage held within the detector's CV band) on the interpolated voltage, as the cycler held
+  // it; else on the interpolated current.
   void catch_up(std::uint32_t missed, const TickInput<Scalar>& in) {
     const std::uint32_t gap = missed < config_.catch_up_max_ticks ? missed : config_.catch_up_max_ticks;
     if (gap == 0u || config_.catch_up_max_steps == 0u) return;
     const std::uint32_t steps = gap < config_.catch_up_max_steps ? gap : config_.catch_up_max_steps;
     const Scalar ticks_per_step = static_cast<Scalar>(gap) / static_cast<Scalar>(steps);
     const Scalar span = static_cast<Scalar>(missed) + Scalar(1);
+    const bool hold_voltage = last_voltage_driven_ && std::fabs(in.voltage_v - last_voltage_) <= config_.detector.cv_band_v;
     for (std::uint32_t k = 1u; k <= steps; ++k) {
       // Backward Euler: the input at the end of each step's interval.
       const Scalar w = static_cast<Scalar>(k) * ticks_per_step / span;
-      const ModelTickResult<Scalar> r = model_.step_current(last_current_ + w * (in.current_a - last_current_),
-                                                            r_film_ohm_m2(), ticks_per_step * config_.dt_s);
+      const Scalar dt = ticks_per_step * config_.dt_s;
+      const ModelTickResult<Scalar> r =
+          hold_voltage ? model_.step_voltage(last_voltage_ + w * (in.voltage_v - last_voltage_), r_film_ohm_m2(), dt)
+                       : model_.step_current(last_current_ + w * (in.current_a - last_current_), r_film_ohm_m2(), dt);
       if (!r.valid) return;
       // The film grew over the gap too: without this, each lost frame drops a tick of growth.
-      propagate_film(r.j_side_a_m3, ticks_per_step * config_.dt_s);
+      propagate_film(r.j_side_a_m3, dt);
     }
     catch_up_ticks_ = catch_up_ticks_ + gap < catch_up_ticks_ ? 0xFFFFFFFFu : catch_up_ticks_ + gap;
   }
@@ -709,6 +717,8 @@ class BmsCore {
   FilmLevel<Scalar> film_;
   StateResync<Scalar> resync_;
   Scalar last_current_ = Scalar(0);
+  Scalar last_voltage_ = Scalar(0);   // the last accepted sample's (catch-up in CV; not persisted)
+  bool last_voltage_driven_ = false;  // the last tick's model step was voltage-driven
   Scalar last_j_side_ = Scalar(0);
   std::uint32_t ticks_ = 0u;
   std::uint32_t stale_ticks_ = 0u;

@@ -1,0 +1,169 @@
+#include "estimation/aging_report.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <system_error>
+
+#include "io/atomic_file.hpp"
+#include "io/csv_table.hpp"
+#include "io/gnuplot.hpp"
+
+namespace bms {
+
+namespace {
+
+constexpr double kPartialCycleShare = 0.05;
+
+nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+}  // namespace
+
+LineFit fit_line(const std::vector<double>& x, const std::vector<double>& y) {
+  LineFit f;
+  double sx = 0, sy = 0;
+  for (std::size_t i = 0; i < x.size(); ++i)
+    if (std::isfinite(x[i]) && std::isfinite(y[i])) {
+      sx += x[i];
+      sy += y[i];
+      ++f.n;
+    }
+  if (f.n < 3) return f;
+  const double mx = sx / static_cast<double>(f.n), my = sy / static_cast<double>(f.n);
+  double sxx = 0, syy = 0, sxy = 0;
+  for (std::size_t i = 0; i < x.size(); ++i)
+    if (std::isfinite(x[i]) && std::isfinite(y[i])) {
+      sxx += (x[i] - mx) * (x[i] - mx);
+      syy += (y[i] - my) * (y[i] - my);
+      sxy += (x[i] - mx) * (y[i] - my);
+    }
+  if (sxx > 0) {
+    f.slope = sxy / sxx;
+    f.intercept = my - f.slope * mx;
+  }
+  if (sxx > 0 && syy > 0) f.pearson = sxy / std::sqrt(sxx * syy);
+  return f;
+}
+
+AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const std::vector<CyclerCycleStat>& cycler) {
+  AgingComparison a;
+  double max_dis = 0.0;
+  std::map<int, const CyclerCycleStat*> by_cycle;
+  for (const auto& s : cycler) {
+    max_dis = std::max(max_dis, s.discharge_ah);
+    by_cycle[s.cycle] = &s;
+  }
+  const ChargeReport* ref = nullptr;
+  const CyclerCycleStat* ref_meas = nullptr;
+  double ref_ir = std::nan("");
+  double ref_step = std::nan("");
+  for (const ChargeReport& c : charges) {
+    const auto it = by_cycle.find(c.cycle);
+    if (it == by_cycle.end() || !(it->second->discharge_ah >= kPartialCycleShare * max_dis)) continue;
+    const CyclerCycleStat& m = *it->second;
+    if (ref == nullptr) {
+      ref = &c;
+      ref_meas = &m;
+    }
+    if (std::isnan(ref_ir) && std::isfinite(m.internal_resistance_ohm)) ref_ir = m.internal_resistance_ohm;
+    if (std::isnan(ref_step) && std::isfinite(c.r_step_ohm)) ref_step = c.r_step_ohm;
+    AgingRow r{};
+    r.cycle = c.cycle;
+    r.capacity_est_ah = c.capacity_ah;
+    r.capacity_sd_ah = c.capacity_sd_ah;
+    r.soh_est = c.capacity_ah / ref->capacity_ah;
+    r.r_growth_est_ohm = c.r_growth_ohm - ref->r_growth_ohm;
+    r.r_step_growth_ohm = c.r_step_ohm - ref_step;
+    r.discharge_meas_ah = m.discharge_ah;
+    r.soh_meas = m.discharge_ah / ref_meas->discharge_ah;
+    r.ir_meas_ohm = m.internal_resistance_ohm;
+    r.ir_growth_meas_ohm = m.internal_resistance_ohm - ref_ir;
+    r.learned = c.learned;
+    a.rows.push_back(r);
+  }
+  std::vector<double> ir, film, step;
+  double sum = 0.0, worst = 0.0;
+  for (const AgingRow& r : a.rows) {
+    const double e = std::abs(r.soh_est - r.soh_meas) * 100.0;
+    sum += e;
+    worst = std::max(worst, e);
+    ir.push_back(r.ir_growth_meas_ohm);
+    film.push_back(r.r_growth_est_ohm);
+    step.push_back(r.r_step_growth_ohm);
+  }
+  if (!a.rows.empty()) {
+    a.soh_mae_pp = sum / static_cast<double>(a.rows.size());
+    a.soh_max_abs_pp = worst;
+  }
+  a.film_vs_ir = fit_line(ir, film);
+  a.step_vs_ir = fit_line(ir, step);
+  return a;
+}
+
+nlohmann::json aging_json(const AgingComparison& a) {
+  const auto fit = [](const LineFit& f) {
+    return nlohmann::json{{"n", f.n}, {"pearson_r", num(f.pearson)}, {"slope", num(f.slope)},
+                          {"intercept_ohm", num(f.intercept)}};
+  };
+  return {{"cycles_compared", a.rows.size()},
+          {"soh_mean_abs_err_pp", num(a.soh_mae_pp)},
+          {"soh_max_abs_err_pp", num(a.soh_max_abs_pp)},
+          {"r_growth_vs_cycler_ir_growth", fit(a.film_vs_ir)},
+          {"r_step_growth_vs_cycler_ir_growth", fit(a.step_vs_ir)},
+          {"note",
+           "soh: the estimate's capacity_ah / its first, against the cycler's discharge capacity / its first, same "
+           "cycle; resistance: the estimate's growth (y) regressed on the cycler's internal-resistance growth (x)"}};
+}
+
+std::string write_aging_outputs(const std::filesystem::path& dir, const AgingComparison& a) {
+  CsvWriter w(dir / "aging.csv", {"cycle", "capacity_est_ah", "capacity_sd_ah", "soh_est", "discharge_meas_ah",
+                                  "soh_meas", "r_growth_est_ohm", "r_step_growth_ohm", "ir_meas_ohm",
+                                  "ir_growth_meas_ohm", "learned"});
+  const auto cell = [&w](double v) {
+    if (std::isfinite(v)) w.cell(v);
+    else w.cell("");
+  };
+  for (const AgingRow& r : a.rows) {
+    w.cell(r.cycle);
+    for (double v : {r.capacity_est_ah, r.capacity_sd_ah, r.soh_est, r.discharge_meas_ah, r.soh_meas,
+                     r.r_growth_est_ohm, r.r_step_growth_ohm, r.ir_meas_ohm, r.ir_growth_meas_ohm})
+      cell(v);
+    w.cell(r.learned ? 1 : 0);
+    w.end_row();
+  }
+  w.commit();
+  if (a.rows.empty()) return "no CC charge of the record in a cycle the cycler reported: no plots";
+  const std::string gp =
+      "# Made by bmssim estimate; run in this folder: gnuplot plots.gp\n"
+      "set datafile separator ','\nset datafile missing ''\nset terminal pngcairo size 1100,700 noenhanced\nset grid\n"
+      "set key top right\nset xlabel 'cycle'\n"
+      "set output 'capacity.png.tmp'\nset title 'State of health: the estimate beside the cycler'\n"
+      "set ylabel 'capacity / first capacity'\n"
+      "plot 'aging.csv' using 1:6 skip 1 with points pt 7 ps 0.5 title 'cycler: discharge capacity', "
+      "'' using 1:4 skip 1 with lines lw 2 title 'estimate: capacity_ah (charge counted)'\n"
+      "set output 'resistance.png.tmp'\nset title 'Resistance growth since the first compared charge'\n"
+      "set ylabel 'growth (ohm)'\n"
+      "plot 'aging.csv' using 1:10 skip 1 with points pt 7 ps 0.5 title 'cycler: internal resistance', "
+      "'' using 1:7 skip 1 with lines lw 2 title 'estimate: r_growth_ohm (film)', "
+      "'' using 1:8 skip 1 with points pt 6 ps 0.4 title 'measured: voltage step at the charge onset'\n";
+  AtomicFileWriter script(dir / "plots.gp");
+  script.append(gp);
+  script.commit();
+  GnuplotOptions g;
+  g.working_dir = dir;
+  const int rc = run_gnuplot("plots.gp", g);
+  const char* names[] = {"capacity.png", "resistance.png"};
+  for (const char* n : names) {
+    std::error_code ec;
+    if (rc == 0) std::filesystem::rename(dir / (std::string(n) + ".tmp"), dir / n, ec);
+    else std::filesystem::remove(dir / (std::string(n) + ".tmp"), ec);
+    if (rc == 0 && ec) return fmt::format("{}: {}", n, ec.message());
+  }
+  if (rc == kGnuplotMissing) return "gnuplot is not installed (Debian package gnuplot-nox): no plots";
+  if (rc != 0) return fmt::format("gnuplot failed (exit status {}): no plots", rc);
+  return {};
+}
+
+}  // namespace bms

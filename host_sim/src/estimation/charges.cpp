@@ -1,0 +1,114 @@
+#include "estimation/charges.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "bms/fw/operating_mode.hpp"
+
+namespace bms {
+
+namespace {
+
+constexpr double kRestShare = 0.01;          // |I| below this share of the largest |I|: rest
+constexpr double kGapFactor = 3.0;           // a step over this many median steps: a logging gap
+constexpr double kLongRestS = 3600.0;        // a rest this long ends a charge
+constexpr double kSensorGainSd = 1e-3;       // the current sensor's relative gain uncertainty (1 sigma)
+
+double median_step(const std::vector<double>& t) {
+  std::vector<double> d;
+  d.reserve(t.size());
+  for (std::size_t i = 1; i < t.size(); ++i) d.push_back(t[i] - t[i - 1]);
+  if (d.empty()) return 0.0;
+  std::nth_element(d.begin(), d.begin() + static_cast<long>(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
+
+struct Counted {
+  double ah = 0.0, gap_ah = 0.0, r_step_ohm = std::nan("");
+};
+
+// The charge from the onset of charging that holds sample j0 to the charge's end.
+Counted count_charge(const EstimateData& d, std::size_t j0, double rest_a, double step_s) {
+  Counted c;
+  std::size_t k = j0;
+  while (k > 0 && d.current_a[k - 1] < -rest_a) --k;
+  if (k > 0 && std::abs(d.current_a[k - 1]) <= rest_a && d.t_s[k] - d.t_s[k - 1] <= kGapFactor * step_s &&
+      d.current_a[k] < -rest_a)
+    c.r_step_ohm = (d.voltage_v[k] - d.voltage_v[k - 1]) / -d.current_a[k];
+  double rest_since = std::nan("");
+  for (std::size_t i = k + 1; i < d.t_s.size(); ++i) {
+    const double i0 = d.current_a[i - 1], i1 = d.current_a[i], dt = d.t_s[i] - d.t_s[i - 1];
+    if (i1 > rest_a) break;  // a discharge
+    if (std::abs(i1) <= rest_a) {
+      if (std::isnan(rest_since)) rest_since = d.t_s[i];
+      if (d.t_s[i] - rest_since > kLongRestS) break;
+    } else {
+      rest_since = std::nan("");
+    }
+    const double q = -0.5 * (std::min(i0, 0.0) + std::min(i1, 0.0)) * dt / 3600.0;
+    c.ah += q;
+    if (dt > kGapFactor * step_s) c.gap_ah += q;
+  }
+  return c;
+}
+
+}  // namespace
+
+double negative_surface_area_m2(const CellParameters& cell) {
+  return cell.negative.surface_area_per_volume_m() * cell.negative.thickness_m * cell.electrode_area_m2;
+}
+
+std::vector<ChargeReport> find_charges(const std::vector<EstimateRow>& rows, const EstimateData& data,
+                                       const CellParameters& cell, bool learned_only) {
+  std::vector<ChargeReport> out;
+  if (rows.empty() || data.t_s.size() < 2) return out;
+  double imax = 0.0;
+  for (double i : data.current_a) imax = std::max(imax, std::abs(i));
+  const double rest_a = kRestShare * imax, step_s = median_step(data.t_s);
+  const double area_m2 = negative_surface_area_m2(cell);
+  double film_ref = std::nan("");
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    if (rows[i].mode != fw::Mode::cc_charge || (i > 0 && rows[i - 1].mode == fw::Mode::cc_charge)) continue;
+    std::size_t e = i;
+    bool learned = rows[i].rcsi_active;
+    while (e + 1 < rows.size() && rows[e + 1].mode == fw::Mode::cc_charge) learned = learned || rows[++e].rcsi_active;
+    if (learned_only && !learned) continue;
+    const auto j0 = static_cast<std::size_t>(std::lower_bound(data.t_s.begin(), data.t_s.end(), rows[i].t_s) -
+                                             data.t_s.begin());
+    const Counted q = count_charge(data, std::min(j0, data.t_s.size() - 1), rest_a, step_s);
+    ChargeReport c{};
+    c.index = static_cast<int>(out.size()) + 1;
+    c.cycle = rows[i].cycle;
+    c.t_start_s = rows[i].t_s;
+    c.t_end_s = rows[e].t_s;
+    c.capacity_ah = q.ah;
+    c.capacity_sd_ah = std::hypot(0.5 * q.gap_ah, kSensorGainSd * q.ah);
+    c.r_film_ohm_m2 = rows[e].r_film_est_ohm_m2;
+    c.r_film_sd_ohm_m2 = std::nan("");
+    if (std::isnan(film_ref) && (learned || !learned_only)) film_ref = c.r_film_ohm_m2;
+    c.r_growth_ohm = (c.r_film_ohm_m2 - film_ref) / area_m2;
+    c.r_step_ohm = q.r_step_ohm;
+    c.learned = learned;
+    out.push_back(c);
+  }
+  return out;
+}
+
+nlohmann::json charges_json(const std::vector<ChargeReport>& charges) {
+  const auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+  nlohmann::json a = nlohmann::json::array();
+  for (const ChargeReport& c : charges)
+    a.push_back({{"index", c.index},
+                 {"cycle", c.cycle},
+                 {"t_start_s", c.t_start_s},
+                 {"t_end_s", c.t_end_s},
+                 {"capacity_ah", num(c.capacity_ah)},
+                 {"capacity_sd_ah", num(c.capacity_sd_ah)},
+                 {"r_film_ohm_m2", num(c.r_film_ohm_m2)},
+                 {"r_film_sd_ohm_m2", num(c.r_film_sd_ohm_m2)},
+                 {"r_growth_ohm", num(c.r_growth_ohm)},
+                 {"r_step_ohm", num(c.r_step_ohm)}});
+  return a;
+}
+
+}  // namespace bms

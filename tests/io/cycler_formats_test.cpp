@@ -1,0 +1,310 @@
+// The cycler readers: a small file written in each layout, read back with our sign convention
+// (positive = discharge), and a malformed file of each layout refused with its line and column.
+#include "io/cycler_formats.hpp"
+
+#include <gtest/gtest.h>
+#include <fmt/format.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "io/input_error.hpp"
+
+namespace bms {
+namespace {
+
+namespace fs = std::filesystem;
+
+// One cycle as a cycler logs it: rest, CC charge (voltage rising), rest, CC discharge (falling).
+struct Sample {
+  double t_s, current_a /* charge positive */, voltage_v;
+  int step;
+  char state;  // R, C, D
+};
+std::vector<Sample> one_cycle(double t0_s, double dt_s) {
+  std::vector<Sample> s;
+  double t = t0_s;
+  for (int k = 0; k < 3; ++k, t += dt_s) s.push_back({t, 0.0, 3.40, 1, 'R'});
+  for (int k = 0; k < 14; ++k, t += dt_s) s.push_back({t, 0.55, 3.60 + 0.04 * k, 2, 'C'});
+  for (int k = 0; k < 3; ++k, t += dt_s) s.push_back({t, 0.0, 4.10 - 0.01 * k, 3, 'R'});
+  for (int k = 0; k < 14; ++k, t += dt_s) s.push_back({t, -1.1, 3.95 - 0.06 * k, 4, 'D'});
+  return s;
+}
+
+fs::path write(const std::string& name, const std::string& text) {
+  const fs::path dir = fs::path(::testing::TempDir()) / "cycler_formats";
+  fs::create_directories(dir);
+  const fs::path p = dir / name;
+  std::ofstream(p, std::ios::binary) << text;
+  return p;
+}
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+std::string date(double epoch_offset_s) {  // 2010-10-08 14:00:00 + offset, whole seconds
+  const int s = static_cast<int>(epoch_offset_s);
+  return fmt::format("2010-10-{:02d} {:02d}:{:02d}:{:02d}", 8 + (14 * 3600 + s) / 86400, ((14 * 3600 + s) / 3600) % 24,
+                     (s / 60) % 60, s % 60);
+}
+
+std::string arbin(const std::vector<Sample>& cycle, int cycles, double start_s, double gap_at_s = -1) {
+  std::string out =
+      "Data_Point,Test_Time(s),Date_Time,Step_Time(s),Step_Index,Cycle_Index,Current(A),Voltage(V),"
+      "Charge_Capacity(Ah),Discharge_Capacity(Ah),Internal_Resistance(Ohm)\n";
+  int point = 1;
+  double period = cycle.back().t_s + (cycle[1].t_s - cycle[0].t_s), q_dis = 0.0, q_ch = 0.0;
+  for (int c = 0; c < cycles; ++c)
+    for (const Sample& s : cycle) {
+      double t = s.t_s + c * period;
+      if (gap_at_s >= 0 && t >= gap_at_s) t += 600.0;
+      (s.current_a > 0 ? q_ch : q_dis) += std::abs(s.current_a) * 30.0 / 3600.0;
+      out += fmt::format("{},{},{},0,{},{},{},{},{},{},{}\n", point++, t, date(start_s + t), s.step, c + 1, s.current_a,
+                         s.voltage_v, q_ch, q_dis, 0.09 + 0.001 * c);
+    }
+  return out;
+}
+
+TEST(CyclerFormats, ArbinFilesJoinedInTimeOrderWithGapsAndCycles) {
+  const auto cycle = one_cycle(30.0, 30.0);
+  // Given in reverse order: the second test started a day after the first.
+  const fs::path later = write("arbin_b.csv", arbin(cycle, 1, 86400.0));
+  const fs::path first = write("arbin_a.csv", arbin(cycle, 2, 0.0, 1200.0));
+  EXPECT_EQ(detect_cycler_layout_of(first).layout, CyclerLayout::arbin);
+  const CyclerRecord r = read_cycler_record({later, first}, CurrentSign::by_layout);
+  ASSERT_EQ(r.files.size(), 2u);
+  EXPECT_EQ(r.files.front(), first.string());
+  ASSERT_EQ(r.t_s.size(), 3 * cycle.size());
+  EXPECT_EQ(r.layout, "Arbin");
+  // Charge-positive in the file: the 0.55 A charge is -0.55 A here, the discharge +1.1 A.
+  EXPECT_DOUBLE_EQ(r.current_a[5], -0.55);
+  EXPECT_DOUBLE_EQ(r.current_a[cycle.size() - 1], 1.1);
+  // Cycles numbered on: 1, 2 in the first file, 3 in the second.
+  EXPECT_EQ(r.cycle.front(), 1);
+  EXPECT_EQ(r.cycle[cycle.size()], 2);
+  EXPECT_EQ(r.cycle.back(), 3);
+  EXPECT_EQ(r.step[5], 2);
+  // Segments: the start, the 600 s logging gap (in the second cycle's charge) and the day
+  // between the files (the first file ends in a discharge: under current too).
+  ASSERT_EQ(r.segment_starts.size(), 3u);
+  EXPECT_EQ(r.gaps, 2u);
+  EXPECT_EQ(r.gaps_under_current, 2u);
+  const std::size_t g = r.segment_starts[1];
+  EXPECT_NEAR(r.t_s[g] - r.t_s[g - 1], 630.0, 1e-9);
+  EXPECT_LT(r.current_a[g], 0.0);
+  EXPECT_NEAR(r.t_s[2 * cycle.size()] - r.t_s.front(), 86400.0, 1.0);
+  // The cycler's own numbers per cycle, renumbered.
+  ASSERT_EQ(r.cycle_stats.size(), 3u);
+  EXPECT_EQ(r.cycle_stats[2].cycle, 3);
+  EXPECT_NEAR(r.cycle_stats[0].discharge_ah, 14 * 1.1 * 30.0 / 3600.0, 1e-9);
+  EXPECT_NEAR(r.cycle_stats[1].internal_resistance_ohm, 0.091, 1e-12);
+}
+
+TEST(CyclerFormats, ArbinMalformedRefusedAtTheLineAndColumn) {
+  const auto cycle = one_cycle(30.0, 30.0);
+  std::string text = arbin(cycle, 1, 0.0);
+  // The third data row (line 4): its voltage (column 8) made unreadable.
+  const auto row = text.find("\n3,90,");
+  ASSERT_NE(row, std::string::npos);
+  text.replace(text.find(",3.4,", row), 5, ",3.x,");
+  const fs::path bad = write("arbin_bad.csv", text);
+  EXPECT_EQ(error_of([&] { read_cycler_record({bad}, CurrentSign::by_layout); }),
+            bad.string() + ": line 4, column 8 ('Voltage(V)'): not a finite number: '3.x'");
+  // Time going back.
+  std::string back = arbin(cycle, 1, 0.0);
+  const auto p = back.find("\n4,120,");
+  ASSERT_NE(p, std::string::npos);
+  back.replace(p, 7, "\n4,60,");
+  const fs::path bad_time = write("arbin_back.csv", back);
+  EXPECT_NE(error_of([&] { read_cycler_record({bad_time}, CurrentSign::by_layout); })
+                .find("line 5, column 2 ('Test_Time(s)'): time 60 s goes back from the previous row's 90 s"),
+            std::string::npos);
+  // The same data twice: overlapping records.
+  const fs::path a = write("arbin_dup1.csv", arbin(cycle, 1, 0.0)), b = write("arbin_dup2.csv", arbin(cycle, 1, 0.0));
+  EXPECT_NE(error_of([&] { read_cycler_record({a, b}, CurrentSign::by_layout); }).find("overlapping"), std::string::npos);
+}
+
+TEST(CyclerFormats, ASignThatContradictsTheVoltageIsRefused) {
+  const fs::path f = write("arbin_sign.csv", arbin(one_cycle(30.0, 30.0), 1, 0.0));
+  const std::string e = error_of([&] { read_cycler_record({f}, CurrentSign::discharge_positive); });
+  EXPECT_NE(e.find("column 7 ('Current(A)'): the current's sign, read as discharge-positive (--current-sign), "
+                   "contradicts the voltage"),
+            std::string::npos)
+      << e;
+  EXPECT_NO_THROW(read_cycler_record({f}, CurrentSign::charge_positive));
+}
+
+std::string maccor(const std::vector<Sample>& cycle) {
+  std::string out = "Today's Date\t10/09/2019\tDate of Test:\t10/08/2019\tFilename:\tcell.001\tProcedure:\tcc.000\n"
+                    "Rec#\tCyc#\tStep\tTest (Sec)\tStep (Sec)\tAmp-hr\tWatt-hr\tAmps\tVolts\tState\tES\tDPt Time\t\n";
+  int rec = 1;
+  for (const Sample& s : cycle)
+    out += fmt::format("{}\t0\t{}\t{}\t0\t0\t0\t{}\t{}\t{}\t0\t10/08/2019 2:{:02d}:{:02d} PM\t\n", rec++, s.step, s.t_s,
+                       std::abs(s.current_a), s.voltage_v, s.state, static_cast<int>(s.t_s) / 60 % 60,
+                       static_cast<int>(s.t_s) % 60);
+  return out;
+}
+
+TEST(CyclerFormats, MaccorMagnitudesSignedByState) {
+  const auto cycle = one_cycle(0.0, 10.0);
+  const fs::path f = write("cell.001.txt", maccor(cycle));
+  EXPECT_EQ(detect_cycler_layout_of(f).layout, CyclerLayout::maccor);
+  const CyclerRecord r = read_cycler_record({f}, CurrentSign::by_layout);
+  ASSERT_EQ(r.t_s.size(), cycle.size());
+  EXPECT_DOUBLE_EQ(r.current_a[5], -0.55);
+  EXPECT_DOUBLE_EQ(r.current_a.back(), 1.1);
+  EXPECT_EQ(r.step.back(), 4);
+  EXPECT_NE(r.note.find("magnitude"), std::string::npos) << r.note;
+  // A cell that is no number, on line 6 (the second data row after the metadata line and header
+  // is line 4).
+  std::string text = maccor(cycle);
+  const auto p = text.find("\t3.4\tR", text.find("\n3\t"));
+  text.replace(p + 1, 3, "3.4.1");
+  const fs::path bad = write("bad.001.txt", text);
+  EXPECT_EQ(error_of([&] { read_cycler_record({bad}, CurrentSign::by_layout); }),
+            bad.string() + ": line 5, column 9 ('Volts'): not a finite number: '3.4.1'");
+}
+
+std::string neware(const std::vector<Sample>& cycle) {
+  std::string out = "Record ID,Realtime,Total Time,Step ID,Cycle ID,Step Name,Current(mA),Voltage(V)\n";
+  int rec = 1;
+  for (const Sample& s : cycle) {
+    const char* name = s.state == 'C' ? "CC_Chg" : s.state == 'D' ? "CC_DChg" : "Rest";
+    const int t = static_cast<int>(s.t_s);
+    out += fmt::format("{},2021-03-04 09:{:02d}:{:02d},{:02d}:{:02d}:{:02d}.000,{},1,{},{},{}\n", rec++, t / 60 % 60,
+                       t % 60, t / 3600, t / 60 % 60, t % 60, s.step, name, s.current_a * 1000.0, s.voltage_v);
+  }
+  return out;
+}
+
+TEST(CyclerFormats, NewareMilliampsAndClockTimes) {
+  const auto cycle = one_cycle(0.0, 60.0);
+  const fs::path f = write("neware.csv", neware(cycle));
+  EXPECT_EQ(detect_cycler_layout_of(f).layout, CyclerLayout::neware);
+  const CyclerRecord r = read_cycler_record({f}, CurrentSign::by_layout);
+  ASSERT_EQ(r.t_s.size(), cycle.size());
+  EXPECT_DOUBLE_EQ(r.t_s[1] - r.t_s[0], 60.0);
+  EXPECT_DOUBLE_EQ(r.current_a[5], -0.55);
+  EXPECT_DOUBLE_EQ(r.current_a.back(), 1.1);
+  EXPECT_NE(r.note.find("from the step types"), std::string::npos) << r.note;
+  std::string text = neware(cycle);
+  const auto p = text.find("00:03:00.000");
+  text.replace(p, 12, "00:03:0x.000");
+  const fs::path bad = write("neware_bad.csv", text);
+  EXPECT_EQ(error_of([&] { read_cycler_record({bad}, CurrentSign::by_layout); }),
+            bad.string() + ": line 5, column 3 ('Total Time'): not a time (a number, or [Nd ]H:MM:SS[.fff]): "
+                           "'00:03:0x.000'");
+  // A discharge step logged with the charge's sign.
+  std::string flipped = neware(cycle);
+  const auto d = flipped.rfind(",CC_DChg,-1100,");
+  flipped.replace(d, 15, ",CC_DChg,1100,");
+  const fs::path mixed = write("neware_mixed.csv", flipped);
+  EXPECT_NE(error_of([&] { read_cycler_record({mixed}, CurrentSign::by_layout); })
+                .find(fmt::format("line {}, column 7 ('Current(mA)'): current 1.1 A in a discharge step",
+                                  cycle.size() + 1)),
+            std::string::npos);
+}
+
+std::string biologic(const std::vector<Sample>& cycle) {
+  std::string out = "EC-Lab ASCII FILE\nNb header lines : 5\n\nAcquisition started on : 07/29/2020 10:31:03.000\n"
+                    "mode\tox/red\ttime/s\tEcell/V\t<I>/mA\tcycle number\tNs\n";
+  for (const Sample& s : cycle) {
+    std::string line = fmt::format("{}\t{}\t{:.4f}\t{:.6f}\t{:.3f}\t1\t{}\n", s.state == 'R' ? 3 : 1,
+                                   s.current_a > 0 ? 1 : 0, s.t_s, s.voltage_v, s.current_a * 1000.0, s.step - 1);
+    std::replace(line.begin(), line.end(), '.', ',');  // a French locale: decimal commas
+    out += line;
+  }
+  return out;
+}
+
+TEST(CyclerFormats, BioLogicMptWithDecimalCommas) {
+  const auto cycle = one_cycle(0.0, 5.0);
+  const fs::path f = write("cell.mpt", biologic(cycle));
+  const CyclerLayoutGuess g = detect_cycler_layout_of(f);
+  EXPECT_EQ(g.layout, CyclerLayout::biologic);
+  EXPECT_EQ(g.header_line, 4u);
+  const CyclerRecord r = read_cycler_record({f}, CurrentSign::by_layout);
+  ASSERT_EQ(r.t_s.size(), cycle.size());
+  EXPECT_DOUBLE_EQ(r.voltage_v[5], 3.68);
+  EXPECT_DOUBLE_EQ(r.current_a[5], -0.55);
+  EXPECT_DOUBLE_EQ(r.current_a.back(), 1.1);
+  EXPECT_EQ(r.step[5], 1);
+  std::string text = biologic(cycle);
+  const auto p = text.find("3,400000");
+  text.replace(p, 8, "XXX");
+  const fs::path bad = write("bad.mpt", text);
+  EXPECT_EQ(error_of([&] { read_cycler_record({bad}, CurrentSign::by_layout); }),
+            bad.string() + ": line 6, column 4 ('Ecell/V'): not a finite number: 'XXX'");
+}
+
+std::string nasa(const std::vector<Sample>& part, double t0) {
+  std::string out = "Voltage_measured,Current_measured,Temperature_measured,Current_load,Voltage_load,Time\n";
+  for (const Sample& s : part)
+    out += fmt::format("{},{},24.5,{},{},{}\n", s.voltage_v, s.current_a, s.current_a, s.voltage_v, s.t_s - t0);
+  return out;
+}
+
+TEST(CyclerFormats, NasaRecordsOrderedByTheirIndex) {
+  const auto cycle = one_cycle(0.0, 10.0);
+  const std::vector<Sample> charge(cycle.begin(), cycle.begin() + 17), discharge(cycle.begin() + 17, cycle.end());
+  const fs::path dir = fs::path(::testing::TempDir()) / "cycler_formats" / "nasa";
+  fs::create_directories(dir);
+  std::ofstream(dir / "00002.csv") << nasa(discharge, discharge.front().t_s);
+  std::ofstream(dir / "00001.csv") << nasa(charge, 0.0);
+  std::ofstream(dir / "metadata.csv")
+      << "type,start_time,ambient_temperature,battery_id,test_id,uid,filename,Capacity,Re,Rct\n"
+         "discharge,[2010.  7.  21.  15.  2.  50.093],24,B0005,1,2,00002.csv,1.8,,\n"
+         "charge,[2010.  7.  21.  15.  0.  0.0],24,B0005,0,1,00001.csv,,,\n";
+  const CyclerRecord r = read_cycler_record({dir}, CurrentSign::by_layout);
+  ASSERT_EQ(r.files.size(), 2u);
+  EXPECT_EQ(fs::path(r.files.front()).filename(), "00001.csv");
+  ASSERT_EQ(r.t_s.size(), cycle.size());
+  EXPECT_NEAR(r.t_s[17], 170.093, 1e-6);
+  EXPECT_DOUBLE_EQ(r.current_a[5], -0.55);
+  EXPECT_DOUBLE_EQ(r.current_a.back(), 1.1);
+  ASSERT_EQ(r.temperature_k.size(), cycle.size());
+  EXPECT_NEAR(r.temperature_k.front(), 297.65, 1e-9);
+  // Without its start time, a record cannot be ordered among others.
+  const fs::path lone = fs::path(::testing::TempDir()) / "cycler_formats" / "nasa_noindex";
+  fs::create_directories(lone);
+  std::ofstream(lone / "00001.csv") << nasa(charge, 0.0);
+  std::ofstream(lone / "00002.csv") << nasa(discharge, discharge.front().t_s);
+  EXPECT_NE(error_of([&] { read_cycler_record({lone}, CurrentSign::by_layout); }).find("not in the index"),
+            std::string::npos);
+  std::string text = nasa(charge, 0.0);
+  text.replace(text.find("3.64,"), 4, "3.6V");
+  const fs::path bad = write("nasa_bad.csv", text);
+  EXPECT_EQ(error_of([&] { read_cycler_record({bad}, CurrentSign::by_layout); }),
+            bad.string() + ": line 6, column 1 ('Voltage_measured'): not a finite number: '3.6V'");
+}
+
+TEST(CyclerFormats, NotACyclerFileIsSaidSo) {
+  const fs::path f = write("plain.csv", "a,b\n1,2\n");
+  EXPECT_EQ(detect_cycler_layout_of(f).layout, CyclerLayout::none);
+  EXPECT_NE(error_of([&] { read_cycler_record({f}, CurrentSign::by_layout); }).find("line 1: not a cycler time series"),
+            std::string::npos);
+}
+
+TEST(CyclerFormats, CalceCs2FolderReadAsItComes) {
+  const fs::path dir = BMS_SHARED_DIR "/data/calce-cs2-35";
+  if (!fs::exists(dir)) GTEST_SKIP() << dir << " not present";
+  const CyclerRecord r = read_cycler_record({dir}, CurrentSign::by_layout);
+  EXPECT_EQ(r.layout, "Arbin");
+  EXPECT_EQ(r.files.size(), 24u);
+  EXPECT_GT(r.cycle.back(), 800);
+  EXPECT_GT(r.gaps_under_current, 0u);
+  for (std::size_t i = 1; i < r.t_s.size(); ++i) ASSERT_GT(r.t_s[i], r.t_s[i - 1]) << i;
+}
+
+}  // namespace
+}  // namespace bms
