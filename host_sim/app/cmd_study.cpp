@@ -179,7 +179,7 @@ Runner add_study(CLI::App& app) {
       ->check(CLI::IsMember({"noise", "ic", "all", "blind"}));
   sub->add_option("--sets", c->blind_sets,
                   "blind: truth sets, comma-separated: 1 (film, growth law, side i0, inventory), 2 (and conductivity, "
-                  "solid diffusivities)")
+                  "solid diffusivities), 3 (set 1 at 5-45 C, every third truth self-heating)")
       ->capture_default_str();
   sub->add_option("--cycles", c->blind_cycles, "blind: CCCV cycles per truth")->capture_default_str();
   sub->add_option("--seeds", c->o.seeds, "Noise seeds per noise level (default 10; 2 with --quick)")

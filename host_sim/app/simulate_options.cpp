@@ -38,13 +38,16 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
   sub.add_option("--dt", o.dt_s, "Output sample time (s)")->capture_default_str();
   sub.add_option("--noise-v-mv", o.noise_v_mv, "Voltage measurement noise, standard deviation (mV)")->capture_default_str();
   sub.add_option("--noise-i-ma", o.noise_i_ma, "Current measurement noise, standard deviation (mA)")->capture_default_str();
+  sub.add_option("--noise-t-k", o.noise_t_k,
+                 "Temperature sensor noise, standard deviation (K), in the temperature_meas_k column")
+      ->capture_default_str();
   sub.add_option("--seed", o.seed, "Noise seed")->capture_default_str();
   sub.add_option("--ic-error-pct", o.ic_error_pct,
                  "Initial-condition error P: scales c_e, theta_n, theta_p by (1 + P/100)")->capture_default_str();
   sub.add_option("--effect", o.effects,
                  "Undeclared effect NAME=VALUE (repeatable): contact_resistance (ohm), hysteresis (V, half the "
                  "gap between the charge and discharge OCV branches; starts on the charge branch), current_offset "
-                 "(A), current_gain (relative), thermal (lumped thermal model with Arrhenius properties; VALUE = "
+                 "(A), current_gain (relative), temperature_offset (K: the temperature sensor reads this much high), thermal (lumped thermal model with Arrhenius properties; VALUE = "
                  "heat-transfer coefficient to ambient in W/K, e.g. 0.05 for an 18650 in still air), particle_size (cathode "
                  "particle-size distribution: VALUE = log-space standard deviation sigma of a lognormal of radii, "
                  "3 populations, same surface area), particle_size_negative (the same for the anode; not with the side "
@@ -67,7 +70,7 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
 
 nlohmann::json options_json(const SimulateOptions& o) {
   return {{"cell", o.cell}, {"protocol", o.protocol}, {"cycles", o.cycles}, {"current_a", o.current_a},
-          {"dt_s", o.dt_s}, {"noise_v_mv", o.noise_v_mv}, {"noise_i_ma", o.noise_i_ma}, {"seed", o.seed},
+          {"dt_s", o.dt_s}, {"noise_v_mv", o.noise_v_mv}, {"noise_i_ma", o.noise_i_ma}, {"noise_t_k", o.noise_t_k}, {"seed", o.seed},
           {"ic_error_pct", o.ic_error_pct}, {"effects", o.effects}, {"set", o.set},
           {"cv_end_current_a", o.cv_end_current_a}, {"points", o.points}, {"radial", o.radial}, {"rtol", o.rtol}};
 }
@@ -169,6 +172,9 @@ void apply_effect(const std::string& e, ModelEffects& effects, MeasurementModel&
   } else if (name == "current_gain") {
     if (std::abs(value) >= 0.5) throw InputError("--effect current_gain: must be within +-0.5");
     meas.current_gain = value;
+  } else if (name == "temperature_offset") {
+    if (!(std::abs(value) <= 50.0)) throw InputError("--effect temperature_offset: must be within +-50 K");
+    meas.temperature_offset_k = value;
   } else if (name == "hysteresis") {
     if (!(value >= 0.0 && value <= 0.5))
       throw InputError("--effect hysteresis: must be in [0, 0.5] V (half the gap between the branches)");
@@ -184,7 +190,7 @@ void apply_effect(const std::string& e, ModelEffects& effects, MeasurementModel&
     (anode ? effects.particle_size_negative_sigma : effects.particle_size_sigma) = value;
   } else if (name != "none") {
     throw InputError("--effect '" + name +
-                     "': unknown; use contact_resistance, hysteresis, current_offset, current_gain, thermal, "
+                     "': unknown; use contact_resistance, hysteresis, current_offset, current_gain, temperature_offset, thermal, "
                      "particle_size, particle_size_negative or none");
   }
 }
@@ -223,6 +229,7 @@ SimulationPlan plan_simulation(const SimulateOptions& o) {
     throw InputError(fmt::format("--dt {:g}: must be in [{:g}, 3600] s", o.dt_s, kMinDtS));
   if (!(o.noise_v_mv >= 0.0 && o.noise_v_mv <= 1e3) || !(o.noise_i_ma >= 0.0 && o.noise_i_ma <= 1e5))
     throw InputError("--noise-v-mv/--noise-i-ma: must be in [0, 1000] mV / [0, 100000] mA");
+  if (!(o.noise_t_k >= 0.0 && o.noise_t_k <= 50.0)) throw InputError("--noise-t-k: must be in [0, 50] K");
   if (!(o.rtol > 0.0 && o.rtol < 1e-2)) throw InputError("--rtol: must be in (0, 0.01)");
 
   const TruthSettings truth_settings = TruthSettings::parse(o.set);
@@ -242,6 +249,7 @@ SimulationPlan plan_simulation(const SimulateOptions& o) {
 
   plan.sensor.noise_v_mv = o.noise_v_mv;
   plan.sensor.noise_i_ma = o.noise_i_ma;
+  plan.sensor.noise_t_k = o.noise_t_k;
   plan.sensor.seed = o.seed;
   for (const auto& e : o.effects) apply_effect(e, cfg.effects, plan.sensor);
 

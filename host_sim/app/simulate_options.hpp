@@ -21,7 +21,7 @@ struct SimulateOptions {
   int cycles = 1;
   double current_a = 2.5;
   double dt_s = 0.2;
-  double noise_v_mv = 0.0, noise_i_ma = 0.0;
+  double noise_v_mv = 0.0, noise_i_ma = 0.0, noise_t_k = 0.0;
   std::uint64_t seed = 1;
   double ic_error_pct = 0.0;
   std::vector<std::string> effects;

@@ -41,6 +41,8 @@ struct TruthDraw {
   int set = 1, seed = 1;
   double r0_scale = 1, growth_scale = 1, i0_scale = 1, inventory_scale = 1;
   double conductivity_scale = 1, diffusivity_neg = 1, diffusivity_pos = 1;
+  double temperature_k = 298.15;  // set 3: ambient (and, self-heating, initial) temperature
+  bool self_heating = false;      // set 3: the lumped thermal model at kSelfHeatingWPerK
 
   // The film's growth rate relative to the nominal law: the law's factor times the side current's.
   double true_gain() const { return growth_scale * i0_scale; }
@@ -50,6 +52,7 @@ struct TruthDraw {
         fmt::format("r_film_initial_ohm_m2={}", r0_scale * nominal.side.initial_film_resistance_ohm_m2),
         fmt::format("film_growth_scale={}", growth_scale), fmt::format("side_i0_scale={}", i0_scale),
         fmt::format("inventory_scale={}", inventory_scale)};
+    if (set == 3) a.push_back(fmt::format("temperature_k={}", temperature_k));
     if (set == 2) {
       a.push_back(fmt::format("conductivity_scale={}", conductivity_scale));
       a.push_back(fmt::format("diffusivity_scale_negative={}", diffusivity_neg));
@@ -76,8 +79,17 @@ TruthDraw draw_truth(int set, int seed) {
     d.diffusivity_neg = u(0.8, 1.2);
     d.diffusivity_pos = u(0.8, 1.2);
   }
+  if (set == 3) {
+    // The operating envelope: 5-45 C; every third truth heats itself (it moves within each charge).
+    d.temperature_k = u(278.15, 318.15);
+    d.self_heating = seed % 3 == 0;
+  }
   return d;
 }
+
+// Set 3's self-heating truths: the lumped thermal model's heat-transfer coefficient (an 18650-size
+// cell in still air; 298-302 K over a cycle at 25 C).
+constexpr double kSelfHeatingWPerK = 0.05;
 
 struct Noise {
   const char* name;
@@ -123,6 +135,8 @@ EstimateData estimate_data_of(const SimulateRun& run) {
     d.cycle.push_back(s[i].cycle);
     d.current_a.push_back(run.measured.current_a[i]);
     d.voltage_v.push_back(run.measured.voltage_v[i]);
+    d.temperature_k.push_back(run.measured.temperature_k[i]);
+    d.capacity_true_ah.push_back(s[i].capacity_ah);
     d.r_film_true_ohm_m2.push_back(s[i].r_film_ohm_m2);
     d.true_mode.push_back(s[i].mode);
     d.stoich_neg_true.push_back(s[i].stoich_neg);
@@ -190,6 +204,7 @@ json run_case(const TruthDraw& t, const Noise& n, int cycles, const CellParamete
   so.noise_i_ma = n.i_ma;
   so.seed = static_cast<std::uint64_t>(t.seed);
   so.set = t.set_args(nominal);
+  if (t.self_heating) so.effects.push_back(fmt::format("thermal={}", kSelfHeatingWPerK));
   so.quiet = true;
   json j;
   j["case"] = case_name(t, n);
@@ -199,10 +214,12 @@ json run_case(const TruthDraw& t, const Noise& n, int cycles, const CellParamete
   j["truth"] = {{"r0_scale", t.r0_scale},           {"growth_scale", t.growth_scale},
                 {"side_i0_scale", t.i0_scale},      {"inventory_scale", t.inventory_scale},
                 {"conductivity_scale", t.conductivity_scale}, {"diffusivity_scale_negative", t.diffusivity_neg},
-                {"diffusivity_scale_positive", t.diffusivity_pos}, {"true_gain", t.true_gain()}};
+                {"diffusivity_scale_positive", t.diffusivity_pos}, {"true_gain", t.true_gain()},
+                {"temperature_k", t.temperature_k}, {"self_heating", t.self_heating}};
   std::string sim_cmd = fmt::format("bmssim simulate --cycles {} --noise-v-mv {} --noise-i-ma {} --seed {}", cycles,
                                     n.v_mv, n.i_ma, t.seed);
   for (const auto& a : so.set) sim_cmd += " --set " + a;
+  for (const auto& e : so.effects) sim_cmd += " --effect " + e;
   j["commands"] = {{"simulate", sim_cmd + " --out TRUTH"},
                    {"estimate", "bmssim estimate --data TRUTH/truth.csv --model reduced ARM_OPTIONS --out EST"}};
   SimulateRun run;
@@ -346,7 +363,9 @@ void write_report(const fs::path& dir, const json& summary, int drawn) {
     << "Command: `" << summary["command"].get<std::string>() << "`\n\n"
     << "Truths drawn uniformly (seeded) from ranges the estimator never sees: set 1 initial film +-20 %, "
        "film-growth law x0.3..3, side-reaction i0 x0.5..2, lithium inventory +-1 %; set 2 adds electrolyte "
-       "conductivity +-10 % and solid diffusivities +-20 %. Each truth with sigma_v = 0.2 mV and with sigma_i = 5 mA. "
+       "conductivity +-10 % and solid diffusivities +-20 %; set 3 is set 1 at a temperature drawn from 5-45 C, every "
+       "third truth self-heating (lumped thermal model, 0.05 W/K), the estimator reading the measured temperature "
+       "(no set-3 truth was used to choose anything: every set-3 seed is held out). Each truth with sigma_v = 0.2 mV and with sigma_i = 5 mA. "
        "Film error = median over each CC charge; the table shows median / 90th percentile / worst over the truths "
        "of the worst such error in cycles 3 on. CRLB: the Cramer-Rao bound of the joint unknowns (initial film, "
        "growth gain, inventory) for the same data and noise.\n\n";
@@ -376,10 +395,10 @@ std::vector<int> parse_sets(const std::string& s) {
   std::stringstream ss(s);
   std::string item;
   while (std::getline(ss, item, ',')) {
-    if (item != "1" && item != "2") throw InputError("--sets: '" + item + "' is not a set (1 or 2)");
+    if (item != "1" && item != "2" && item != "3") throw InputError("--sets: '" + item + "' is not a set (1, 2 or 3)");
     out.push_back(std::stoi(item));
   }
-  if (out.empty()) throw InputError("--sets: give 1, 2 or 1,2");
+  if (out.empty()) throw InputError("--sets: give 1, 2, 3 or a list such as 1,2");
   return out;
 }
 

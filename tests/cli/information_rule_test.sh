@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The information rule: `bmssim estimate` builds everything from the nominal cell and
-# the measured columns. (1) Replacing every truth column of truth.csv by other values changes none
+# the measured columns (time, current, voltage, temperature). (1) Replacing every truth column of truth.csv by other values changes none
 # of the estimator's outputs (only the scoring columns); (2) a truth run with --set values that
 # leave the measured columns as they are (each parameter at its nominal value) gives a
 # byte-identical estimates.csv, although its summary.json records them.
@@ -26,7 +26,7 @@ done < <("$BMSSIM" simulate --list-params)
 python3 - plain/truth.csv scrambled.csv <<'PY'
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
-measured = {"t_s", "cycle", "current_meas_a", "voltage_meas_v"}
+measured = {"t_s", "cycle", "current_meas_a", "voltage_meas_v", "temperature_meas_k"}
 cols = list(rows[0].keys())
 n = len(rows)
 modes = ["rest", "cc_discharge", "cv_discharge", "cc_charge", "cv_charge"]
@@ -47,7 +47,7 @@ if python3 - est_plain/estimates.csv est_scrambled/estimates.csv <<'PY'
 import csv, sys
 a = list(csv.DictReader(open(sys.argv[1])))
 b = list(csv.DictReader(open(sys.argv[2])))
-scoring = {"r_film_true_ohm_m2", "inventory_err_pct"}
+scoring = {"r_film_true_ohm_m2", "inventory_err_pct", "capacity_true_ah"}
 assert len(a) == len(b) and len(a) > 1000
 for ra, rb in zip(a, b):
     for c in ra:

@@ -42,6 +42,15 @@ struct TimedCore {
     o.mode = mode;
     o.r_film_est_ohm_m2 = 1e-3;
     o.status = status;
+    // As BmsCore with the reduced model: a temperature outside the model's range is refused.
+    if (in.present && in.temperature_k != 0.0) {
+      using Model = fw::ReducedCell<double>;
+      if (in.temperature_k >= Model::kMinTemperatureK && in.temperature_k <= Model::kMaxTemperatureK) {
+        temperature_k = in.temperature_k;
+      } else {
+        o.status |= fw::bit(fw::FwStatus::kTemperatureImplausible);
+      }
+    }
     o.tick = ticks;
     return o;
   }
@@ -57,6 +66,7 @@ struct TimedCore {
   hal::fake::ManualClock* clock = nullptr;
   std::uint64_t cost_ns = 0;
   double level_v = 0.0;
+  double temperature_k = 0.0;  // the last accepted temperature
   std::uint32_t ticks = 0;
   fw::Mode mode = fw::Mode::rest;
   fw::StatusWord status = 0;
@@ -279,20 +289,21 @@ TEST(AppSupervision, ACellOutsideTheModelsTemperatureMakesTheEstimateNotValid) {
   ASSERT_EQ(r.run(), 1);
   EXPECT_NE(r.statuses().back().status_bits & can::status_bit::kEstimateValid, 0);
   can::Temperature t;
-  t.temperature_k = 333.15;
+  t.temperature_k = 373.15;  // beyond the model's range (ReducedCell::kMaxTemperatureK)
   r.send(t);
   r.send_tick(1);
   ASSERT_EQ(r.run(), 1);
   can::BmsStatus st = r.statuses().back();
   EXPECT_EQ(st.status_bits & can::status_bit::kEstimateValid, 0);
   EXPECT_NE(st.fault_bits & can::fault_bit::kEstimator, 0);
-  t.temperature_k = 300.0;
+  t.temperature_k = 318.15;  // 20 K from the reference: the model follows it
   r.send(t);
   r.send_tick(2);
   ASSERT_EQ(r.run(), 1);
   st = r.statuses().back();
   EXPECT_NE(st.status_bits & can::status_bit::kEstimateValid, 0);
   EXPECT_EQ(st.fault_bits & can::fault_bit::kEstimator, 0);
+  EXPECT_NEAR(r.core.temperature_k, 318.15, 0.01);  // the frame carries it to 0.01 K
 }
 
 TEST(AppSupervision, TheEndOfChargeCommitIsRestoredIntoAFreshApplication) {

@@ -259,6 +259,7 @@ thread_local double RuntimeCellTraits::kFilmMolarMassKgMol, RuntimeCellTraits::k
     RuntimeCellTraits::kFilmConductivitySM;
 thread_local double RuntimeCellTraits::kUpperVoltageV, RuntimeCellTraits::kLowerVoltageV;
 thread_local const ReducedCellRecord* RuntimeCellTraits::record = nullptr;
+thread_local double RuntimeCellTraits::Temperature::kReferenceK;
 
 namespace {
 
@@ -266,6 +267,7 @@ void install(const ReducedCellRecord& r) {
   using T = RuntimeCellTraits;
   T::kAreaM2 = r.area_m2;
   T::kTemperatureK = r.temperature_k;
+  T::Temperature::kReferenceK = r.temperature_k;
   T::kTransference = r.transference;
   T::kElectrolyteInitMolM3 = r.electrolyte_init_mol_m3;
   T::kSeparatorThicknessM = r.separator_thickness_m;

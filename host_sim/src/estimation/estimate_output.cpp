@@ -46,6 +46,9 @@ void write_estimates_csv(const std::filesystem::path& file, const EstimateResult
                                    "z_v", "model_voltage_v", "model_current_a", "j_side_a_m3", "li_loss_ah", "status",
                                    "film_initial_est_ohm_m2", "growth_gain_est", "inventory_deviation_est"};
   if (with_truth) cols.push_back("inventory_err_pct");
+  for (const char* c : {"r_film_sd_ohm_m2", "capacity_est_ah", "capacity_sd_ah", "capacity_true_ah",
+                        "innovation_test_ratio"})
+    cols.push_back(c);
   const std::size_t n_theta = r.theta.size();
   for (std::size_t i = 0; i < n_theta / 2; ++i) cols.push_back("theta_m" + std::to_string(i + 1));
   for (std::size_t i = 0; i < n_theta / 2; ++i) cols.push_back("theta_n" + std::to_string(i + 1));
@@ -60,6 +63,11 @@ void write_estimates_csv(const std::filesystem::path& file, const EstimateResult
     w.cell(row.status).cell(row.film_initial_ohm_m2).cell(row.growth_gain).cell(row.inventory_deviation);
     if (with_truth) {
       if (std::isfinite(row.inventory_err_pct)) w.cell(row.inventory_err_pct);
+      else w.cell("");
+    }
+    for (double v : {row.r_film_sd_ohm_m2, row.capacity_est_ah, row.capacity_sd_ah, row.capacity_true_ah,
+                     row.innovation_test_ratio}) {
+      if (std::isfinite(v)) w.cell(v);
       else w.cell("");
     }
     for (double th : r.theta_rows[i]) w.cell(th);
@@ -78,7 +86,10 @@ nlohmann::json estimate_summary_json(const EstimateResult& r, const EstimateOpti
                            {"r_film_true_end_ohm_m2", c.r_film_true_end_ohm_m2},
                            {"r_film_est_end_ohm_m2", c.r_film_est_end_ohm_m2},
                            {"cc_charge_ticks", c.cc_charge_ticks},
-                           {"inventory_err_end_pct", finite_or_null(c.inventory_err_end_pct)}});
+                           {"inventory_err_end_pct", finite_or_null(c.inventory_err_end_pct)},
+                           {"capacity_err_pct", finite_or_null(c.capacity_err_pct)},
+                           {"film_within_2sd_pct", finite_or_null(c.film_within_2sd_pct)},
+                           {"misfit_pct", c.misfit_pct}});
   }
   j["theta"] = r.theta;
   j["growth_err_pct"] = finite_or_null(r.growth_err_pct);

@@ -43,6 +43,7 @@ EstimateData read_measured_file(const std::string& file, CurrentSign sign) {
   d.t_s = std::move(p.t_s);
   d.current_a = std::move(p.current_a);
   d.voltage_v = std::move(p.voltage_v);
+  d.temperature_k = std::move(p.temperature_k);
   d.cycle.assign(d.t_s.size(), 1);
   d.layout_note = fmt::format("{} layout, current read as {}; {} samples, median step {} s, model tick {} s "
                               "(the ticks between samples are caught up as the firmware catches up missed ticks)",
@@ -64,6 +65,14 @@ EstimateData read_estimate_data(const std::string& file, CurrentSign sign) {
   d.t_s = t.numbers("t_s");
   d.current_a = t.numbers("current_meas_a");
   d.voltage_v = t.numbers("voltage_meas_v");
+  // The sensor's temperature, never the truth's temperature_k (a truth.csv without the column:
+  // none, the model stays at the cell's reference temperature).
+  if (t.has("temperature_meas_k")) {
+    d.temperature_k = t.numbers("temperature_meas_k");
+    for (std::size_t i = 0; i < d.temperature_k.size(); ++i)
+      if (!std::isfinite(d.temperature_k[i]) || d.temperature_k[i] <= 0.0)
+        throw InputError(t.where(i, "temperature_meas_k") + ": must be a positive temperature in K");
+  }
   if (d.t_s.size() < 2) throw InputError(file + ": needs at least 2 samples");
   d.cycle.assign(d.t_s.size(), 1);
   if (t.has("cycle")) {
@@ -75,6 +84,7 @@ EstimateData read_estimate_data(const std::string& file, CurrentSign sign) {
     d.stoich_neg_true = t.numbers("stoich_neg");
     d.stoich_pos_true = t.numbers("stoich_pos");
   }
+  if (t.has("capacity_ah")) d.capacity_true_ah = t.numbers("capacity_ah");
   if (t.has("mode")) {
     for (std::size_t i = 0; i < t.rows(); ++i) {
       Mode m{};
@@ -126,9 +136,41 @@ struct MeasuredSeries {
   const std::vector<double>& t_s;
   const std::vector<double>& current_a;
   const std::vector<double>& voltage_v;
+  const std::vector<double>& temperature_k;  // empty: no temperature measured
   const std::vector<int>& cycle;
   double sample_step_s;  // a measured file's median step when coarser than the tick, else 0
 };
+
+// One tick's output as a row of estimates.csv (the truth is attached afterwards, to score).
+template <class Output>
+EstimateRow row_of(const Output& out, double t_s, int cycle) {
+  EstimateRow r{};
+  r.t_s = t_s;
+  r.cycle = cycle;
+  r.mode = out.mode;
+  r.rcsi_active = out.rcsi_active;
+  r.r_film_est_ohm_m2 = out.r_film_est_ohm_m2;
+  r.r_film_true_ohm_m2 = std::nan("");
+  r.z_v = out.z_v;
+  r.model_voltage_v = out.model_voltage_v;
+  r.model_current_a = out.model_current_a;
+  r.j_side_a_m3 = out.j_side_a_m3;
+  r.li_loss_ah = out.li_loss_ah;
+  r.film_initial_ohm_m2 = out.film_initial_ohm_m2;
+  r.growth_gain = out.growth_gain;
+  r.inventory_deviation = out.inventory_deviation;
+  r.markov_v_per_ohm_m2 = out.markov_v_per_ohm_m2;
+  r.inventory_sensitivity_v = out.inventory_sensitivity_v;
+  r.growth_ohm_m2 = out.growth_ohm_m2;
+  r.inventory_err_pct = std::nan("");
+  r.r_film_sd_ohm_m2 = out.r_film_sd_ohm_m2;
+  r.capacity_est_ah = out.capacity_ah;
+  r.capacity_sd_ah = out.capacity_sd_ah;
+  r.capacity_true_ah = std::nan("");
+  r.innovation_test_ratio = out.innovation_test_ratio;
+  r.status = out.status;
+  return r;
+}
 
 // A record sampled every T s gives the firmware one sample per T s, T / dt_s ticks apart: what
 // the settings count in received samples (the power-up and CV-end re-synchronisation windows,
@@ -169,32 +211,6 @@ void tell_missed(Core& core, long long missed) {
   }
 }
 
-// One row of estimates.csv from the tick's output (the truth is attached later, for scoring).
-template <class Output>
-EstimateRow row_of(const Output& out, double t_s, int cycle) {
-  EstimateRow r{};
-  r.t_s = t_s;
-  r.cycle = cycle;
-  r.mode = out.mode;
-  r.rcsi_active = out.rcsi_active;
-  r.r_film_est_ohm_m2 = out.r_film_est_ohm_m2;
-  r.r_film_true_ohm_m2 = std::nan("");
-  r.z_v = out.z_v;
-  r.model_voltage_v = out.model_voltage_v;
-  r.model_current_a = out.model_current_a;
-  r.j_side_a_m3 = out.j_side_a_m3;
-  r.li_loss_ah = out.li_loss_ah;
-  r.film_initial_ohm_m2 = out.film_initial_ohm_m2;
-  r.growth_gain = out.growth_gain;
-  r.inventory_deviation = out.inventory_deviation;
-  r.markov_v_per_ohm_m2 = out.markov_v_per_ohm_m2;
-  r.inventory_sensitivity_v = out.inventory_sensitivity_v;
-  r.growth_ohm_m2 = out.growth_ohm_m2;
-  r.inventory_err_pct = std::nan("");
-  r.status = out.status;
-  return r;
-}
-
 template <int Nc, class Model>
 void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, const CellParameters& cell,
               double dt_s, EstimateResult& res, const EstimateProgress& progress) {
@@ -217,8 +233,9 @@ void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, c
     }
     if (last_tick >= 0) tell_missed(core, ticks[i] - last_tick - 1);
     last_tick = ticks[i];
-    const auto out = core.tick({d.voltage_v[i], d.current_a[i], true});
-    const EstimateRow r = row_of(out, d.t_s[i], d.cycle[i]);
+    const double temperature_k = d.temperature_k.empty() ? 0.0 : d.temperature_k[i];
+    const auto out = core.tick({d.voltage_v[i], d.current_a[i], true, temperature_k});
+    EstimateRow r = row_of(out, d.t_s[i], d.cycle[i]);
     res.status |= out.status;
     if (fw::has_status(out.status, fw::FwStatus::kModelNotConverged)) ++res.newton_cap_hits;
     res.rows.push_back(r);
@@ -259,6 +276,7 @@ void attach_truth(std::vector<EstimateRow>& rows, const EstimateData& d, const C
   for (std::size_t i = 0; i < rows.size(); ++i) {
     auto& r = rows[i];
     if (!d.r_film_true_ohm_m2.empty()) r.r_film_true_ohm_m2 = d.r_film_true_ohm_m2[i];
+    if (!d.capacity_true_ah.empty()) r.capacity_true_ah = d.capacity_true_ah[i];
     if (d.stoich_neg_true.empty() || !(nominal_inventory_mol > 0.0)) continue;
     const double truth_mol = inventory_mol_of(cell, d.stoich_neg_true[i], d.stoich_pos_true[i]);
     const double est_mol = nominal_inventory_mol * (1.0 + r.inventory_deviation) - r.li_loss_ah * 3600.0 / fw::kFaradayC_mol;
@@ -417,7 +435,7 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
   const double dt_s = model_tick_s(d);
   const auto wall0 = std::chrono::steady_clock::now();
   EstimateResult res;
-  const MeasuredSeries measured{d.t_s, d.current_a, d.voltage_v, d.cycle,
+  const MeasuredSeries measured{d.t_s, d.current_a, d.voltage_v, d.temperature_k, d.cycle,
                                 d.median_step_s > dt_s ? d.median_step_s : 0.0};
   if (o.model == "reduced" && cell.name == "paper") {
     // The paper cell: the firmware's compiled-in configuration (PaperCellTraits).
@@ -452,14 +470,22 @@ EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, c
 std::vector<CycleScore> score_cycles(const std::vector<EstimateRow>& rows, bool use_true_mode,
                                      const std::vector<fw::Mode>& true_mode) {
   std::map<int, std::vector<double>> errs;
-  std::map<int, std::size_t> last;
+  std::map<int, std::size_t> last, within_2sd, with_sd, learning, misfit;
   for (std::size_t i = 0; i < rows.size(); ++i) {
     const auto& r = rows[i];
+    if (r.rcsi_active) {
+      ++learning[r.cycle];
+      if (fw::has_status(r.status, fw::FwStatus::kModelMisfit)) ++misfit[r.cycle];
+    }
     if (r.mode != fw::Mode::cc_charge) continue;
     if (use_true_mode && true_mode[i] != fw::Mode::cc_charge) continue;
     if (!std::isfinite(r.r_film_true_ohm_m2) || r.r_film_true_ohm_m2 == 0.0) continue;
     errs[r.cycle].push_back(std::abs(r.r_film_est_ohm_m2 - r.r_film_true_ohm_m2) / r.r_film_true_ohm_m2 * 100.0);
     last[r.cycle] = i;
+    if (std::isfinite(r.r_film_sd_ohm_m2)) {
+      ++with_sd[r.cycle];
+      if (std::abs(r.r_film_est_ohm_m2 - r.r_film_true_ohm_m2) <= 2.0 * r.r_film_sd_ohm_m2) ++within_2sd[r.cycle];
+    }
   }
   std::vector<CycleScore> out;
   for (auto& [cycle, e] : errs) {
@@ -474,6 +500,16 @@ std::vector<CycleScore> score_cycles(const std::vector<EstimateRow>& rows, bool 
     s.r_film_true_end_ohm_m2 = rows[last[cycle]].r_film_true_ohm_m2;
     s.r_film_est_end_ohm_m2 = rows[last[cycle]].r_film_est_ohm_m2;
     s.inventory_err_end_pct = rows[last[cycle]].inventory_err_pct;
+    const auto& end = rows[last[cycle]];
+    s.capacity_err_pct = std::isfinite(end.capacity_true_ah) && std::isfinite(end.capacity_est_ah)
+                             ? (end.capacity_est_ah - end.capacity_true_ah) / end.capacity_true_ah * 100.0
+                             : std::nan("");
+    s.film_within_2sd_pct = with_sd[cycle] > 0 ? 100.0 * static_cast<double>(within_2sd[cycle]) /
+                                                     static_cast<double>(with_sd[cycle])
+                                               : std::nan("");
+    s.misfit_pct = learning[cycle] > 0
+                       ? 100.0 * static_cast<double>(misfit[cycle]) / static_cast<double>(learning[cycle])
+                       : 0.0;
     out.push_back(s);
   }
   return out;

@@ -20,11 +20,13 @@ namespace bms {
 
 struct EstimateData {
   std::vector<double> t_s, current_a, voltage_v;  // measured (what the firmware sees)
+  std::vector<double> temperature_k;              // measured (temperature_meas_k); empty: none
   std::vector<int> cycle;                         // from the file, or 1
   std::vector<double> r_film_true_ohm_m2;         // empty when the file has no truth
   std::vector<fw::Mode> true_mode;                // empty when the file has no mode column
   // Truth mean stoichiometries (scoring the inventory estimate only); empty when absent.
   std::vector<double> stoich_neg_true, stoich_pos_true;
+  std::vector<double> capacity_true_ah;  // the truth's open-circuit capacity (scoring); empty when absent
   std::string source;
   std::string layout_note;  // a measured file: how it was read and sampled
   // A measured file: the model's tick (s), at most the median sample step and kMaxModelTickS; each
@@ -146,6 +148,9 @@ struct EstimateRow {
   double film_initial_ohm_m2, growth_gain, inventory_deviation;  // identified (best profile)
   double markov_v_per_ohm_m2, inventory_sensitivity_v, growth_ohm_m2;  // H, S, G (the bound)
   double inventory_err_pct;  // estimated vs true cyclable lithium, NaN without truth stoichiometries
+  // The identifier's 1-sigma of the film, the open-circuit capacity and its 1-sigma (NaN without
+  // the identifier), the truth's capacity (NaN without), the innovation test ratio (> 1: misfit).
+  double r_film_sd_ohm_m2, capacity_est_ah, capacity_sd_ah, capacity_true_ah, innovation_test_ratio;
   std::uint32_t status;
 };
 
@@ -154,6 +159,9 @@ struct CycleScore {
   std::size_t cc_charge_ticks;
   double r_film_err_median_pct, r_film_err_end_pct, r_film_true_end_ohm_m2, r_film_est_end_ohm_m2;
   double inventory_err_end_pct;  // at the cycle's last CC-charge tick; NaN without truth
+  double capacity_err_pct;       // (estimate - truth) / truth at the cycle's last CC-charge tick; NaN without
+  double film_within_2sd_pct;    // share of the scored CC-charge ticks with |error| <= 2 sd; NaN without sd
+  double misfit_pct;             // share of the cycle's learning ticks whose innovation test failed
 };
 
 struct EstimateResult {

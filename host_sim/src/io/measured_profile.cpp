@@ -152,7 +152,9 @@ Layout layout_of(const CsvTable& table, ProfileColumns which) {
     l.time = "t_s";
     l.current = truth ? "current_a" : "current_meas_a";
     l.voltage = truth ? "voltage_v" : "voltage_meas_v";
+    // What a BMS reads is the sensor's column; the truth's own temperature only drives a truth.
     if (table.has("temperature_k")) l.temperature = "temperature_k";
+    if (!truth && table.has("temperature_meas_k")) l.temperature = "temperature_meas_k";
     return l;
   }
   l.time = find_column(table, {"Time[s]"});

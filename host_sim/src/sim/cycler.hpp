@@ -48,6 +48,7 @@ struct SampleRecord {
   double stoich_neg, stoich_pos;  // electrode-average stoichiometries
   double hysteresis_v;  // hysteresis state h (0 without the effect)
   double heat_w;        // heat generated (thermal effect only, else 0)
+  double capacity_ah;   // open-circuit capacity of the solid inventory (bms/fw/open_circuit_capacity.hpp)
 };
 
 struct CycleSummary {

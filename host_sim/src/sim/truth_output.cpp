@@ -18,14 +18,16 @@ namespace {
 const std::vector<std::string>& truth_columns() {
   static const std::vector<std::string> columns = {
       "t_s",           "cycle",      "mode",          "current_a", "voltage_v",  "current_meas_a", "voltage_meas_v",
-      "r_film_ohm_m2", "j_s_a_m3",   "li_loss_ah",    "temperature_k", "charge_ah", "stoich_neg", "stoich_pos"};
+      "r_film_ohm_m2", "j_s_a_m3",   "li_loss_ah",    "temperature_k", "charge_ah", "stoich_neg", "stoich_pos",
+      "temperature_meas_k", "capacity_ah"};
   return columns;
 }
 
-void write_row(CsvWriter& w, const SampleRecord& s, double current_meas_a, double voltage_meas_v) {
+void write_row(CsvWriter& w, const SampleRecord& s, const MeasuredSample& m) {
   w.cell(s.t_s).cell(s.cycle).cell(mode_name(s.mode)).cell(s.current_a).cell(s.voltage_v)
-      .cell(current_meas_a).cell(voltage_meas_v).cell(s.r_film_ohm_m2).cell(s.j_s_a_m3)
-      .cell(s.li_loss_ah).cell(s.temperature_k).cell(s.charge_ah).cell(s.stoich_neg).cell(s.stoich_pos);
+      .cell(m.current_a).cell(m.voltage_v).cell(s.r_film_ohm_m2).cell(s.j_s_a_m3)
+      .cell(s.li_loss_ah).cell(s.temperature_k).cell(s.charge_ah).cell(s.stoich_neg).cell(s.stoich_pos)
+      .cell(m.temperature_k).cell(s.capacity_ah);
   w.end_row();
 }
 
@@ -33,7 +35,7 @@ void write_row(CsvWriter& w, const SampleRecord& s, double current_meas_a, doubl
 
 void write_truth_csv(const std::filesystem::path& file, const SimulationResult& r, const Measured& m) {
   CsvWriter w(file, truth_columns());
-  for (size_t i = 0; i < r.samples.size(); ++i) write_row(w, r.samples[i], m.current_a[i], m.voltage_v[i]);
+  for (size_t i = 0; i < r.samples.size(); ++i) write_row(w, r.samples[i], {m.current_a[i], m.voltage_v[i], m.temperature_k[i]});
   w.commit();
 }
 
@@ -43,7 +45,7 @@ TruthCsvStream::TruthCsvStream(const std::filesystem::path& file, const Measurem
 void TruthCsvStream::on_sample(const SampleRecord& s) {
   throw_if_interrupted();
   const MeasuredSample m = sensor_.next(s);
-  write_row(csv_, s, m.current_a, m.voltage_v);
+  write_row(csv_, s, m);
   last_ = s;
   ++samples_;
 }

@@ -20,6 +20,7 @@
 // The host runs the same core with the full DFN as MainModel (the paper's setting).
 #include <cmath>
 #include <cstdint>
+#include <limits>
 
 #include "bms/fw/bias_calibration.hpp"
 #include "bms/fw/film_growth_identifier.hpp"
@@ -40,6 +41,9 @@ struct TickInput {
   Scalar voltage_v;
   Scalar current_a;  // positive = discharge
   bool present;      // false: no measurement arrived for this tick
+  // The cell's measured temperature [K]; 0: none arrived (the model keeps the last accepted one,
+  // at power-up the cell's reference temperature).
+  Scalar temperature_k = Scalar(0);
 };
 
 template <typename Scalar, int Nc>
@@ -61,6 +65,14 @@ struct TickOutput {
   Scalar markov_v_per_ohm_m2;      // H = dV/dR_film of this tick's model step (0 when not stepped)
   Scalar inventory_sensitivity_v;  // S = dV/dnu of this tick (0 unless the identifier learned)
   Scalar growth_ohm_m2;            // the identifier's G (predicted nominal-law growth so far)
+  // With the identifier (NaN otherwise): 1-sigma of the film in use (regression and stated model
+  // bound); the open-circuit capacity of the identified inventory and its 1-sigma, recomputed
+  // when a learning window closes; the innovation test ratio of this learning tick (PX4 EKF2
+  // style: > 1 fails the test, bit kModelMisfit; 0 outside learning).
+  Scalar r_film_sd_ohm_m2;
+  Scalar capacity_ah;
+  Scalar capacity_sd_ah;
+  Scalar innovation_test_ratio;
   StatusWord status;           // bits raised in this tick (estimator bits 0..7, tick 8..15)
   std::uint32_t tick;          // committed ticks
   std::uint8_t newton_iterations;
@@ -156,6 +168,21 @@ class BmsCore {
     Scalar relinearise_inventory = Scalar(1e-3);
     // LearningGate. The control run: every RCSI / RLS update switched off (the model and its observers run).
     bool learning = true;
+    // Innovation test of the identifier's learning ticks (as PX4 EKF2 gates a fusion): the
+    // residual less the design-time bias, averaged over innovation_time_constant_s (an
+    // exponential mean restarted at each learning window, so the sensor noise averages out), is
+    // compared with innovation_gate x innovation_sd_v, the reduced model's own residual in CC
+    // charge at the right film (0.29 mV rms against the converged DFN, docs/results/firmware-model.md).
+    // test ratio = (mean / (gate sd))^2; above 1 the model does not fit the cell (kModelMisfit).
+    // It only reports: the learning goes on (the estimate's validity is the caller's decision).
+    Scalar innovation_time_constant_s = Scalar(60);
+    Scalar innovation_sd_v = Scalar(3e-4);
+    Scalar innovation_gate = Scalar(5);
+    // 1-sigma of the temperature sensor [K]: in CC charge a temperature error is nearly collinear
+    // with the film (measured about 5 % of the paper cell's film per K), so it enters the film's sd
+    // as |dV/dT / H| x this (the model's sensitivity, probed at each learning tick). A stated
+    // accuracy of the sensor, not learned; 0 leaves it out.
+    Scalar temperature_sd_k = Scalar(0.2);
   };
 
   // The profiles (paper, best, nominal-growth) are built from the nominal cell in one place,
@@ -204,8 +231,9 @@ class BmsCore {
     // One tick, in this order (the numbering docs/architecture.md uses):
     //   1 validate       validate(): finite, voltage and current plausible, no impossible step; a
     //                    rejected or missing sample keeps every state and counts towards staleness
-    //   2 catch-up       accept_sample(): the model steps over the ticks missed since the last
-    //                    accepted sample (catch_up()); the power-up re-synchronisation window opens
+    //   2 catch-up       accept_sample(): the measured temperature to the model (take_temperature());
+    //                    the model steps over the ticks missed since the last accepted sample
+    //                    (catch_up()); the power-up re-synchronisation window opens
     //   3 detect mode    ModeDetector::update(): debounced operating mode
     //   4 learning gate  open_gate(): LearningGate (CC charge, warm-up, bias ready; at the window's
     //                    start RCSI is reset), BiasCalibration stops at the end of a CC charge
@@ -221,7 +249,7 @@ class BmsCore {
     if (!in.present) return held_output(raise_stale(st));                        // 1
     st |= validate(in);
     if ((st & kTickRejectMask) != 0u) return held_output(raise_stale(st));
-    accept_sample(in);                                                            // 2
+    st |= accept_sample(in);                                                      // 2
     const Mode mode = detector_.update(in.voltage_v, in.current_a);               // 3
     const Gate gate = open_gate(mode);                                            // 4
     const Scalar u = film_in_use(gate.open);                                      // 5
@@ -295,6 +323,8 @@ class BmsCore {
     have_sample_ = (s.flags & 1u) != 0u;
     last_current_ = s.last_current_a;
     last_j_side_ = s.last_j_side_a_m3;
+    capacity_ah_ = std::numeric_limits<Scalar>::quiet_NaN();  // recomputed from the restored inventory
+    identifying_ = false;
     last_voltage_driven_ = false;  // not in the image: the next catch-up is current-driven
     return true;
   }
@@ -369,7 +399,8 @@ class BmsCore {
   }
 
   // Step 2.
-  void accept_sample(const TickInput<Scalar>& in) {
+  StatusWord accept_sample(const TickInput<Scalar>& in) {
+    const StatusWord st = take_temperature(in.temperature_k);
     const bool first_sample = !have_sample_;
     if (!first_sample && stale_ticks_ > 0u) catch_up(stale_ticks_, in);
     stale_ticks_ = 0;
@@ -377,6 +408,18 @@ class BmsCore {
     last_current_ = in.current_a;
     last_voltage_ = in.voltage_v;
     if (resync_.should_start_at_power_up(first_sample)) resync_.start_at_power_up();
+    return st;
+  }
+
+  // The model's properties follow the measured temperature (a model that takes none ignores it).
+  // 0 means no temperature arrived; a value the model refuses (non-finite, outside its range)
+  // leaves the last accepted temperature in use and raises kTemperatureImplausible.
+  StatusWord take_temperature(Scalar temperature_k) {
+    if (temperature_k == Scalar(0)) return 0u;
+    if constexpr (kTakesTemperature<MainModel, Scalar>) {
+      if (!model_.set_temperature_k(temperature_k)) return bit(FwStatus::kTemperatureImplausible);
+    }
+    return 0u;
   }
 
   // Steps the model over `missed` ticks that had no accepted sample (see
@@ -441,6 +484,11 @@ class BmsCore {
     const Scalar v_probe = identify ? model_.inventory_probe_voltage(in.current_a, u, config_.dt_s,
                                                                      kInventoryProbe * config_.nominal_inventory_mol)
                                     : Scalar(0);
+    if constexpr (kProbesTemperature<MainModel, Scalar>) {
+      if (identify && config_.temperature_sd_k > Scalar(0)) {
+        v_warm_v_ = model_.temperature_probe_voltage(in.current_a, u, config_.dt_s, kTemperatureProbeK);
+      }
+    }
     const ModelTickResult<Scalar> r = voltage_driven ? model_.step_voltage(in.voltage_v, u, config_.dt_s)
                                                      : model_.step_current(in.current_a, u, config_.dt_s);
     return ModelStep{r, voltage_driven, identify, v_probe};
@@ -486,16 +534,60 @@ class BmsCore {
   // Step 9 with Config::identify_growth: the film, its growth gain and the inventory in output-error form.
   Learned identify(const TickInput<Scalar>& in, Scalar u, Scalar z, const ModelStep& step) {
     Learned l{0u, false, Scalar(0)};
+    innovation_ratio_ = Scalar(0);
     if (step.identify) {
-      if (gate_.should_start_identifying(step.identify)) identifier_.begin_charge();
+      const bool start = gate_.should_start_identifying(step.identify);
+      if (start) identifier_.begin_charge();
+      l.status |= innovation_test(z + config_.model_bias_ohm * in.current_a, start);
       l.inventory_sensitivity_v = (step.v_probe_v - step.r.voltage_v) / kInventoryProbe;
-      l.status = identifier_.learn(u, z, step.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
-                                   resync_.inventory_deviation_model(), -config_.model_bias_ohm * in.current_a);
+      const Scalar per_k = (v_warm_v_ - step.r.voltage_v) / (kTemperatureProbeK * step.r.markov_v_per_ohm_m2);
+      if (config_.temperature_sd_k > Scalar(0) && std::isfinite(per_k)) film_per_kelvin_ohm_m2_ = std::fabs(per_k);
+      l.status |= identifier_.learn(u, z, step.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
+                                    resync_.inventory_deviation_model(), -config_.model_bias_ohm * in.current_a);
       l.active = (l.status & kIdentifierRejectMask) == 0u;
     }
     identifier_.propagate(step.r.j_side_a_m3, config_.dt_s);
     gate_.identified(step.identify);
+    update_capacity(step.identify);
     return l;
+  }
+
+  // The film's 1-sigma: the identifier's (regression and model bound) and the temperature
+  // sensor's, |dV/dT / H| x temperature_sd_k, in quadrature.
+  Scalar film_sd_ohm_m2() const {
+    const Scalar sd = identifier_.film_sd_ohm_m2();
+    const Scalar t = film_per_kelvin_ohm_m2_ * config_.temperature_sd_k;
+    return std::isfinite(t) ? std::sqrt(sd * sd + t * t) : sd;
+  }
+
+  // The innovation test (Config::innovation_*) on this learning tick's bias-corrected residual.
+  StatusWord innovation_test(Scalar z_corrected_v, bool window_start) {
+    if (!(config_.innovation_sd_v > Scalar(0)) || !std::isfinite(z_corrected_v)) return 0u;
+    const Scalar a = config_.dt_s / (config_.innovation_time_constant_s + config_.dt_s);
+    innovation_mean_v_ = window_start ? z_corrected_v : innovation_mean_v_ + a * (z_corrected_v - innovation_mean_v_);
+    const Scalar limit = config_.innovation_gate * config_.innovation_sd_v;
+    innovation_ratio_ = (innovation_mean_v_ / limit) * (innovation_mean_v_ / limit);
+    return innovation_ratio_ > Scalar(1) ? bit(FwStatus::kModelMisfit) : 0u;
+  }
+
+  // The open-circuit capacity of the identified inventory (less the model's own lithium loss),
+  // at the first tick, every kCapacityEveryTicks learning ticks and when a learning window
+  // closes: two bisections, not every tick.
+  void update_capacity(bool identifying) {
+    const bool window_closed = identifying_ && !identifying;
+    identifying_ = identifying;
+    capacity_ticks_ = identifying ? capacity_ticks_ + 1u : 0u;
+    const bool due = window_closed || capacity_ticks_ >= kCapacityEveryTicks;
+    if constexpr (kGivesCapacity<MainModel, Scalar>) {
+      if (!(due || std::isnan(capacity_ah_)) || !(config_.nominal_inventory_mol > Scalar(0))) return;
+      capacity_ticks_ = 0u;
+      const Scalar n0 = config_.nominal_inventory_mol;
+      const Scalar n = n0 * (Scalar(1) + identifier_.inventory_deviation()) - model_.li_loss_mol();
+      capacity_ah_ = MainModel::open_circuit_capacity_ah(n);
+      // The capacity moves with the inventory nearly one to one near the nominal cell (0.98:
+      // tests/firmware/test_temperature.cpp): its relative sd is the inventory's.
+      capacity_sd_ah_ = capacity_ah_ * identifier_.inventory_sd() * n0 / n;
+    }
   }
 
   // Step 10.
@@ -513,6 +605,7 @@ class BmsCore {
     out.j_side_a_m3 = step.r.j_side_a_m3;
     out.markov_v_per_ohm_m2 = step.r.markov_v_per_ohm_m2;
     out.inventory_sensitivity_v = learned.inventory_sensitivity_v;
+    out.innovation_test_ratio = innovation_ratio_;
     out.newton_iterations = step.r.newton_iterations;
     out.status = st;
     status_ |= st;
@@ -544,6 +637,11 @@ class BmsCore {
     o.markov_v_per_ohm_m2 = Scalar(0);
     o.inventory_sensitivity_v = Scalar(0);
     o.growth_ohm_m2 = id ? identifier_.growth_ohm_m2() : Scalar(0);
+    constexpr Scalar kNan = std::numeric_limits<Scalar>::quiet_NaN();
+    o.r_film_sd_ohm_m2 = id ? film_sd_ohm_m2() : kNan;
+    o.capacity_ah = id ? capacity_ah_ : kNan;
+    o.capacity_sd_ah = id ? capacity_sd_ah_ : kNan;
+    o.innovation_test_ratio = Scalar(0);
     o.tick = ticks_;
     o.newton_iterations = 0;
     o.status = 0u;
@@ -580,6 +678,18 @@ class BmsCore {
   bool have_sample_ = false;
   std::uint32_t catch_up_ticks_ = 0u;
   StatusWord status_ = 0u;
+  // Not persisted: recomputed from the persisted parts (capacity at the first tick after a
+  // restore; the innovation mean restarts with the next learning window).
+  Scalar capacity_ah_ = std::numeric_limits<Scalar>::quiet_NaN();
+  Scalar capacity_sd_ah_ = std::numeric_limits<Scalar>::quiet_NaN();
+  Scalar innovation_mean_v_ = Scalar(0);
+  Scalar innovation_ratio_ = Scalar(0);
+  bool identifying_ = false;
+  Scalar v_warm_v_ = Scalar(0);                       // this tick's voltage at +kTemperatureProbeK
+  Scalar film_per_kelvin_ohm_m2_ = Scalar(0);         // |dV/dT / H| of the last learning tick
+  static constexpr Scalar kTemperatureProbeK = Scalar(1);
+  std::uint32_t capacity_ticks_ = 0u;  // learning ticks since the capacity was last computed
+  static constexpr std::uint32_t kCapacityEveryTicks = 1500u;  // 5 minutes at 0.2 s
 };
 
 }  // namespace bms::fw

@@ -187,6 +187,20 @@ class EffectsModel {
                             hysteresis_after(current, dt_s));
   }
 
+  // The measured cell temperature, passed to the inner model when it takes one.
+  bool set_temperature_k(Scalar t_k) {
+    if constexpr (kTakesTemperature<Inner, Scalar>) {
+      return inner_.set_temperature_k(t_k);
+    } else {
+      (void)t_k;
+      return false;
+    }
+  }
+  // The inner model's open-circuit capacity of an inventory, where it gives one.
+  template <typename S = Scalar, typename I = Inner>
+  static auto open_circuit_capacity_ah(S inventory_mol) -> decltype(I::open_circuit_capacity_ah(inventory_mol)) {
+    return I::open_circuit_capacity_ah(inventory_mol);
+  }
   Scalar li_loss_ah() const { return inner_.li_loss_ah(); }
   Scalar li_loss_mol() const { return inner_.li_loss_mol(); }
   Scalar hysteresis_v() const { return h_v_; }

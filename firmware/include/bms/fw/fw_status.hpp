@@ -6,7 +6,8 @@
 // status words are logged and stored in non-volatile memory):
 //   bits  0.. 7  state estimation: RCSI estimator and its RLS core (this file, below)
 //   bits  8..15  the tick (bms/fw/bms_core.hpp): input validation and the main-system model
-//   bits 16..31  reserved for other firmware modules (not allocated yet)
+//   bits 16..23  the operating envelope: measured temperature, model validity (below)
+//   bits 24..31  reserved for other firmware modules (not allocated yet)
 #include <cstdint>
 
 namespace bms::fw {
@@ -52,6 +53,13 @@ enum class FwStatus : StatusWord {
   // The state re-synchronisation at the end of a CV phase found no admissible state; the
   // model state was kept as it was.
   kResyncFailed = 1u << 15,
+  // --- Operating envelope: bits 16..23 --------------------------------------------------
+  // The measured temperature was non-finite or outside the model's range: the model kept the
+  // last accepted temperature (the sample itself was used).
+  kTemperatureImplausible = 1u << 16,
+  // The innovation test of a learning tick failed (BmsCore::Config::innovation_*): the model's
+  // residual, averaged, is beyond what its own error explains; the estimate is not to be trusted.
+  kModelMisfit = 1u << 17,
 };
 
 inline constexpr StatusWord kTickRejectMask = (1u << 8) | (1u << 9) | (1u << 10);

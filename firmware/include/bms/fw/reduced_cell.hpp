@@ -35,8 +35,10 @@
 #include <cstdint>
 #include <limits>
 #include <type_traits>
+#include <utility>
 
 #include "bms/fw/dual.hpp"
+#include "bms/fw/open_circuit_capacity.hpp"
 #include "bms/fw/paper_cell.hpp"
 #include "bms/fw/physical_constants.hpp"
 
@@ -48,6 +50,41 @@ struct ReducedMesh {
   static_assert(Nn >= 1 && Ns >= 1 && Np >= 1 && NrN >= 1 && NrP >= 1, "mesh sizes must be >= 1");
   static constexpr int kNeg = Nn, kSep = Ns, kPos = Np, kShellsNeg = NrN, kShellsPos = NrP;
   static constexpr int kCells = Nn + Ns + Np;
+};
+
+// How the cell's properties move with temperature: the nominal Arrhenius activation energies
+// [J/mol] of its solid diffusivities, reaction rates, electrolyte diffusivity and conductivity and
+// side reaction, about a reference temperature, and the entropic coefficients dU/dT [V/K] of its
+// open-circuit potentials where the cell gives them. A cell's traits carry them as a nested
+// `Temperature` type with these members; traits without it are taken as isothermal data at their
+// kTemperatureK (every activation energy 0, no entropic term): the thermal voltage RT/F still
+// follows the measured temperature, as it does in the truth.
+template <typename Cell>
+struct NoTemperatureData {
+  static constexpr double kReferenceK = Cell::kTemperatureK;
+  static constexpr double kNegDiffusivityActivationJMol = 0.0;
+  static constexpr double kPosDiffusivityActivationJMol = 0.0;
+  static constexpr double kNegRateActivationJMol = 0.0;
+  static constexpr double kPosRateActivationJMol = 0.0;
+  static constexpr double kElectrolyteDiffusivityActivationJMol = 0.0;
+  static constexpr double kElectrolyteConductivityActivationJMol = 0.0;
+  static constexpr double kSideActivationJMol = 0.0;
+  static constexpr bool kHasEntropic = false;
+  template <typename T> static T entropic_neg_v_k(T) { return T(0); }
+  template <typename T> static T entropic_pos_v_k(T) { return T(0); }
+};
+
+template <typename Cell, typename = void>
+struct TemperatureDataOf {
+  using type = NoTemperatureData<Cell>;
+};
+template <typename Cell>
+struct TemperatureDataOf<Cell, std::void_t<typename Cell::Temperature>> {
+  using type = typename Cell::Temperature;
+};
+
+struct PaperCellTemperatureBase {
+  static constexpr double kTemperatureK = paper::kTemperature_k;
 };
 
 // The paper cell as the reduced model sees it. Numbers come from bms/fw/paper_cell.hpp (one
@@ -71,6 +108,11 @@ struct PaperCellTraits {
   static constexpr double kFilmConductivitySM = paper::kFilmConductivity_s_m;
   static constexpr double kUpperVoltageV = paper::kUpperVoltage_v;
   static constexpr double kLowerVoltageV = paper::kLowerVoltage_v;
+  // The paper cell's temperature data: no activation energies and no entropic coefficients
+  // (host_sim/src/cell/paper_cell.cpp: Forman et al. give none; the truth's properties do not
+  // move with temperature except through RT/F, in its kinetics, diffusion potential and side
+  // reaction). A cell with Arrhenius data sets them here.
+  struct Temperature : NoTemperatureData<PaperCellTemperatureBase> {};
   template <typename T> static T ocp_neg_v(T x) { return paper::ocp_negative_v(x); }
   template <typename T> static T ocp_pos_v(T x) { return paper::ocp_positive_v(x); }
   template <typename T> static T electrolyte_diffusivity_m2_s(T c) {
@@ -80,6 +122,32 @@ struct PaperCellTraits {
     return paper::electrolyte_conductivity_s_m(c);
   }
 };
+
+// Whether a main-system model takes the measured temperature (set_temperature_k(Scalar) -> bool):
+// the reduced model does; a model without it (the host's full DFN) stays at its own temperature.
+template <typename Model, typename Scalar, typename = void>
+inline constexpr bool kTakesTemperature = false;
+template <typename Model, typename Scalar>
+inline constexpr bool kTakesTemperature<
+    Model, Scalar, std::void_t<decltype(std::declval<Model&>().set_temperature_k(std::declval<Scalar>()))>> = true;
+
+// Whether a main-system model gives its voltage at a shifted temperature (temperature_probe_voltage).
+template <typename Model, typename Scalar, typename = void>
+inline constexpr bool kProbesTemperature = false;
+template <typename Model, typename Scalar>
+inline constexpr bool kProbesTemperature<
+    Model, Scalar,
+    std::void_t<decltype(std::declval<const Model&>().temperature_probe_voltage(
+        std::declval<Scalar>(), std::declval<Scalar>(), std::declval<Scalar>(), std::declval<Scalar>()))>> = true;
+
+// Whether a main-system model gives the open-circuit capacity of an inventory (the reduced
+// model does; the host's full DFN does not, and the tick then reports NaN).
+template <typename Model, typename Scalar, typename = void>
+inline constexpr bool kGivesCapacity = false;
+template <typename Model, typename Scalar>
+inline constexpr bool kGivesCapacity<Model, Scalar,
+                                     std::void_t<decltype(Model::open_circuit_capacity_ah(std::declval<Scalar>()))>> =
+    true;
 
 // Result of one model tick.
 template <typename Scalar>
@@ -128,7 +196,12 @@ class ReducedCell {
   };
   static_assert(std::is_trivially_copyable<State>::value, "State must be trivially copyable");
 
-  ReducedCell() { build_geometry(); }
+  using TemperatureData = typename TemperatureDataOf<Cell>::type;
+
+  ReducedCell() {
+    build_geometry();
+    apply_temperature(Scalar(TemperatureData::kReferenceK));
+  }
 
   // Uniform state at rest with the given stoichiometries and electrolyte concentration.
   void init(Scalar stoich_neg, Scalar stoich_pos, Scalar ce_mol_m3) {
@@ -146,6 +219,22 @@ class ReducedCell {
   void init_default() {
     init(Scalar(Cell::kNeg.stoich_init), Scalar(Cell::kPos.stoich_init), Scalar(Cell::kElectrolyteInitMolM3));
   }
+
+  // The cell temperature the model's properties are taken at [K]: the measured one, which the
+  // tick sets before each step. Non-finite or outside [kMinTemperatureK, kMaxTemperatureK]:
+  // refused (false), the last accepted temperature stays. The thermal voltage RT/F and every
+  // Arrhenius factor exp(E/R (1/T_ref - 1/T)) are formed once here, not per evaluation; at the
+  // reference temperature each factor is exactly 1, so the arithmetic of a tick is the
+  // isothermal model's bit for bit. Not part of State: an input, set at every tick.
+  bool set_temperature_k(Scalar t_k) {
+    if (!within(t_k, Scalar(kMinTemperatureK), Scalar(kMaxTemperatureK))) return false;
+    if (t_k != temperature_k_) apply_temperature(t_k);
+    return true;
+  }
+  Scalar temperature_k() const { return temperature_k_; }
+  // The range the cell's parameter sets are given for (the truth's --set temperature_k range).
+  static constexpr double kMinTemperatureK = 233.15;
+  static constexpr double kMaxTemperatureK = 353.15;
 
   const State& state() const { return s_; }
   static bool within(Scalar v, Scalar lo, Scalar hi) { return std::isfinite(v) && v >= lo && v <= hi; }
@@ -246,6 +335,15 @@ class ReducedCell {
     return shifted.peek_voltage(current_a, r_film_ohm_m2, dt_s);
   }
 
+  // Terminal voltage of this tick had the cell been d_temperature_k warmer (the model's
+  // temperature sensitivity: what a temperature sensor's error does to the voltage). NaN when
+  // the shifted temperature is outside the model's range.
+  Scalar temperature_probe_voltage(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s, Scalar d_temperature_k) const {
+    ReducedCell shifted = *this;
+    if (!shifted.set_temperature_k(temperature_k_ + d_temperature_k)) return std::numeric_limits<Scalar>::quiet_NaN();
+    return shifted.peek_voltage(current_a, r_film_ohm_m2, dt_s);
+  }
+
   // Ramadass film growth per unit of the model's volumetric side current:
   // dR_film/dt = -nominal_film_growth_ohm_m2_per_a_m3_s() * j_side_a_m3 with the nominal paper
   // cell's constants: what a BMS knows of the law, not what the cell in use does.
@@ -265,6 +363,14 @@ class ReducedCell {
   // Lithium held in both particles [mol]: the cyclable inventory.
   Scalar solid_inventory_mol() const {
     return mean_stoich_neg() * Scalar(solid_capacity_neg_mol()) + mean_stoich_pos() * Scalar(solid_capacity_pos_mol());
+  }
+  // Open-circuit capacity [Ah] of a cell with this model's electrodes and OCPs holding
+  // `inventory_mol` of cyclable lithium (bms/fw/open_circuit_capacity.hpp; reference temperature).
+  static Scalar open_circuit_capacity_ah(Scalar inventory_mol) {
+    return fw::open_circuit_capacity_ah(
+        inventory_mol, Scalar(solid_capacity_neg_mol()), Scalar(solid_capacity_pos_mol()), Scalar(Cell::kLowerVoltageV),
+        Scalar(Cell::kUpperVoltageV), [](Scalar x) { return Cell::ocp_neg_v(x); },
+        [](Scalar y) { return Cell::ocp_pos_v(y); });
   }
   static Scalar inventory_of(Scalar stoich_neg, Scalar stoich_pos) {
     return stoich_neg * Scalar(solid_capacity_neg_mol()) + stoich_pos * Scalar(solid_capacity_pos_mol());
@@ -462,7 +568,6 @@ class ReducedCell {
     T j_neg_a_m2;    // total pore-wall current density of the anode
   };
 
-  static constexpr double f_rt() { return kFaradayC_mol / (kGasJ_molK * Cell::kTemperatureK); }
   static constexpr double a_neg() { return 3.0 * Cell::kNeg.solid_fraction / Cell::kNeg.particle_radius_m; }
   static constexpr double a_pos() { return 3.0 * Cell::kPos.solid_fraction / Cell::kPos.particle_radius_m; }
   static constexpr double solid_capacity_neg_mol() {
@@ -581,17 +686,17 @@ class ReducedCell {
   // increments: (M + G) dc = -G c_old - flux term; returns the surface concentration.
   template <typename T, int N>
   static T particle_step(const Scalar (&c_old)[N], const Scalar (&carry)[N], const Scalar (&vol)[N],
-                         const Scalar* g_r2_d, Scalar outer_r2, Scalar surface_half, double ds, Scalar dt,
+                         const Scalar* g_r2_d, Scalar outer_r2, Scalar surface_half, Scalar ds, Scalar dt,
                          const T& flux_out, T (&dc)[N]) {
     Scalar m[N], g[N];
     for (int i = 0; i < N; ++i) {
       m[i] = vol[i] / dt;
-      g[i] = i + 1 < N ? g_r2_d[i] * Scalar(ds) : Scalar(0);
+      g[i] = i + 1 < N ? g_r2_d[i] * ds : Scalar(0);
     }
     for (int i = 0; i < N; ++i) dc[i] = T(-outflow(c_old, carry, g, i));
     dc[N - 1] = dc[N - 1] - outer_r2 * flux_out;
     chain_solve(m, g, dc);
-    return (dc[N - 1] + (c_old[N - 1] + carry[N - 1])) - surface_half * flux_out / Scalar(ds);
+    return (dc[N - 1] + (c_old[N - 1] + carry[N - 1])) - surface_half * flux_out / ds;
   }
 
   template <typename T>
@@ -612,7 +717,7 @@ class ReducedCell {
 
   template <typename T>
   void evaluate(const T& current_a, Scalar r_film, Scalar dt, Trial<T>& t) const {
-    const Scalar frt = Scalar(f_rt());
+    const Scalar frt = frt_;
     const T i_app = current_a / Scalar(Cell::kAreaM2);  // A/m2, positive = discharge
     const T j_n = i_app / Scalar(a_neg() * Cell::kNeg.thickness_m);
     const T j_p = -i_app / Scalar(a_pos() * Cell::kPos.thickness_m);
@@ -643,7 +748,7 @@ class ReducedCell {
     Scalar m[kNx], g[kNx];
     Scalar d_eff[kNx];
     for (int k = 0; k < kNx; ++k) {
-      d_eff[k] = Cell::electrolyte_diffusivity_m2_s(s_.ce_mol_m3[k]) * te_[k];
+      d_eff[k] = Cell::electrolyte_diffusivity_m2_s(s_.ce_mol_m3[k]) * te_de_[k];
     }
     for (int k = 0; k < kNx; ++k) {
       m[k] = eps_[k] * dx_[k] / dt;
@@ -668,12 +773,12 @@ class ReducedCell {
     const Scalar nu = Scalar(2.0 * (1.0 - Cell::kTransference)) / frt;
     T psi = T(Scalar(0));
     T ie = T(Scalar(0));
-    T kap_k = Cell::electrolyte_conductivity_s_m(clamp_low(ce[0])) * te_[0];
+    T kap_k = Cell::electrolyte_conductivity_s_m(clamp_low(ce[0])) * te_ke_[0];
     phie[0] = nu * log(clamp_low(ce[0]));
     for (int k = 0; k + 1 < kNx; ++k) {
       const T j_k = k < kNn ? j_n : (k < kNn + kNs ? T(Scalar(0)) : j_p);
       ie = ie + a_[k] * j_k * dx_[k];
-      const T kap_n = Cell::electrolyte_conductivity_s_m(clamp_low(ce[k + 1])) * te_[k + 1];
+      const T kap_n = Cell::electrolyte_conductivity_s_m(clamp_low(ce[k + 1])) * te_ke_[k + 1];
       const T rk = dx_[k] / (Scalar(2) * kap_k) + dx_[k + 1] / (Scalar(2) * kap_n);
       psi = psi - ie * rk;
       phie[k + 1] = psi + nu * log(clamp_low(ce[k + 1]));
@@ -693,19 +798,21 @@ class ReducedCell {
     for (int pass = 0; pass <= kSidePasses; ++pass) {
       const T flux_out = (j_n - js) / Scalar(kFaradayC_mol);
       cs_surf_n = clamp_conc(particle_step(s_.cs_neg_mol_m3, s_.cs_neg_carry_mol_m3, vol_n_, g_n_, r2_n_, half_n_,
-                                           Cell::kNeg.solid_diffusivity_m2_s, dt, flux_out, t.d_cs_neg),
+                                           ds_neg_, dt, flux_out, t.d_cs_neg),
                              cmax_n);
-      const T ocp = Cell::ocp_neg_v(cs_surf_n / Scalar(cmax_n));
+      T ocp = Cell::ocp_neg_v(cs_surf_n / Scalar(cmax_n));
+      if constexpr (TemperatureData::kHasEntropic)
+        ocp = ocp + d_temperature_k_ * TemperatureData::entropic_neg_v_k(cs_surf_n / Scalar(cmax_n));
       T js_sum = T(Scalar(0));
       phis_n = T(Scalar(0));
       for (int k = 0; k < kNn; ++k) {
-        const T i0 = Scalar(Cell::kNeg.i0_coefficient) * sqrt(clamp_low(ce[k]) * cs_surf_n * (Scalar(cmax_n) - cs_surf_n));
+        const T i0 = i0_coef_neg_ * sqrt(clamp_low(ce[k]) * cs_surf_n * (Scalar(cmax_n) - cs_surf_n));
         const T eta = Scalar(2) / frt * asinh_of((j_n - js) / (Scalar(2) * i0));
         phis_n = phis_n + phie[k] + ocp + eta + j_n * r_film;
         T arg = Scalar(-Cell::kSideAlpha) * frt * (eta + ocp - Scalar(Cell::kSideRefPotentialV));
         if (value_of(arg) > Scalar(60)) arg = T(Scalar(60));
         if (value_of(arg) < Scalar(-60)) arg = T(Scalar(-60));
-        js_sum = js_sum - Scalar(Cell::kSideExchangeAM2) * exp(arg);
+        js_sum = js_sum - side_exchange_a_m2_ * exp(arg);
       }
       phis_n = phis_n / Scalar(kNn);
       js = js_sum / Scalar(kNn);
@@ -719,12 +826,14 @@ class ReducedCell {
     const double cmax_p = Cell::kPos.max_concentration_mol_m3;
     const T cs_surf_p = clamp_conc(
         particle_step(s_.cs_pos_mol_m3, s_.cs_pos_carry_mol_m3, vol_p_, g_p_, r2_p_, half_p_,
-                      Cell::kPos.solid_diffusivity_m2_s, dt, T(j_p / Scalar(kFaradayC_mol)), t.d_cs_pos),
+                      ds_pos_, dt, T(j_p / Scalar(kFaradayC_mol)), t.d_cs_pos),
         cmax_p);
-    const T ocp_p = Cell::ocp_pos_v(cs_surf_p / Scalar(cmax_p));
+    T ocp_p = Cell::ocp_pos_v(cs_surf_p / Scalar(cmax_p));
+    if constexpr (TemperatureData::kHasEntropic)
+      ocp_p = ocp_p + d_temperature_k_ * TemperatureData::entropic_pos_v_k(cs_surf_p / Scalar(cmax_p));
     T phis_p = T(Scalar(0));
     for (int k = kNn + kNs; k < kNx; ++k) {
-      const T i0 = Scalar(Cell::kPos.i0_coefficient) * sqrt(clamp_low(ce[k]) * cs_surf_p * (Scalar(cmax_p) - cs_surf_p));
+      const T i0 = i0_coef_pos_ * sqrt(clamp_low(ce[k]) * cs_surf_p * (Scalar(cmax_p) - cs_surf_p));
       phis_p = phis_p + phie[k] + ocp_p + Scalar(2) / frt * asinh_of(j_p / (Scalar(2) * i0));
     }
     return phis_p / Scalar(kNp);
@@ -733,6 +842,32 @@ class ReducedCell {
   template <typename T>
   static T clamp_low(const T& c) {
     return value_of(c) < Scalar(1e-3) ? T(Scalar(1e-3)) : c;
+  }
+
+  // exp(E/R (1/T_ref - 1/T)) from ratio = T_ref / T: exactly 1 at T_ref and for E = 0.
+  static Scalar arrhenius(double activation_j_mol, Scalar ratio) {
+    if (activation_j_mol == 0.0) return Scalar(1);
+    using std::exp;
+    return exp(Scalar(activation_j_mol / (kGasJ_molK * TemperatureData::kReferenceK)) * (Scalar(1) - ratio));
+  }
+
+  void apply_temperature(Scalar t_k) {
+    using TD = TemperatureData;
+    temperature_k_ = t_k;
+    d_temperature_k_ = t_k - Scalar(TD::kReferenceK);
+    const Scalar ratio = Scalar(TD::kReferenceK) / t_k;
+    frt_ = Scalar(kFaradayC_mol / (kGasJ_molK * TD::kReferenceK)) * ratio;
+    ds_neg_ = Scalar(Cell::kNeg.solid_diffusivity_m2_s) * arrhenius(TD::kNegDiffusivityActivationJMol, ratio);
+    ds_pos_ = Scalar(Cell::kPos.solid_diffusivity_m2_s) * arrhenius(TD::kPosDiffusivityActivationJMol, ratio);
+    i0_coef_neg_ = Scalar(Cell::kNeg.i0_coefficient) * arrhenius(TD::kNegRateActivationJMol, ratio);
+    i0_coef_pos_ = Scalar(Cell::kPos.i0_coefficient) * arrhenius(TD::kPosRateActivationJMol, ratio);
+    side_exchange_a_m2_ = Scalar(Cell::kSideExchangeAM2) * arrhenius(TD::kSideActivationJMol, ratio);
+    const Scalar arr_de = arrhenius(TD::kElectrolyteDiffusivityActivationJMol, ratio);
+    const Scalar arr_ke = arrhenius(TD::kElectrolyteConductivityActivationJMol, ratio);
+    for (int k = 0; k < kNx; ++k) {
+      te_de_[k] = te_[k] * arr_de;
+      te_ke_[k] = te_[k] * arr_ke;
+    }
   }
 
   bool commit(const Trial<Scalar>& t, Scalar current_a, Scalar dt) {
@@ -758,6 +893,12 @@ class ReducedCell {
   Scalar vol_n_[kNrN]{}, g_n_[kNrN]{}, vol_p_[kNrP]{}, g_p_[kNrP]{};
   Scalar r2_n_ = Scalar(0), half_n_ = Scalar(0), r2_p_ = Scalar(0), half_p_ = Scalar(0);
   Scalar dx_[kNx]{}, eps_[kNx]{}, te_[kNx]{}, a_[kNx]{};
+  // At the temperature in use (apply_temperature): transport efficiency times the electrolyte's
+  // Arrhenius factors, solid diffusivities, reaction-rate coefficients, side exchange current.
+  Scalar te_de_[kNx]{}, te_ke_[kNx]{};
+  Scalar temperature_k_ = Scalar(0), d_temperature_k_ = Scalar(0), frt_ = Scalar(0);
+  Scalar ds_neg_ = Scalar(0), ds_pos_ = Scalar(0), i0_coef_neg_ = Scalar(0), i0_coef_pos_ = Scalar(0);
+  Scalar side_exchange_a_m2_ = Scalar(0);
 };
 
 }  // namespace bms::fw

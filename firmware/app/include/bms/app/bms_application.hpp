@@ -62,10 +62,6 @@ class BmsApplication {
     const hal::MonotonicClock* clock = nullptr;
     // A tick's time budget; 0: the tick source's period.
     std::uint64_t tick_budget_ns = 0;
-    // The reduced model is isothermal at the nominal cell's temperature: a HOST_Temperature
-    // further than this from it makes the estimate not valid (fault bit kEstimator).
-    double model_temperature_k = fw::paper::kTemperature_k;
-    double model_temperature_window_k = 10.0;
   };
 
   using NvmCounters = typename Persistence::Counters;
@@ -127,7 +123,8 @@ class BmsApplication {
     const fw::TickInput<double> in = receive_frames();
     receiver_.on_tick();
     if (reset_requested_) reset_estimator();
-    const auto out = core_.tick({CoreScalar(in.voltage_v), CoreScalar(in.current_a), in.present});
+    const auto out =
+        core_.tick({CoreScalar(in.voltage_v), CoreScalar(in.current_a), in.present, CoreScalar(temperature_k_)});
     last_ = out;
     // Real time: a tick the timer skipped is an overrun of the tick before it.
     const bool late = !o_.lockstep && missed > 0u;
@@ -221,9 +218,9 @@ class BmsApplication {
     if (c.lockstep != o_.lockstep) ++clock_mismatches_;
   }
 
-  void on_temperature(double temperature_k) {
-    outside_model_temperature_ = !(std::fabs(temperature_k - o_.model_temperature_k) <= o_.model_temperature_window_k);
-  }
+  // The last HOST_Temperature goes to the core with every measurement (the model's properties
+  // follow it); one the model refuses (outside its range) makes the estimate not valid.
+  void on_temperature(double temperature_k) { temperature_k_ = temperature_k; }
 
   void open_seq_window() {
     if (o_.lockstep) {
@@ -254,7 +251,7 @@ class BmsApplication {
 
   void send_outputs(const typename Core::Output& out, bool stale, bool late) {
     namespace can = fw::can;
-    const bool valid = std::isfinite(out.r_film_est_ohm_m2) && !outside_model_temperature_;
+    const bool valid = std::isfinite(out.r_film_est_ohm_m2) && !outside_model_temperature(out);
     hal::CanFrame f{};
     can::Estimate1 e1;
     e1.seq = seq_;
@@ -293,6 +290,10 @@ class BmsApplication {
     send(f);
   }
 
+  static bool outside_model_temperature(const typename Core::Output& out) {
+    return fw::has_status(out.status, fw::FwStatus::kTemperatureImplausible);
+  }
+
   std::uint8_t status_bits(const typename Core::Output& out, bool stale, bool valid) const {
     namespace sb = fw::can::status_bit;
     return static_cast<std::uint8_t>(sb::kRunning | (out.rcsi_active ? sb::kRcsiActive : 0u) |
@@ -314,7 +315,7 @@ class BmsApplication {
     constexpr fw::StatusWord kEstimatorFaults = fw::bit(fw::FwStatus::kModelInvalid) |
                                                 fw::bit(fw::FwStatus::kPredictionNonFinite) |
                                                 fw::bit(fw::FwStatus::kThetaRestored);
-    if ((out.status & kEstimatorFaults) != 0u || outside_model_temperature_) faults |= can::fault_bit::kEstimator;
+    if ((out.status & kEstimatorFaults) != 0u || outside_model_temperature(out)) faults |= can::fault_bit::kEstimator;
     constexpr fw::StatusWord kInternalFaults = fw::bit(fw::FwStatus::kCallOrder) | fw::bit(fw::FwStatus::kConfigInvalid);
     if ((out.status & kInternalFaults) != 0u || send_failures_ != send_failures_seen_ ||
         clock_mismatches_ != clock_mismatches_seen_)
@@ -352,7 +353,7 @@ class BmsApplication {
   std::uint8_t latched_faults_ = 0;
   std::uint8_t last_faults_ = 0;
   bool reset_requested_ = false;
-  bool outside_model_temperature_ = false;
+  double temperature_k_ = 0.0;  // the last HOST_Temperature; 0: none yet
   bool restored_ = false;
   bool rolled_back_ = false;
   bool have_tick_ = false;

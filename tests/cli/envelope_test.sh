@@ -1,0 +1,82 @@
+#!/usr/bin/env bash
+# Integration test: the operating envelope's columns (contract: simulate's temperature_meas_k and
+# capacity_ah).
+#
+# Usage: envelope_test.sh BMSSIM
+#
+# simulate: temperature_meas_k is the truth's temperature plus --effect temperature_offset and
+# --noise-t-k (mean and spread as asked); temperature noise leaves the voltage and current draws
+# of the same seed unchanged; capacity_ah is the open-circuit capacity of the truth's inventory
+# (a 0.5 % smaller inventory gives a capacity 0.4-0.6 % smaller); bad values exit 2.
+# estimate: on a 5 C truth with a hidden film law x1.8, film +9 %, inventory -0.5 % (3 cycles,
+# 0.2 mV), the film of cycle 3 within 2 % and inside 2 sd on >= 90 % of its CC-charge ticks, the
+# capacity within 0.1 %, with the new columns; the same file without temperature_meas_k (the
+# model isothermal at 25 C) is at least 10 % off: the estimator reads the sensor's temperature.
+set -u
+HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+[ "$#" -ge 1 ] && [ -x "$1" ] || { echo "usage: $0 BMSSIM" >&2; exit 2; }
+BMSSIM=$(realpath "$1")
+WORK=$(mktemp -d "${TMPDIR:-/tmp}/bmssim_envelope.XXXXXX") || exit 1
+trap 'rm -rf "$WORK"' EXIT
+cd "$WORK" || exit 1
+# shellcheck source=input_error_check.sh
+. "$HERE/input_error_check.sh"
+
+check_input_error noise_t_negative "--noise-t-k" bad1 -- "$BMSSIM" simulate --noise-t-k -1 --out bad1
+check_input_error temperature_offset_range "temperature_offset" bad2 -- \
+  "$BMSSIM" simulate --effect temperature_offset=80 --out bad2
+
+sim() { "$BMSSIM" simulate --protocol "Discharge at 1C for 10 minutes; Rest for 5 minutes" --quiet "$@"; }
+sim --noise-v-mv 0.2 --noise-i-ma 5 --out plain > /dev/null || fail sim_plain "exit $?"
+sim --noise-v-mv 0.2 --noise-i-ma 5 --noise-t-k 0.3 --effect temperature_offset=0.5 --out temp > /dev/null ||
+  fail sim_temp "exit $?"
+sim --set inventory_scale=0.995 --out inv > /dev/null || fail sim_inv "exit $?"
+
+python3 - plain/truth.csv temp/truth.csv inv/truth.csv <<'PY' && pass sensor_and_capacity || fail sensor_and_capacity "see above"
+import csv, statistics as st, sys
+plain, temp, inv = (list(csv.DictReader(open(f))) for f in sys.argv[1:4])
+ok = True
+def check(cond, what):
+    global ok
+    if not cond:
+        print("   ", what); ok = False
+d = [float(r['temperature_meas_k']) - float(r['temperature_k']) for r in temp]
+check(abs(st.mean(d) - 0.5) < 0.02 and abs(st.pstdev(d) - 0.3) < 0.02, f"offset/noise {st.mean(d)} {st.pstdev(d)}")
+check(all(float(r['temperature_meas_k']) == float(r['temperature_k']) for r in plain), "no sensor error: meas != truth")
+check(all(a['voltage_meas_v'] == b['voltage_meas_v'] and a['current_meas_a'] == b['current_meas_a']
+          for a, b in zip(plain, temp)), "temperature noise changed the voltage or current draws")
+c0, c1 = float(plain[0]['capacity_ah']), float(inv[0]['capacity_ah'])
+check(2.4 < c0 < 2.7, f"nominal capacity {c0}")
+check(-0.6 < (c1 / c0 - 1) * 100 < -0.4, f"capacity at inventory -0.5 %: {(c1 / c0 - 1) * 100} %")
+sys.exit(0 if ok else 1)
+PY
+
+H="--set film_growth_scale=1.8 --set r_film_initial_ohm_m2=0.00369619 --set inventory_scale=0.995"
+# shellcheck disable=SC2086
+"$BMSSIM" simulate --cycles 3 --noise-v-mv 0.2 --seed 3 --set temperature_k=278.15 $H --quiet --out cold > /dev/null ||
+  fail sim_cold "exit $?"
+python3 - cold/truth.csv cold_noT.csv <<'PY'
+import csv, sys
+r = csv.reader(open(sys.argv[1])); w = csv.writer(open(sys.argv[2], 'w', newline=''))
+h = next(r); k = h.index('temperature_meas_k'); w.writerow(h[:k] + h[k + 1:])
+for row in r: w.writerow(row[:k] + row[k + 1:])
+PY
+"$BMSSIM" estimate --data cold/truth.csv --out est > /dev/null 2>&1 || fail estimate_cold "exit $?"
+"$BMSSIM" estimate --data cold_noT.csv --out est_noT > /dev/null 2>&1 || fail estimate_cold_isothermal "exit $?"
+python3 - est/summary.json est_noT/summary.json est/estimates.csv <<'PY' && pass estimate_follows_temperature ||
+import csv, json, sys
+s, n = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+c3 = [c for c in s['cycles'] if c['cycle'] == 3][0]
+n3 = [c for c in n['cycles'] if c['cycle'] == 3][0]
+print("    cycle 3: film %.2f %%, in 2 sd %.0f %%, capacity %.4f %%; isothermal film %.1f %%" % (
+    c3['r_film_err_median_pct'], c3['film_within_2sd_pct'], c3['capacity_err_pct'], n3['r_film_err_median_pct']))
+head = next(csv.reader(open(sys.argv[3])))
+need = ['r_film_sd_ohm_m2', 'capacity_est_ah', 'capacity_sd_ah', 'capacity_true_ah', 'innovation_test_ratio']
+ok = (c3['r_film_err_median_pct'] <= 2.0 and c3['film_within_2sd_pct'] >= 90.0 and abs(c3['capacity_err_pct']) <= 0.1
+      and n3['r_film_err_median_pct'] >= 10.0 and all(k in head for k in need))
+sys.exit(0 if ok else 1)
+PY
+  fail estimate_follows_temperature "see the numbers above"
+
+echo "passed $PASSED, failed $FAILED"
+[ "$FAILED" -eq 0 ]
