@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Integration test: `bmssim estimate` on a cycler's exports. Two CCCV cycles of the paper cell,
 # written as two Arbin files (Date_Time, Cycle_Index and Step_Index restarting in each, current
-# charge-positive, 10 s samples with a logging gap under current, the cycler's capacity and
+# charge-positive, 2 s samples with a logging gap under current, the cycler's capacity and
 # internal-resistance columns), read from a folder and as two --data files given in reverse
 # order: the same estimate, charges in summary.json with the contract's keys, the comparison
 # with the cycler (aging.csv). A malformed file in the folder exits 2 naming its line and column.
@@ -27,8 +27,8 @@ arbin() {  # arbin FIRST LAST
     { c = $col["cycle"]; if (c < first || c > last) next
       t = $col["t_s"]; if (t0 == "") t0 = t; tt = t - t0
       i = $col["current_meas_a"]; m = $col["mode"]
-      if (m == "cc_charge" && !gapped) { nchg++; if (nchg > 20 && nchg <= 32) next; if (nchg > 32) gapped = 1 }
-      if (i < 0) qc += -i * 10 / 3600; else qd += i * 10 / 3600
+      if (m == "cc_charge" && !gapped) { nchg++; if (nchg > 20 && nchg <= 80) next; if (nchg > 80) gapped = 1 }
+      if (i < 0) qc += -i * 2 / 3600; else qd += i * 2 / 3600
       step = m == "rest" ? 1 : m == "cc_charge" ? 2 : m == "cv_charge" ? 3 : 4
       s = int(t) + 50400
       printf "%d,%.3f,2010-10-%02d %02d:%02d:%02d,0,%d,%d,%.6f,%.6f,%.6f,%.6f,%.5f\n", ++n, tt, day + int(s / 86400), \
@@ -36,7 +36,7 @@ arbin() {  # arbin FIRST LAST
              0.09 + 0.001 * c }' sim/truth.csv
 }
 
-if ! "$BMSSIM" simulate --cell paper --protocol cccv --cycles 3 --dt 10 --points 6 --radial 6 --noise-v-mv 0.2 \
+if ! "$BMSSIM" simulate --cell paper --protocol cccv --cycles 3 --dt 2 --points 6 --radial 6 --noise-v-mv 0.2 \
      --quiet --out sim 2> err_sim; then
   fail simulate "$(head -n 1 err_sim)"
 else
@@ -48,7 +48,7 @@ else
     fail folder "exit code $?: $(head -n 2 err_est)"
   elif ! grep -q '"Arbin layout, 2 file(s)' est/summary.json; then
     fail folder "summary.json does not say how the files were read: $(grep data_layout est/summary.json)"
-  elif ! grep -q '2 logging gap(s) (2 under current, longest 130 s)' est/summary.json; then
+  elif ! grep -q '2 logging gap(s) (2 under current, longest 122 s)' est/summary.json; then
     fail folder "the logging gap under current is not reported: $(grep data_layout est/summary.json)"
   else
     pass folder

@@ -117,7 +117,7 @@ double fixed_tick_s(const EstimateData& d) {
 
 void require_sampling_for_learning(const EstimateData& d, bool learning) {
   if (!learning || !(d.median_step_s > kMaxSampleStepS)) return;
-  throw InputError(fmt::format("{}: sampled every {} s (the median step); the estimator learns only from a sample at "
+  throw InputError(fmt::format("{}: sampled every {} s (the median step); to learn, the estimator needs a sample at "
                                "least every {} s (coarser records leave the film's growth undetermined): log at {} s "
                                "or finer, or run the control run (--no-learning) for the nominal model and the "
                                "charges' counted capacity",
