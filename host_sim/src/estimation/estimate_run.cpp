@@ -186,6 +186,7 @@ void adapt_to_sample_step(Config& cfg, const MeasuredSeries& d, double dt_s) {
   cfg.rcsi_warmup_s *= per_sample;
   cfg.catch_up_max_ticks = 0xFFFFFFFFu;
   cfg.catch_up_max_steps = 64u;
+  cfg.catch_up_max_voltage_steps = 64u;
 }
 
 // Ticks of dt_s from the record's start to each sample (the firmware's clock); a sample less
