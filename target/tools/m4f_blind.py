@@ -180,6 +180,9 @@ def score_truth(a, d, runs, ticks):
 
 def one_truth(a, k, params):
     d = os.path.join(a.out, f"truth{k}")
+    # This script's own folder of an earlier run (bmssim's --out refuses a folder holding the
+    # converted streams and run outputs written beside truth.csv).
+    shutil.rmtree(d, ignore_errors=True)
     os.makedirs(d, exist_ok=True)
     cmd = [a.bmssim, "simulate", "--cycles", str(a.cycles), "--noise-v-mv", str(a.noise_v_mv),
            "--seed", str(a.seed + k), "--quiet", "--out", d]
