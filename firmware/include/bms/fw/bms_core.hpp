@@ -38,9 +38,9 @@ namespace bms::fw {
 
 template <typename Scalar>
 struct TickInput {
-  Scalar voltage_v;
-  Scalar current_a;  // positive = discharge
-  bool present;      // false: no measurement arrived for this tick
+  Scalar voltage_v{};
+  Scalar current_a{};  // positive = discharge
+  bool present{};      // false: no measurement arrived for this tick
   // The cell's measured temperature [K]; 0: none arrived (the model keeps the last accepted one,
   // at power-up the cell's reference temperature).
   Scalar temperature_k = Scalar(0);

@@ -70,8 +70,8 @@ struct NoTemperatureData {
   static constexpr double kElectrolyteConductivityActivationJMol = 0.0;
   static constexpr double kSideActivationJMol = 0.0;
   static constexpr bool kHasEntropic = false;
-  template <typename T> static T entropic_neg_v_k(T) { return T(0); }
-  template <typename T> static T entropic_pos_v_k(T) { return T(0); }
+  template <typename T> static T entropic_neg_v_k(T /*stoich*/) { return T(0); }
+  template <typename T> static T entropic_pos_v_k(T /*stoich*/) { return T(0); }
 };
 
 template <typename Cell, typename = void>
