@@ -72,18 +72,8 @@ struct RuntimeCellTraits {
   static thread_local const ReducedCellRecord* record;
   // Isothermal data at the record's temperature (no activation energies, no entropic term): the
   // thermal voltage RT/F follows the measured temperature, the properties do not.
-  struct Temperature {
+  struct Temperature : fw::IsothermalProperties {
     static thread_local double kReferenceK;
-    static constexpr double kNegDiffusivityActivationJMol = 0.0;
-    static constexpr double kPosDiffusivityActivationJMol = 0.0;
-    static constexpr double kNegRateActivationJMol = 0.0;
-    static constexpr double kPosRateActivationJMol = 0.0;
-    static constexpr double kElectrolyteDiffusivityActivationJMol = 0.0;
-    static constexpr double kElectrolyteConductivityActivationJMol = 0.0;
-    static constexpr double kSideActivationJMol = 0.0;
-    static constexpr bool kHasEntropic = false;
-    template <typename T> static T entropic_neg_v_k(T) { return T(0); }
-    template <typename T> static T entropic_pos_v_k(T) { return T(0); }
   };
   template <typename T> static T ocp_neg_v(T x) { return record->ocp_neg(x); }
   template <typename T> static T ocp_pos_v(T x) { return record->ocp_pos(x); }

@@ -59,9 +59,9 @@ struct ReducedMesh {
 // `Temperature` type with these members; traits without it are taken as isothermal data at their
 // kTemperatureK (every activation energy 0, no entropic term): the thermal voltage RT/F still
 // follows the measured temperature, as it does in the truth.
-template <typename Cell>
-struct NoTemperatureData {
-  static constexpr double kReferenceK = Cell::kTemperatureK;
+// The members of isothermal data but the reference temperature (shared with host traits whose
+// reference is known only at run time).
+struct IsothermalProperties {
   static constexpr double kNegDiffusivityActivationJMol = 0.0;
   static constexpr double kPosDiffusivityActivationJMol = 0.0;
   static constexpr double kNegRateActivationJMol = 0.0;
@@ -72,6 +72,11 @@ struct NoTemperatureData {
   static constexpr bool kHasEntropic = false;
   template <typename T> static T entropic_neg_v_k(T /*stoich*/) { return T(0); }
   template <typename T> static T entropic_pos_v_k(T /*stoich*/) { return T(0); }
+};
+
+template <typename Cell>
+struct NoTemperatureData : IsothermalProperties {
+  static constexpr double kReferenceK = Cell::kTemperatureK;
 };
 
 template <typename Cell, typename = void>
