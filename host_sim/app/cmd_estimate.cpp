@@ -8,7 +8,7 @@
 
 #include <fmt/format.h>
 
-#include "bms/fw/fw_status.hpp"
+#include "bms/fw/estimation/fw_status.hpp"
 #include "commands.hpp"
 #include "estimation/aging_report.hpp"
 #include "estimation/charges.hpp"
@@ -214,7 +214,7 @@ Runner add_estimate(CLI::App& app) {
                   "film growth: the paper's setting)")
       ->capture_default_str();
   sub->add_option("--settings", c->settings,
-                  "Estimator profile (bms/fw/make_config.hpp, the firmware's own): 'best' (from the nominal cell "
+                  "Estimator profile (bms/fw/config/make_config.hpp, the firmware's own): 'best' (from the nominal cell "
                   "only: the film, its growth gain and the lithium inventory identified together), 'paper' (the "
                   "paper's RCSI: n_c = 1, eta = 0, P(0) = " + fmt::format("{}", fw::kPaperCovarianceP0) +
                       " I, H = " + fmt::format("{}", fw::kPaperMarkovVPerOhmM2) +

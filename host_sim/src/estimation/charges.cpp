@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "bms/fw/operating_mode.hpp"
+#include "bms/fw/estimation/operating_mode.hpp"
 
 namespace bms {
 
