@@ -7,6 +7,7 @@
 // scalar type: the host and Cortex-M7 builds use double, the Cortex-M4F build float.
 #pragma once
 
+#include <bms/fw/config/cell_choice.hpp>
 #include <bms/fw/estimation/bms_core.hpp>
 #include <bms/fw/model/reduced_cell.hpp>
 
@@ -17,17 +18,19 @@
 namespace bms::target {
 
 using Scalar = BMS_REPLAY_SCALAR;
-using Model = bms::fw::ReducedCell<Scalar>;
+/// The build's cell (CMake BMS_CELL, bms/fw/config/cell_choice.hpp): paper by default.
+using Cell = bms::fw::SelectedCell;
+using Model = bms::fw::ReducedCell<Scalar, Cell::Traits, Cell::Mesh>;
 using Core = bms::fw::BmsCore<Scalar, Model>;
 using TickOutput = Core::Output;
 
-/// The board's configuration: make_config over the paper's nominal cell, profile best.
+/// The board's configuration: make_config over the build cell's nominal cell, profile best.
 Core::Config firmware_config();
-/// The model at the paper's initial state.
+/// The model at the cell's initial state.
 Model initial_firmware_model();
 
 /// Everything the firmware owns: the main-system model and the core that drives it.
-/// The paper cell's best profile; the model starts from the paper's initial state.
+/// The build cell's best profile; the model starts from the cell's initial state.
 struct ReplayFirmware {
   ReplayFirmware();
   Model model;

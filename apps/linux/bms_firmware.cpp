@@ -29,6 +29,7 @@
 
 #include "bms/fw/estimation/bms_core.hpp"
 #include "bms/app/bms_application.hpp"
+#include "bms/fw/config/cell_choice.hpp"
 #include "bms/fw/config/make_config.hpp"
 #include "bms/hal/linux/file_nvm.hpp"
 #include "bms/hal/linux/linux_clock.hpp"
@@ -50,7 +51,7 @@ void usage(FILE* to) {
                "usage: bms-firmware --can IFACE (--lockstep | --realtime) [--nvm FILE] [--h H] [--h-from-model]\n"
                "                    [--settings best|paper|nominal-growth]\n"
                "                    [--persist-every-s S] [--flash-endurance-cycles N] [--flash-lifetime-years Y]\n"
-               "                    [--rcvbuf-bytes N]\n"
+               "                    [--rcvbuf-bytes N] [--cell NAME]\n"
                "  --can IFACE          SocketCAN interface (e.g. vcan0)\n"
                "  --lockstep           ticks triggered by the host's HOST_Measurement frames (deterministic)\n"
                "  --realtime           ticks from a 0.2 s timer\n"
@@ -71,6 +72,8 @@ void usage(FILE* to) {
                "                       average one commit per Y years / (2 N), at most 4 back to back\n"
                "  --rcvbuf-bytes N     socket receive buffer (default 8388608: a replay sent faster than\n"
                "                       the ticks run queues in the kernel instead of being dropped)\n"
+               "  --cell NAME          the cell the caller expects; refused (exit 2) unless it is the cell this\n"
+               "                       program was built for (CMake BMS_CELL; bms-firmware-NAME for the others)\n"
                "On exit the receive counters are printed on stderr as one line of key=value.\n"
                "exit codes: 0 stopped by SIGTERM/SIGINT, 1 runtime failure, 2 bad arguments\n");
 }
@@ -89,6 +92,9 @@ void enlarge_receive_buffer(int fd, int bytes) {
     std::fprintf(stderr, "bms-firmware: cannot set the socket receive buffer to %d bytes (errno %d)\n", bytes, errno);
 }
 
+// The cell this program holds: chosen at build time (CMake BMS_CELL, bms/fw/config/cell_choice.hpp).
+using Cell = bms::fw::SelectedCell;
+
 struct Args {
   std::string iface, nvm_path;
   bool lockstep = false, realtime = false;
@@ -97,6 +103,7 @@ struct Args {
   bms::fw::Overrides overrides;
   double persist_every_s = -1.0, rcvbuf_bytes = 8388608.0;
   double endurance_cycles = 10000.0, lifetime_years = 10.0;
+  std::string cell;  // --cell: checked against the built cell
 };
 
 [[noreturn]] void bad_argument(const char* what, const std::string& got) {
@@ -150,6 +157,7 @@ Args parse_args(int argc, char** argv) {
       a.lifetime_years = number_in(value(), 0.01, 100.0, "--flash-lifetime-years must be 0.01..100");
     else if (f == "--rcvbuf-bytes")
       a.rcvbuf_bytes = number_in(value(), 1024.0, 1073741824.0, "--rcvbuf-bytes must be 1024..1073741824");
+    else if (f == "--cell") a.cell = value();
     else if (f == "--help" || f == "-h") {
       usage(stdout);
       std::exit(0);
@@ -164,6 +172,12 @@ Args parse_args(int argc, char** argv) {
     usage(stderr);
     std::exit(2);
   }
+  if (!a.cell.empty() && a.cell != Cell::kName) {
+    std::fprintf(stderr, "bms-firmware: --cell %s: this program holds the cell '%s' (built with BMS_CELL=%s); run "
+                 "bms-firmware-%s or build with -DBMS_CELL=%s\n", a.cell.c_str(), Cell::kName, Cell::kName,
+                 a.cell.c_str(), a.cell.c_str());
+    std::exit(2);
+  }
   const bms::fw::Refusal r = bms::fw::unused_override(a.profile, a.overrides);
   if (r.option != nullptr) {
     std::fprintf(stderr, "bms-firmware: --%s is not used by --settings %s: %s\n", r.option,
@@ -173,7 +187,7 @@ Args parse_args(int argc, char** argv) {
   return a;
 }
 
-using Model = bms::fw::ReducedCell<double>;
+using Model = bms::fw::ReducedCell<double, Cell::Traits, Cell::Mesh>;
 using Core = bms::fw::BmsCore<double, Model, 1, 0>;
 using App = bms::app::BmsApplication<Core>;
 
@@ -181,7 +195,7 @@ using App = bms::app::BmsApplication<Core>;
 // parse_args has refused an override the profile does not use).
 Core::Config config_for(const Args& a) {
   Core::Config cfg{};
-  const bms::fw::Refusal r = bms::fw::make_config<Core>(bms::fw::paper_nominal_cell<double>(), a.profile, a.overrides, cfg);
+  const bms::fw::Refusal r = bms::fw::make_config<Core>(bms::fw::nominal_cell_of<double, Cell>(), a.profile, a.overrides, cfg);
   if (r.option != nullptr) bad_argument(r.reason, std::string("--") + r.option);
   return cfg;
 }

@@ -8,6 +8,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -19,6 +20,7 @@
 #include <fmt/format.h>
 
 #include "bms/fw/can/can_protocol.hpp"
+#include "bms/fw/config/cell_choice.hpp"
 #include "bms/hal/linux/socketcan.hpp"
 #include "commands.hpp"
 #include "estimation/estimate_output.hpp"
@@ -261,12 +263,33 @@ SimulateRun simulate_on_bus_grid(const SimulateOptions& sim) {
   return run;
 }
 
+// The cells a firmware process can hold: those with a generated configuration the build compiles
+// in (bms/fw/config/cell_choice.hpp). Their nominal cell, as the firmware computes it.
+bool firmware_nominal_cell(const std::string& cell, fw::NominalCell& nominal) {
+  if (cell == fw::PaperCell::kName) nominal = fw::nominal_cell_of<double, fw::PaperCell>();
+  else if (cell == fw::LcoCell::kName) nominal = fw::nominal_cell_of<double, fw::LcoCell>();
+  else if (cell == fw::NmcCell::kName) nominal = fw::nominal_cell_of<double, fw::NmcCell>();
+  else if (cell == fw::AboutenergyCell::kName) nominal = fw::nominal_cell_of<double, fw::AboutenergyCell>();
+  else return false;
+  return true;
+}
+
+// The firmware for the cell: --firmware, else bms-firmware-CELL beside bms-firmware when the
+// build made one, else bms-firmware (which refuses, exit 2, a cell it does not hold).
+std::filesystem::path firmware_path(const HilCli& c) {
+  if (!c.firmware.empty()) return c.firmware;
+  const std::filesystem::path plain = hil::default_firmware_path();
+  if (std::getenv("BMS_FIRMWARE") != nullptr) return plain;
+  const std::filesystem::path per_cell = plain.parent_path() / ("bms-firmware-" + c.sim.cell);
+  return std::filesystem::exists(per_cell) ? per_cell : plain;
+}
+
 std::vector<std::string> firmware_args(const HilCli& c, const std::filesystem::path& nvm) {
   // The firmware's NVM here is a file, not flash: no write budget, so that --persist-every-s
   // is what the kill/restart test exercises.
   std::vector<std::string> a = {"--can", c.bus, c.realtime ? "--realtime" : "--lockstep", "--nvm", nvm.string(),
                                 "--persist-every-s", fmt::format("{}", c.persist_every_s), "--flash-endurance-cycles",
-                                "1e12", "--settings", fw::profile_name(c.profile)};
+                                "1e12", "--settings", fw::profile_name(c.profile), "--cell", c.sim.cell};
   if (c.overrides.h_v_per_ohm_m2.given) a.insert(a.end(), {"--h", fmt::format("{}", c.overrides.h_v_per_ohm_m2.value)});
   return a;
 }
@@ -286,9 +309,7 @@ class HilSession {
 
   void run() {
     write_truth_csv(out_.staging() / "truth.csv", run_.result, run_.measured);
-    fw_ = std::make_unique<hil::FirmwareProcess>(
-        c_.firmware.empty() ? hil::default_firmware_path() : std::filesystem::path(c_.firmware),
-        firmware_args(c_, out_.staging() / "firmware.nvm"));
+    fw_ = std::make_unique<hil::FirmwareProcess>(firmware_path(c_), firmware_args(c_, out_.staging() / "firmware.nvm"));
     log_ = std::make_unique<CandumpWriter>(out_.staging() / "can.log");
     res_.rows.reserve(n_);
     wall0_ = std::chrono::steady_clock::now();
@@ -498,7 +519,9 @@ void HilSession::write_outputs(const hil::FaultSpec& spec) {
   // The firmware's configuration (the same make_config call bms-firmware makes).
   using FirmwareCore = fw::BmsCore<double>;
   FirmwareCore::Config firmware_config{};
-  (void)fw::make_config<FirmwareCore>(fw::paper_nominal_cell<double>(), c_.profile, c_.overrides, firmware_config);
+  fw::NominalCell nominal{};
+  (void)firmware_nominal_cell(c_.sim.cell, nominal);  // checked in run_hil
+  (void)fw::make_config<FirmwareCore>(nominal, c_.profile, c_.overrides, firmware_config);
   res_.config = summarise_config(firmware_config, 1);
   auto summary = estimate_summary_json(res_, eo);
   const auto& samples = run_.result.samples;
@@ -524,6 +547,11 @@ int run_hil(HilCli& c) {
   // The options first, before a kernel is booted for --bus uml.
   if (c.realtime && !c.fault.empty()) throw InputError("--fault: lock-step only (drop it or --realtime)");
   const hil::FaultSpec spec = hil::parse_fault_spec(c.fault);
+  fw::NominalCell nominal{};
+  if (!firmware_nominal_cell(c.sim.cell, nominal))
+    throw InputError("--cell " + c.sim.cell + ": the firmware process holds a built-in cell (paper, lco, nmc, "
+                     "aboutenergy); for another, generate its configuration with bmssim cell-config and add it to "
+                     "firmware/include/bms/fw/config/cell_choice.hpp");
   if (c.bus == "uml") exec_in_uml();
   // Checked before the long work: the output folder. Every file is written under DIR.partial-PID
   // that replaces DIR whole only when the run succeeded (io/output_folder.hpp).

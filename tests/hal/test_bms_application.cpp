@@ -10,6 +10,7 @@
 
 #include "bms/fw/estimation/bms_core.hpp"
 #include "bms/fw/can/can_protocol.hpp"
+#include "bms/fw/config/cell_choice.hpp"
 #include "bms/fw/config/make_config.hpp"
 #include "bms/fw/nvm/state_schema.hpp"
 #include "bms/app/bms_application.hpp"
@@ -466,4 +467,38 @@ TEST(NvmRestore, PowerCutAtEveryByteOfTheRealPayload) {
   EXPECT_TRUE(std::isfinite(o.r_film_est_ohm_m2) && std::isfinite(o.li_loss_ah) && std::isfinite(o.z_v));
   std::printf("[nvm power-cut, real payload] record %zu bytes, %d cut points, bad loads %d\n", Store::kRecordBytes,
               cuts, bad);
+}
+
+// A state saved under one cell is refused under another: a generated cell's record CRC is part
+// of the model's schema hash (nvm/state_schema.hpp: CellIdentity), so two cells with the same
+// state layout (lco, nmc, aboutenergy: the same mesh) still get different NVM layout tags.
+namespace {
+template <class Choice>
+using CellApp = bms::app::BmsApplication<
+    fw::BmsCore<double, fw::ReducedCell<double, typename Choice::Traits, typename Choice::Mesh>, 1, 0>>;
+}  // namespace
+
+TEST(NvmRestore, AStateSavedUnderOneCellIsRefusedUnderAnother) {
+  using Lco = CellApp<fw::LcoCell>;
+  using Nmc = CellApp<fw::NmcCell>;
+  using Ae = CellApp<fw::AboutenergyCell>;
+  static_assert(sizeof(Lco::Persisted) == sizeof(Nmc::Persisted), "same layout: only the tag tells the cells apart");
+  const std::uint32_t tags[] = {RealApp::kPersistedTag, Lco::kPersistedTag, Nmc::kPersistedTag, Ae::kPersistedTag};
+  for (int a = 0; a < 4; ++a)
+    for (int b = a + 1; b < 4; ++b) EXPECT_NE(tags[a], tags[b]) << a << " " << b;
+
+  // An LCO state in the NVM: the LCO image loads it, an NMC image finds no valid record.
+  using LcoStore = fw::nvm::RecordStore<Lco::Persisted, Lco::kPersistedTag, hal::fake::RamNvm>;
+  using NmcStore = fw::nvm::RecordStore<Nmc::Persisted, Nmc::kPersistedTag, hal::fake::RamNvm>;
+  static Lco::Persisted saved{};  // large: not on the stack
+  saved.tick = 42;
+  hal::fake::RamNvm device(16384, 256);
+  ASSERT_EQ(LcoStore(device, 0).save(saved), fw::nvm::StoreStatus::ok);
+  static Lco::Persisted back{};
+  ASSERT_EQ(LcoStore(device, 0).load(back), fw::nvm::StoreStatus::ok) << "the control: same cell, same tag";
+  EXPECT_EQ(back.tick, 42u);
+  static Nmc::Persisted other{};
+  NmcStore nmc(device, 0);
+  EXPECT_EQ(nmc.load(other), fw::nvm::StoreStatus::no_valid_record);
+  EXPECT_EQ(nmc.slot_check(0), fw::nvm::RecordCheck::bad_layout);
 }

@@ -195,6 +195,18 @@ constexpr std::uint32_t state_schema(Type<StateResync<S>> /*tag*/) {
   return hash("StateResync.State", f, sizeof(St));
 }
 
+/// A generated cell configuration (bms/fw/cells/) carries its record's CRC: the state of a model
+/// of that cell is tagged with it, so that a state saved under one cell is refused under another
+/// (same layout, other numbers). The paper cell's traits carry none: its tag is unchanged.
+template <class Cell, class = void>
+struct CellIdentity {
+  static constexpr std::uint32_t mix(std::uint32_t h) { return h; }
+};
+template <class Cell>
+struct CellIdentity<Cell, std::void_t<decltype(Cell::kRecordCrc32)>> {
+  static constexpr std::uint32_t mix(std::uint32_t h) { return fnv_number(h, Cell::kRecordCrc32); }
+};
+
 template <class S, class Cell, class Mesh>
 constexpr std::uint32_t state_schema(Type<ReducedCell<S, Cell, Mesh>> /*tag*/) {
   using St = typename ReducedCell<S, Cell, Mesh>::State;
@@ -212,7 +224,7 @@ constexpr std::uint32_t state_schema(Type<ReducedCell<S, Cell, Mesh>> /*tag*/) {
                          BMS_SCHEMA_FIELD(St, ce_carry_mol_m3),
                          BMS_SCHEMA_FIELD(St, li_loss_carry_mol)};
   static_assert(covers(f, sizeof(St), alignof(St)), "ReducedCell::State changed: update its schema table");
-  return hash("ReducedCell.State", f, sizeof(St));
+  return CellIdentity<Cell>::mix(hash("ReducedCell.State", f, sizeof(St)));
 }
 
 template <class Inner, unsigned Effects>
