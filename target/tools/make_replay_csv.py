@@ -5,6 +5,11 @@
         --noise-v-mv 0.02 --seed 1 --quiet --out out/target-cycle
     target/tools/make_replay_csv.py out/target-cycle/truth.csv target/data/paper_cccv_cycle1.csv.gz
 
+Another cell (docs/results/target.md, "Per cell"):
+
+    target/tools/make_replay_csv.py TRUTH.csv target/data/lco_cccv_cycle1.csv.gz --cell lco \
+        --made-by "--protocol cccv --cycles 1 --current-a 0.873 ..."
+
 Keeps what the firmware receives, at the resolution it receives it: the measured voltage and
 current as the raw integers of the HOST_Measurement CAN frame (10 uV and 0.1 mA steps,
 firmware/include/bms/fw/can/can_protocol.hpp, rounded half away from zero like its encoder). The
@@ -28,14 +33,18 @@ def raw(value, step):
 
 
 def main(argv):
-    if len(argv) != 3:
+    # Optional: --cell NAME --made-by "SIMULATE OPTIONS" for a cell other than the paper's.
+    cell, made_by = "paper", "--protocol cccv --cycles 1 --noise-v-mv 0.02 --seed 1"
+    if len(argv) == 7 and argv[3] == "--cell" and argv[5] == "--made-by":
+        cell, made_by = argv[4], argv[6]
+    elif len(argv) != 3:
         print(__doc__, file=sys.stderr)
         return 2
     src, dst = argv[1], argv[2]
     out = io.StringIO()
-    out.write("# Replay data of target/: paper cell, one CCCV cycle of the truth model, one row per\n")
-    out.write("# 0.2 s tick. Made by target/tools/make_replay_csv.py from bmssim simulate --cell paper\n")
-    out.write("# --protocol cccv --cycles 1 --noise-v-mv 0.02 --seed 1 (see docs/results/target.md).\n")
+    out.write(f"# Replay data of target/: {cell} cell, one CCCV cycle of the truth model, one row per\n")
+    out.write(f"# 0.2 s tick. Made by target/tools/make_replay_csv.py from bmssim simulate --cell {cell}\n")
+    out.write(f"# {made_by} (see docs/results/target.md).\n")
     out.write("# voltage_10uv, current_100ua: measured voltage and current as raw HOST_Measurement values\n")
     out.write("# (10 uV, 0.1 mA; current positive on discharge). mode (operating_mode.hpp numbering) and\n")
     out.write("# r_film_ohm_m2 are the truth, for reports only.\n")
