@@ -401,10 +401,15 @@ void HilSession::record_row(std::size_t k, std::size_t triggers, std::size_t ans
   row.t_s = s.t_s;
   row.cycle = s.cycle;
   row.r_film_true_ohm_m2 = s.r_film_ohm_m2;
-  if (!last_.have) row.mode = s.mode;  // before the first answer
+  row.capacity_true_ah = s.capacity_ah;
+  if (!last_.have) {  // before the first answer
+    row.mode = s.mode;
+    row.r_film_sd_ohm_m2 = row.capacity_est_ah = row.capacity_sd_ah = std::nan("");
+  }
   row.model_voltage_v = std::nan("");
   row.model_current_a = std::nan("");
   row.j_side_a_m3 = std::nan("");
+  row.innovation_test_ratio = std::nan("");  // not on the bus
   res_.rows.push_back(row);
   res_.theta_rows.push_back({last_.theta[0], last_.theta[1]});
 }
@@ -430,6 +435,11 @@ std::size_t HilSession::collect(std::size_t k, std::size_t expected, double t_lo
   return got;
 }
 
+// BMS_Uncertainty's largest raw value means none (the firmware sends real values under it).
+double none_at_top(double si, const can::SignalLayout& s) {
+  return si >= s.max / s.units_per_si ? std::nan("") : si;
+}
+
 // Takes one accepted answer into last_; true for the BMS_Status that closes a tick.
 bool HilSession::take(const can::RxMessage& msg) {
   switch (msg.msg) {
@@ -443,6 +453,11 @@ bool HilSession::take(const can::RxMessage& msg) {
     case can::Msg::health:
       last_.row.z_v = msg.health.z_v;
       last_.row.li_loss_ah = msg.health.li_loss_ah;
+      return false;
+    case can::Msg::uncertainty:
+      last_.row.r_film_sd_ohm_m2 = none_at_top(msg.uncertainty.r_film_sd_ohm_m2, can::sig::kRFilmSd);
+      last_.row.capacity_est_ah = none_at_top(msg.uncertainty.capacity_ah, can::sig::kCapacity);
+      last_.row.capacity_sd_ah = none_at_top(msg.uncertainty.capacity_sd_ah, can::sig::kCapacitySd);
       return false;
     case can::Msg::rx_stats: rx_totals_.add(msg.rx_stats); return false;
     case can::Msg::status: break;
