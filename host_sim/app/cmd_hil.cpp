@@ -19,7 +19,7 @@
 
 #include <fmt/format.h>
 
-#include "bms/fw/can_protocol.hpp"
+#include "bms/fw/can/can_protocol.hpp"
 #include "bms/hal/linux/socketcan.hpp"
 #include "commands.hpp"
 #include "estimation/estimate_output.hpp"

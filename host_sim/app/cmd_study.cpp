@@ -9,7 +9,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
-#include "study_blind.hpp"
+#include "studies/study_blind.hpp"
 #include "io/input_error.hpp"
 #include "sim/truth_output.hpp"
 #include "studies/study_collect.hpp"
@@ -72,7 +72,7 @@ int collect_and_report(const fs::path& dir, const nlohmann::json& options, const
 }
 
 int run_blind(const StudyCli& c, const CLI::App& sub) {
-  BlindStudyOptions b;
+  study::BlindStudyOptions b;
   b.seeds = sub.count("--seeds") ? c.o.seeds : (c.o.quick ? 2 : 10);
   b.cycles = c.o.quick && sub.count("--cycles") == 0 ? 3 : c.blind_cycles;
   b.sets = c.o.quick && sub.count("--sets") == 0 ? "1" : c.blind_sets;
@@ -80,7 +80,7 @@ int run_blind(const StudyCli& c, const CLI::App& sub) {
   b.out = c.out;
   const std::string command = fmt::format("bmssim study blind --seeds {} --cycles {} --sets {} --out {}", b.seeds,
                                           b.cycles, b.sets, c.out);
-  const int failed = run_blind_study(b, command);
+  const int failed = study::run_blind_study(b, command);
   if (failed > 0) std::fprintf(stderr, "study blind: %d truth(s) could not be simulated (summary.json: truth_failures)\n", failed);
   return failed > 0 ? 1 : 0;
 }

@@ -1,5 +1,5 @@
 // HIL == offline, bit for bit: the offline `bmssim estimate` on a HIL run's truth.csv,
-// encoded through the firmware's own codec (bms/fw/can_protocol.hpp) with the firmware
+// encoded through the firmware's own codec (bms/fw/can/can_protocol.hpp) with the firmware
 // application's rules (seq = tick mod 4096, alive counter = frames sent mod 16, valid =
 // finite film, theta as float32), must give the firmware's BMS_Estimate1/2/3 and BMS_Health
 // frames of the run's can.log byte for byte, CRC included.
@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "bms/fw/can_protocol.hpp"
+#include "bms/fw/can/can_protocol.hpp"
 #include "io/candump_log.hpp"
 #include "io/csv_table.hpp"
 

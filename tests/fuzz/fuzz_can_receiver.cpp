@@ -13,7 +13,7 @@
 #include <cstdlib>
 #include <cstring>
 
-#include "bms/fw/can_protocol.hpp"
+#include "bms/fw/can/can_protocol.hpp"
 
 namespace can = bms::fw::can;
 

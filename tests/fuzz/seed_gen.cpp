@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "bms/fw/can_protocol.hpp"
-#include "bms/fw/nvm_store.hpp"
-#include "bms/fw/rcsi_estimator.hpp"
+#include "bms/fw/can/can_protocol.hpp"
+#include "bms/fw/nvm/nvm_store.hpp"
+#include "bms/fw/estimation/rcsi_estimator.hpp"
 #include "../common/rcsi_test_config.hpp"
 
 namespace can = bms::fw::can;

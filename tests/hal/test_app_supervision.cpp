@@ -8,8 +8,8 @@
 #include <cstdint>
 
 #include "bms/app/bms_application.hpp"
-#include "bms/fw/can_protocol.hpp"
-#include "bms/fw/state_schema.hpp"
+#include "bms/fw/can/can_protocol.hpp"
+#include "bms/fw/nvm/state_schema.hpp"
 #include "bms/hal/fake/fake_can.hpp"
 #include "bms/hal/fake/fake_log.hpp"
 #include "bms/hal/fake/fake_nvm.hpp"

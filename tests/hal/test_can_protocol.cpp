@@ -8,8 +8,8 @@
 #include <cstring>
 #include <limits>
 
-#include "bms/fw/can_protocol.hpp"
-#include "bms/fw/paper_cell.hpp"
+#include "bms/fw/can/can_protocol.hpp"
+#include "bms/fw/model/paper_cell.hpp"
 #include "bms/hal/can_bus.hpp"
 
 namespace can = bms::fw::can;

@@ -9,7 +9,7 @@
 #include <iterator>
 #include <vector>
 
-#include "bms/fw/can_protocol.hpp"
+#include "bms/fw/can/can_protocol.hpp"
 #include "bms/hal/can_bus.hpp"
 
 namespace can = bms::fw::can;

@@ -10,9 +10,9 @@
 
 #include <fmt/format.h>
 
-#include "bms/fw/bms_core.hpp"
-#include "bms/fw/make_config.hpp"
-#include "bms/fw/reduced_model_bias.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/config/make_config.hpp"
+#include "bms/fw/model/reduced_model_bias.hpp"
 #include "cell/reduced_cell_record.hpp"
 #include "dfn/dfn_model.hpp"
 #include "estimation/full_dfn_main_model.hpp"

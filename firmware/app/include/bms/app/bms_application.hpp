@@ -9,7 +9,7 @@
 //   5. commit the core's state to non-volatile memory when a CC charge ended or the timer
 //      asks, within the flash write budget (StatePersistence);
 //   6. kick the watchdog.
-// Portable: the Linux binary (hal/linux/app) and the board image run this same class.
+// Portable: the Linux binary (apps/linux) and the board image run this same class.
 // No heap, no exceptions, no RTTI.
 #pragma once
 
@@ -19,9 +19,9 @@
 
 #include "bms/app/state_persistence.hpp"
 #include "bms/app/tick_supervisor.hpp"
-#include "bms/fw/bms_core.hpp"
-#include "bms/fw/can_protocol.hpp"
-#include "bms/fw/paper_cell.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/can/can_protocol.hpp"
+#include "bms/fw/model/paper_cell.hpp"
 #include "bms/hal/can_bus.hpp"
 #include "bms/hal/log_sink.hpp"
 #include "bms/hal/monotonic_clock.hpp"

@@ -10,8 +10,8 @@
 
 #include <cstdint>
 
-#include "bms/fw/can_signal_table.hpp"
-#include "bms/fw/operating_mode.hpp"
+#include "bms/fw/can/can_signal_table.hpp"
+#include "bms/fw/estimation/operating_mode.hpp"
 
 namespace bms::fw::can {
 

@@ -8,8 +8,8 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "bms/fw/can_codec.hpp"
-#include "bms/fw/can_sequence.hpp"
+#include "bms/fw/can/can_codec.hpp"
+#include "bms/fw/can/can_sequence.hpp"
 
 namespace bms::fw::can {
 

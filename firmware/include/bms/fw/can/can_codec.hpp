@@ -16,10 +16,10 @@
 #include <cstring>
 #include <type_traits>
 
-#include "bms/fw/can_crc.hpp"
-#include "bms/fw/can_messages.hpp"
-#include "bms/fw/can_sequence.hpp"
-#include "bms/fw/can_signal_table.hpp"
+#include "bms/fw/can/can_crc.hpp"
+#include "bms/fw/can/can_messages.hpp"
+#include "bms/fw/can/can_sequence.hpp"
+#include "bms/fw/can/can_signal_table.hpp"
 
 namespace bms::fw::can {
 
