@@ -120,6 +120,7 @@ int run_all_cases(const StudyCli& c, const std::vector<study::CaseSpec>& cases, 
   const long cores = sysconf(_SC_NPROCESSORS_ONLN);
   const int jobs = c.jobs > 0 ? c.jobs : static_cast<int>(std::max(1L, cores));
   fs::create_directories(out);
+  study::record_plan(out, cases);  // for --collect: what was planned, run or not
   std::fprintf(stderr, "study: %zu cases, %d at once -> %s\n", cases.size(), jobs, out.c_str());
   const int failed = study::run_cases(self, out, cases, jobs, [&](const study::CaseSpec& cs) {
     return case_argv(c, out.string(), cs.name);
@@ -153,6 +154,7 @@ int run_study(StudyCli& c, const CLI::App& sub, CLI::App& root) {
   const fs::path exe = fs::read_symlink(self);
   const fs::path out = fs::absolute(c.out);
   if (c.list_cases) {
+    study::record_plan(out, cases);  // for --collect: what was planned, run or not
     print_case_commands(c, cases, exe, out);
     return 0;
   }
