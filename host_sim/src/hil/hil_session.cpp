@@ -124,9 +124,18 @@ struct Answer {
 // Builds the frames of one tick from the measurement and the tick's faults.
 class FaultyTransmitter {
  public:
+  // HOST_Temperature first (the measurement that follows triggers the tick that reads it), then
+  // HOST_Measurement with the tick's faults. temperature_k NaN: no temperature frame.
   std::vector<hal::CanFrame> frames(std::size_t k, const can::Measurement& now, const can::Measurement& next,
-                                    const hil::TickFaults& tf) {
+                                    const hil::TickFaults& tf, double temperature_k) {
     std::vector<hal::CanFrame> out;
+    if (!std::isnan(temperature_k)) {
+      can::Temperature t;
+      t.temperature_k = temperature_k;
+      hal::CanFrame tf_frame{};
+      tx_.encode(t, tf_frame);
+      out.push_back(tf_frame);
+    }
     if (tf.unknown) {
       hal::CanFrame u{};
       u.id = 0x555;
@@ -242,7 +251,7 @@ void count_faults(const hil::TickFaults& tf, FaultCounts& inj) {
   inj.kill += tf.fw_down;
 }
 
-// The truth run, with its measured columns put on the bus's grid (10 uV, 0.1 mA) through
+// The truth run, with its measured columns put on the bus's grid (10 uV, 0.1 mA, 0.01 K) through
 // the codec: truth.csv records exactly these, so `bmssim estimate` on it sees what the
 // firmware saw.
 SimulateRun simulate_on_bus_grid(const SimulateOptions& sim) {
@@ -258,6 +267,15 @@ SimulateRun simulate_on_bus_grid(const SimulateOptions& sim) {
     can::decode(f, back);
     run.measured.voltage_v[i] = back.voltage_v;
     run.measured.current_a[i] = back.current_a;
+  }
+  for (double& t_k : run.measured.temperature_k) {  // HOST_Temperature's 0.01 K grid
+    can::Temperature m;
+    m.temperature_k = t_k;
+    hal::CanFrame f{};
+    can::encode(m, 0, f);
+    can::Temperature back;
+    can::decode(f, back);
+    t_k = back.temperature_k;
   }
   return run;
 }
@@ -362,7 +380,8 @@ void HilSession::run_tick(std::size_t k) {
     next.current_a = run_.measured.current_a[k + 1];
   }
   count_faults(tf, inj_);
-  const auto frames = tx_.frames(k, now, next, tf);
+  const auto& temperature = run_.measured.temperature_k;
+  const auto frames = tx_.frames(k, now, next, tf, temperature.empty() ? std::nan("") : temperature[k]);
   // Real time: the firmware's timer ticks; answers are read while waiting for the send time.
   if (c_.realtime) collect(k, 0, 0.0, 0.2 * static_cast<double>(k));
   const double t_log = kEpochS + run_.result.samples[k].t_s;
