@@ -12,8 +12,11 @@ bmssim="$1"; fw="$2"; src="$3"; work="$4"
 at=cc_charge
 # Fault times in s after the CC charge starts; the learning checks need them after the best
 # profile's 900 s warm-up (make_config.hpp).
-"$bmssim" hil --bus vcan0 --cycles 1 --quiet --out "$work/a"
-"$bmssim" hil --bus vcan0 --cycles 1 --quiet --out "$work/b"
+# The clean runs at 15 C with a noisy, offset temperature sensor: the firmware's estimate equals
+# the offline one only if HOST_Temperature carried the measured temperature to the model.
+tcell=(--set temperature_k=288.15 --noise-t-k 0.2 --effect temperature_offset=0.3)
+"$bmssim" hil --bus vcan0 --cycles 1 "${tcell[@]}" --quiet --out "$work/a"
+"$bmssim" hil --bus vcan0 --cycles 1 "${tcell[@]}" --quiet --out "$work/b"
 bash "$src/tests/cli/hil_replay.sh" "$fw" "$work/a/can.log" "$work/replay"
 "$bmssim" hil --bus vcan0 --cycles 1 --quiet --out "$work/faults" --fault \
   "drop=0.01,dup=0.01,reorder=0.01,crc=0.01,length=0.01,unknown=0.01,kill=$at+600:25,stale=$at+1000:10,range=$at+1200:5,nan=$at+1300:5,burst=$at+1500:20,busdown=$at+1800:15,seed=3"

@@ -23,6 +23,13 @@ rc=0
 /usr/bin/python3 "$src/tests/cli/hil_check.py" "$src/firmware/can/bms.dbc" "$work/a" "$work/offline" "$work/b" \
   --replay "$work/replay" --frames-check "$frames_check" 2> >(grep -v 'is not supported' >&2) || rc=1
 /usr/bin/python3 "$src/tests/cli/hil_fault_check.py" "$work/a" "$work/faults" "$work/realtime" || rc=1
+# HOST_Temperature: one frame per tick, before the tick's measurement.
+n_temp=$(grep -c ' 111#' "$work/a/can.log" || true); n_meas=$(grep -c ' 110#' "$work/a/can.log" || true)
+if [ "$n_temp" -gt 0 ] && [ "$n_temp" = "$n_meas" ]; then
+  echo "PASS HOST_Temperature sent with every measurement: $n_temp frames"
+else
+  echo "FAIL HOST_Temperature frames $n_temp, measurement frames $n_meas"; rc=1
+fi
 # A failed run: exit 1 and nothing that looks like an output.
 if grep -q '^exit=1 truth_left=no partial_left=no ' "$work/failed.txt"; then
   echo "PASS a run whose firmware cannot start exits 1 and leaves no truth.csv: $(cat "$work/failed.txt")"
