@@ -7,6 +7,7 @@
 // scalar type: the host and Cortex-M7 builds use double, the Cortex-M4F build float.
 #pragma once
 
+#include <bms/fw/config/make_config.hpp>
 #include <bms/fw/estimation/bms_core.hpp>
 #include <bms/fw/model/reduced_cell.hpp>
 
@@ -18,10 +19,13 @@ namespace bms::target {
 
 using Scalar = BMS_REPLAY_SCALAR;
 using Model = bms::fw::ReducedCell<Scalar>;
-using Core = bms::fw::BmsCore<Scalar, Model>;
+/// The profile the images are built for; its film path is fixed at build time (CoreFor).
+inline constexpr bms::fw::Profile kProfile = bms::fw::Profile::best;
+using Core = bms::fw::CoreFor<kProfile, Scalar, Model>;
+static_assert(bms::fw::runs_path_of<Core>(kProfile), "the image's core runs its profile's film path");
 using TickOutput = Core::Output;
 
-/// The board's configuration: make_config over the paper's nominal cell, profile best.
+/// The board's configuration: make_config over the paper's nominal cell, profile kProfile.
 Core::Config firmware_config();
 /// The model at the paper's initial state.
 Model initial_firmware_model();
