@@ -142,11 +142,17 @@ TEST(FilmPath, TheTickRunsThePathsSteps) {
   for (fw::Profile p : kProfiles) {
     with_core(p, [&](auto core_tag) {
       using Core = typename decltype(core_tag)::type;
-      Model m;
+      Model m, plant;
       m.init_default();
+      plant.init_default();
       Core core(fw::paper_cell_config<Core>(p), m);
       typename Core::Output out{};
-      for (int k = 0; k < 6000; ++k) out = core.tick({3.7, -2.5, true});  // CC charge past the warm-ups
+      for (int k = 0; k < 13000; ++k) {  // a CC discharge, then a CC charge past the warm-ups
+        const double current_a = k < 7500 ? 2.5 : -2.5;
+        const auto y = plant.step_current(current_a, fw::PaperCellTraits::kInitialFilmOhmM2, 0.2);
+        out = core.tick({y.voltage_v, current_a, true});
+      }
+      ASSERT_EQ(out.mode, fw::Mode::cc_charge) << fw::profile_name(p);
       const bool identifies = fw::film_path_of(p) == fw::FilmPathKind::identifier;
       EXPECT_EQ(std::isnan(out.r_film_sd_ohm_m2), !identifies) << fw::profile_name(p);
       EXPECT_EQ(out.inventory_sensitivity_v != 0.0, identifies) << fw::profile_name(p);
