@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -69,7 +70,12 @@ CanLogEntry log_entry(double t_s, const std::string& iface, const hal::CanFrame&
 
 // Re-runs this very command line inside a kernel with vcan0: the arguments as given,
 // --bus uml replaced by --bus vcan0 (the guest keeps the working directory and environment).
-[[noreturn]] void exec_in_uml() {
+// This process waits for it: the guest writes into the staging folder of the caller's OutputFolder (named by this
+// process's id, io/output_folder.hpp), so a run stopped by a signal, or a guest that died,
+// leaves nothing: the caller's OutputFolder removes it unless the guest committed it. Returns the exit
+// code of the run inside; Interrupted when a signal stopped it (forwarded to the runner,
+// which stops the guest).
+int run_in_uml() {
   std::ifstream in("/proc/self/cmdline", std::ios::binary);
   std::vector<std::string> args;
   for (std::string a; std::getline(in, a, '\0');) args.push_back(a);
@@ -82,11 +88,17 @@ CanLogEntry log_entry(double t_s, const std::string& iface, const hal::CanFrame&
   }
   const std::string runner = (std::filesystem::path(BMS_SOURCE_DIR) / "scripts" / "vcan-run.sh").string();
   args.insert(args.begin(), {runner, "--"});
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  execv(runner.c_str(), argv.data());
-  throw RuntimeFailure("cannot run " + runner);
+  setenv(kOutputOwnerVariable, std::to_string(output_folder_owner()).c_str(), 1);
+  int rc = 0;
+  try {
+    rc = run_process(args);
+  } catch (...) {
+    unsetenv(kOutputOwnerVariable);
+    throw;
+  }
+  unsetenv(kOutputOwnerVariable);
+  throw_if_interrupted();
+  return rc;
 }
 
 // `ip link set IFACE up|down` (the bus going away and coming back).
@@ -401,10 +413,15 @@ void HilSession::record_row(std::size_t k, std::size_t triggers, std::size_t ans
   row.t_s = s.t_s;
   row.cycle = s.cycle;
   row.r_film_true_ohm_m2 = s.r_film_ohm_m2;
-  if (!last_.have) row.mode = s.mode;  // before the first answer
+  row.capacity_true_ah = s.capacity_ah;
+  if (!last_.have) {  // before the first answer
+    row.mode = s.mode;
+    row.r_film_sd_ohm_m2 = row.capacity_est_ah = row.capacity_sd_ah = std::nan("");
+  }
   row.model_voltage_v = std::nan("");
   row.model_current_a = std::nan("");
   row.j_side_a_m3 = std::nan("");
+  row.innovation_test_ratio = std::nan("");  // not on the bus
   res_.rows.push_back(row);
   res_.theta_rows.push_back({last_.theta[0], last_.theta[1]});
 }
@@ -430,6 +447,11 @@ std::size_t HilSession::collect(std::size_t k, std::size_t expected, double t_lo
   return got;
 }
 
+// BMS_Uncertainty's largest raw value means none (the firmware sends real values under it).
+double none_at_top(double si, const can::SignalLayout& s) {
+  return si >= s.max / s.units_per_si ? std::nan("") : si;
+}
+
 // Takes one accepted answer into last_; true for the BMS_Status that closes a tick.
 bool HilSession::take(const can::RxMessage& msg) {
   switch (msg.msg) {
@@ -443,6 +465,11 @@ bool HilSession::take(const can::RxMessage& msg) {
     case can::Msg::health:
       last_.row.z_v = msg.health.z_v;
       last_.row.li_loss_ah = msg.health.li_loss_ah;
+      return false;
+    case can::Msg::uncertainty:
+      last_.row.r_film_sd_ohm_m2 = none_at_top(msg.uncertainty.r_film_sd_ohm_m2, can::sig::kRFilmSd);
+      last_.row.capacity_est_ah = none_at_top(msg.uncertainty.capacity_ah, can::sig::kCapacity);
+      last_.row.capacity_sd_ah = none_at_top(msg.uncertainty.capacity_sd_ah, can::sig::kCapacitySd);
       return false;
     case can::Msg::rx_stats: rx_totals_.add(msg.rx_stats); return false;
     case can::Msg::status: break;
@@ -526,10 +553,11 @@ int run_hil(HilCli& c) {
   // The options first, before a kernel is booted for --bus uml.
   if (c.realtime && !c.fault.empty()) throw InputError("--fault: lock-step only (drop it or --realtime)");
   const hil::FaultSpec spec = hil::parse_fault_spec(c.fault);
-  if (c.bus == "uml") exec_in_uml();
-  // Checked before the long work: the output folder. Every file is written under DIR.partial-PID
-  // that replaces DIR whole only when the run succeeded (io/output_folder.hpp).
+  // Checked before the long work (and before a kernel boots): the output folder. Every file is
+  // written under DIR.partial-PID that replaces DIR whole only when the run succeeded
+  // (io/output_folder.hpp).
   OutputFolder out(c.out);
+  if (c.bus == "uml") return run_in_uml();  // `out` is committed inside, or removed here
   SimulateRun run = simulate_on_bus_grid(c.sim);
   std::size_t n = run.result.samples.size();
   if (c.max_ticks > 0 && c.max_ticks < n) n = c.max_ticks;

@@ -143,6 +143,13 @@ int main(int argc, char** argv) {
     h.z_v = -3e-4;
     tx.encode(h, f);
     add(in, f, 0);
+    can::Uncertainty u;
+    u.seq = 17;
+    u.r_film_sd_ohm_m2 = 5e-5;
+    u.capacity_ah = 2.3;
+    u.capacity_sd_ah = 0.0012;
+    tx.encode(u, f);
+    add(in, f, 0);
     can::BmsStatus st;
     st.status_bits = can::status_bit::kRunning;
     st.tick_count = 17;

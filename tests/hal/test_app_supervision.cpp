@@ -224,7 +224,7 @@ TEST(AppSupervision, CallOrderOrConfigFaultsOfTheCoreAndFailedSendsAreInternalFa
   r.wire.set_send_status(Status::io_error);
   r.send_tick(3);
   ASSERT_EQ(r.run(), 1);
-  EXPECT_EQ(r.app.send_failures(), 6u);
+  EXPECT_EQ(r.app.send_failures(), 7u);  // all seven frames of the tick, BMS_Status included
   r.wire.set_send_status(Status::ok);
   r.send_tick(4);
   ASSERT_EQ(r.run(), 1);

@@ -277,6 +277,14 @@ class BmsApplication {
     h.z_v = out.z_v;
     tx_.encode(h, f);
     send(f);
+    can::Uncertainty u;
+    u.seq = seq_;
+    // The largest raw value means none (NaN): a saturated estimate is sent one step under it.
+    u.r_film_sd_ohm_m2 = can::below_none(out.r_film_sd_ohm_m2, can::sig::kRFilmSd);
+    u.capacity_ah = can::below_none(out.capacity_ah, can::sig::kCapacity);
+    u.capacity_sd_ah = can::below_none(out.capacity_sd_ah, can::sig::kCapacitySd);
+    tx_.encode(u, f);
+    send(f);
     tx_.encode(receiver_.rx_stats(), f);
     send(f);
     // Status last: the host takes it as the end of this tick's answer.

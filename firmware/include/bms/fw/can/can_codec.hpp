@@ -79,6 +79,13 @@ inline std::int64_t to_raw(const SignalLayout& s, double physical) {
   return static_cast<std::int64_t>(r);
 }
 
+/// For a signal whose largest raw value means "none" (NaN): a real SI value at or beyond the top
+/// of the range becomes the value one step under it, so that it never reads as none.
+inline double below_none(double si, const SignalLayout& s) {
+  const double top_si = (s.max - s.factor) / s.units_per_si;
+  return si > top_si ? top_si : si;
+}
+
 constexpr double from_raw(const SignalLayout& s, std::int64_t raw) {
   return static_cast<double>(raw) * s.factor + s.offset;
 }
