@@ -63,7 +63,7 @@ template <typename Scalar, typename ModelScalar = Scalar>
 struct Firmware {
   using Model = std::conditional_t<std::is_same<Scalar, ModelScalar>::value, bms::fw::ReducedCell<Scalar>,
                                    PrecisionAdapter<Scalar, ModelScalar>>;
-  using Core = bms::fw::BmsCore<Scalar, Model>;
+  using Core = bms::fw::CoreFor<bms::fw::Profile::best, Scalar, Model>;
   Firmware() : model(initial()), core(bms::fw::paper_cell_config<Core>(bms::fw::Profile::best), model) {}
   static Model initial() {
     bms::fw::ReducedCell<ModelScalar> m;
@@ -134,7 +134,7 @@ typename Fw::Core::Output step(Fw& fw, const Sample& s) {
 
 template <typename Fw>
 void summary(const char* name, const Fw& fw) {
-  const auto& id = fw.core.identifier();
+  const auto& id = fw.core.film_path().identifier();
   std::printf("# %s_theta %.9g %.9g %.9g\n", name, static_cast<double>(id.theta()(0)),
               static_cast<double>(id.theta()(1)), static_cast<double>(id.theta()(2)));
   std::printf("# %s_resyncs %u\n", name, static_cast<unsigned>(fw.core.resync_count()));

@@ -17,7 +17,7 @@ Model initial_model() {
 // Cortex-M7) and in float (Cortex-M4F; the numerics that keep the film signal in float are
 // described in reduced_cell.hpp and docs/results/target.md).
 Core::Config firmware_config() {
-  return bms::fw::make_config<Core>(bms::fw::nominal_cell_of<Scalar, Cell>(), bms::fw::Profile::best);
+  return bms::fw::make_config<Core>(bms::fw::nominal_cell_of<Scalar, Cell>(), kProfile);
 }
 
 Model initial_firmware_model() { return initial_model(); }

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <bms/fw/config/cell_choice.hpp>
+#include <bms/fw/config/make_config.hpp>
 #include <bms/fw/estimation/bms_core.hpp>
 #include <bms/fw/model/reduced_cell.hpp>
 
@@ -21,10 +22,13 @@ using Scalar = BMS_REPLAY_SCALAR;
 /// The build's cell (CMake BMS_CELL, bms/fw/config/cell_choice.hpp): paper by default.
 using Cell = bms::fw::SelectedCell;
 using Model = bms::fw::ReducedCell<Scalar, Cell::Traits, Cell::Mesh>;
-using Core = bms::fw::BmsCore<Scalar, Model>;
+/// The profile the images are built for; its film path is fixed at build time (CoreFor).
+inline constexpr bms::fw::Profile kProfile = bms::fw::Profile::best;
+using Core = bms::fw::CoreFor<kProfile, Scalar, Model>;
+static_assert(bms::fw::runs_path_of<Core>(kProfile), "the image's core runs its profile's film path");
 using TickOutput = Core::Output;
 
-/// The board's configuration: make_config over the build cell's nominal cell, profile best.
+/// The board's configuration: make_config over the build cell's nominal cell, profile kProfile.
 Core::Config firmware_config();
 /// The model at the cell's initial state.
 Model initial_firmware_model();

@@ -188,20 +188,20 @@ Args parse_args(int argc, char** argv) {
 }
 
 using Model = bms::fw::ReducedCell<double, Cell::Traits, Cell::Mesh>;
-using Core = bms::fw::BmsCore<double, Model, 1, 0>;
-using App = bms::app::BmsApplication<Core>;
 
 // The estimator's configuration: a profile of the nominal cell with the overrides (make_config;
 // parse_args has refused an override the profile does not use).
-Core::Config config_for(const Args& a) {
-  Core::Config cfg{};
+template <class Core>
+typename Core::Config config_for(const Args& a) {
+  typename Core::Config cfg{};
   const bms::fw::Refusal r = bms::fw::make_config<Core>(bms::fw::nominal_cell_of<double, Cell>(), a.profile, a.overrides, cfg);
   if (r.option != nullptr) bad_argument(r.reason, std::string("--") + r.option);
   return cfg;
 }
 
-App::Options app_options(const Args& a, double dt_s) {
-  App::Options ao;
+template <class App>
+typename App::Options app_options(const Args& a, double dt_s) {
+  typename App::Options ao;
   ao.lockstep = a.lockstep;
   ao.tick_timeout_ms = 200;
   ao.budget.endurance_cycles = a.endurance_cycles;
@@ -217,6 +217,7 @@ App::Options app_options(const Args& a, double dt_s) {
 
 // Runs ticks until SIGTERM/SIGINT; a bus that goes down is retried, any other failure ends
 // the run (exit 1). The state is committed on the way out.
+template <class App>
 int run(App& app, const bms::hal::lnx::SocketCanBus& can, unsigned long& bus_errors) {
   while (g_stop == 0) {
     const bms::hal::Status s = app.step();
@@ -236,6 +237,7 @@ int run(App& app, const bms::hal::lnx::SocketCanBus& can, unsigned long& bus_err
   return 0;
 }
 
+template <class App>
 void print_counters(const App& app, unsigned long bus_errors) {
   const auto& rc = app.receiver().counters();
   std::fprintf(stderr,
@@ -249,6 +251,47 @@ void print_counters(const App& app, unsigned long bus_errors) {
 
 bool classify_tick(const bms::hal::CanFrame& f, std::uint32_t& t, void* c) {
   return static_cast<bms::fw::can::LockstepTicks*>(c)->classify(f, t);
+}
+
+// Builds the application around the core the profile names and runs it (static storage: the
+// firmware's objects are not on the stack; one core type is instantiated per run).
+template <class Core>
+int start(const Args& args, bms::hal::lnx::SocketCanBus& can, bms::hal::NonVolatileMemory* nvm,
+          bms::hal::lnx::StderrLogSink& log) {
+  using App = bms::app::BmsApplication<Core>;
+  static Model model;  // static storage: the firmware's objects are not on the stack
+  model.init_default();
+  const typename Core::Config cfg = config_for<Core>(args);
+  static Core core(cfg, model);
+
+  static bms::fw::can::LockstepTicks ticks_classifier;
+  static bms::hal::LockstepBus<64> lockstep_bus(can, classify_tick, &ticks_classifier);
+  static bms::hal::lnx::TimerfdTickSource timer;
+  bms::hal::CanBus* bus = &can;
+  bms::hal::TickSource* ticks = &timer;
+  if (args.lockstep) {
+    bus = &lockstep_bus;
+    ticks = &lockstep_bus;
+  } else if (timer.open() != bms::hal::Status::ok) {
+    std::fprintf(stderr, "bms-firmware: cannot start the tick timer: %s\n", timer.last_error());
+    return 1;
+  }
+  static bms::hal::lnx::LinuxMonotonicClock clock;
+  static bms::hal::lnx::ProcessWatchdog watchdog;
+  typename App::Options ao = app_options<App>(args, cfg.dt_s);
+  ao.lockstep_ticks = &ticks_classifier;
+  ao.watchdog = &watchdog;
+  ao.clock = &clock;
+  static App app(core, *bus, *ticks, log, *nvm, ao);
+  app.restore_from_nvm();
+  // The host waits for this line before its first frame (a frame sent before the socket
+  // is bound would be lost).
+  std::printf("bms-firmware: ready\n");
+  std::fflush(stdout);
+  unsigned long bus_errors = 0;
+  const int rc = run(app, can, bus_errors);
+  if (rc == 0) print_counters(app, bus_errors);
+  return rc;
 }
 
 }  // namespace
@@ -278,37 +321,7 @@ int main(int argc, char** argv) {
     }
     nvm = &file_nvm;
   }
-  static Model model;  // static storage: the firmware's objects are not on the stack
-  model.init_default();
-  const Core::Config cfg = config_for(args);
-  static Core core(cfg, model);
-
-  static bms::fw::can::LockstepTicks ticks_classifier;
-  static bms::hal::LockstepBus<64> lockstep_bus(can, classify_tick, &ticks_classifier);
-  static bms::hal::lnx::TimerfdTickSource timer;
-  bms::hal::CanBus* bus = &can;
-  bms::hal::TickSource* ticks = &timer;
-  if (args.lockstep) {
-    bus = &lockstep_bus;
-    ticks = &lockstep_bus;
-  } else if (timer.open() != bms::hal::Status::ok) {
-    std::fprintf(stderr, "bms-firmware: cannot start the tick timer: %s\n", timer.last_error());
-    return 1;
-  }
-  static bms::hal::lnx::LinuxMonotonicClock clock;
-  static bms::hal::lnx::ProcessWatchdog watchdog;
-  App::Options ao = app_options(args, cfg.dt_s);
-  ao.lockstep_ticks = &ticks_classifier;
-  ao.watchdog = &watchdog;
-  ao.clock = &clock;
-  static App app(core, *bus, *ticks, log, *nvm, ao);
-  app.restore_from_nvm();
-  // The host waits for this line before its first frame (a frame sent before the socket
-  // is bound would be lost).
-  std::printf("bms-firmware: ready\n");
-  std::fflush(stdout);
-  unsigned long bus_errors = 0;
-  const int rc = run(app, can, bus_errors);
-  if (rc == 0) print_counters(app, bus_errors);
-  return rc;
+  // The core with the film path the profile names, chosen at start.
+  return bms::fw::with_core_for<double, Model, 1, 0>(
+      args.profile, [&](auto core) { return start<typename decltype(core)::type>(args, can, nvm, log); });
 }

@@ -3,8 +3,10 @@
 // not use is refused, for every override.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <functional>
+#include <type_traits>
 #include <set>
 #include <string>
 #include <utility>
@@ -17,11 +19,14 @@
 namespace {
 
 namespace fw = bms::fw;
-using Core = fw::BmsCore<double>;
+using Model = fw::ReducedCell<double>;
+using RcsiCore = fw::CoreFor<fw::Profile::paper, double, Model>;
+using IdentifierCore = fw::CoreFor<fw::Profile::best, double, Model>;
+using Field = std::pair<std::string, double>;
 
-// Every field of BmsCore::Config, named, so a difference says which.
-std::vector<std::pair<std::string, double>> fields(const Core::Config& c) {
-  std::vector<std::pair<std::string, double>> f = {
+// Each film path's own Config fields, named.
+void add_path_fields(const fw::RcsiFilmPath<double>::Config& c, std::vector<Field>& f) {
+  const std::vector<Field> g = {
       {"estimator.markov_v_per_ohm_m2", c.estimator.markov_v_per_ohm_m2},
       {"estimator.eta", c.estimator.eta},
       {"estimator.lambda", c.estimator.lambda},
@@ -32,32 +37,16 @@ std::vector<std::pair<std::string, double>> fields(const Core::Config& c) {
       {"estimator.j_side_init_a_m3", c.estimator.j_side_init_a_m3},
       {"estimator.r_film_min_ohm_m2", c.estimator.r_film_min_ohm_m2},
       {"estimator.r_film_max_ohm_m2", c.estimator.r_film_max_ohm_m2},
-      {"detector.rest_current_a", c.detector.rest_current_a},
-      {"detector.cc_tolerance_a", c.detector.cc_tolerance_a},
-      {"detector.cv_band_v", c.detector.cv_band_v},
-      {"detector.v_max", c.detector.v_max},
-      {"detector.v_min", c.detector.v_min},
-      {"detector.debounce_ticks", c.detector.debounce_ticks},
-      {"dt_s", c.dt_s},
       {"markov_from_model", c.markov_from_model},
-      {"voltage_min_v", c.voltage_min_v},
-      {"voltage_max_v", c.voltage_max_v},
-      {"current_limit_a", c.current_limit_a},
-      {"current_step_limit_a", c.current_step_limit_a},
-      {"stale_limit_ticks", c.stale_limit_ticks},
-      {"catch_up_max_ticks", c.catch_up_max_ticks},
-      {"catch_up_max_steps", c.catch_up_max_steps},
-      {"resync_at_cv_end", c.resync_at_cv_end},
-      {"resync_at_start", c.resync_at_start},
-      {"resync_current_a", c.resync_current_a},
-      {"resync_window_ticks", c.resync_window_ticks},
-      {"nominal_inventory_mol", c.nominal_inventory_mol},
-      {"rcsi_warmup_s", c.rcsi_warmup_s},
       {"calibrate_bias", c.calibrate_bias},
       {"reference_after_resyncs", c.reference_after_resyncs},
       {"average_estimate", c.average_estimate},
-      {"nominal_growth_ohm_m2_per_a_m3_s", c.nominal_growth_ohm_m2_per_a_m3_s},
-      {"identify_growth", c.identify_growth},
+      {"nominal_growth_ohm_m2_per_a_m3_s", c.nominal_growth_ohm_m2_per_a_m3_s}};
+  f.insert(f.end(), g.begin(), g.end());
+  for (int k = 0; k < 2; ++k) f.emplace_back("estimator.theta0(" + std::to_string(k) + ")", c.estimator.theta0(k));
+}
+void add_path_fields(const fw::IdentifierFilmPath<double>::Config& c, std::vector<Field>& f) {
+  const std::vector<Field> g = {
       {"identifier.r_film_nominal_ohm_m2", c.identifier.r_film_nominal_ohm_m2},
       {"identifier.growth_nominal_ohm_m2_per_a_m3_s", c.identifier.growth_nominal_ohm_m2_per_a_m3_s},
       {"identifier.prior_r0_ohm_m2", c.identifier.prior_r0_ohm_m2},
@@ -68,42 +57,142 @@ std::vector<std::pair<std::string, double>> fields(const Core::Config& c) {
       {"identifier.r_film_max_ohm_m2", c.identifier.r_film_max_ohm_m2},
       {"identifier.inventory_limit", c.identifier.inventory_limit},
       {"identifier.learn_inventory", c.identifier.learn_inventory},
+      {"identifier.film_model_sd_rel", c.identifier.film_model_sd_rel},
+      {"identifier.inventory_model_sd", c.identifier.inventory_model_sd},
       {"model_bias_ohm", c.model_bias_ohm},
       {"relinearise_inventory", c.relinearise_inventory},
+      {"innovation_time_constant_s", c.innovation_time_constant_s},
+      {"innovation_sd_v", c.innovation_sd_v},
+      {"innovation_gate", c.innovation_gate},
+      {"temperature_sd_k", c.temperature_sd_k}};
+  f.insert(f.end(), g.begin(), g.end());
+}
+
+// Every field of BmsCore::Config, named, so a difference says which.
+template <class Config>
+std::vector<Field> fields(const Config& c) {
+  std::vector<Field> f = {
+      {"detector.rest_current_a", c.detector.rest_current_a},
+      {"detector.cc_tolerance_a", c.detector.cc_tolerance_a},
+      {"detector.cv_band_v", c.detector.cv_band_v},
+      {"detector.v_max", c.detector.v_max},
+      {"detector.v_min", c.detector.v_min},
+      {"detector.debounce_ticks", c.detector.debounce_ticks},
+      {"dt_s", c.dt_s},
+      {"voltage_min_v", c.voltage_min_v},
+      {"voltage_max_v", c.voltage_max_v},
+      {"current_limit_a", c.current_limit_a},
+      {"current_step_limit_a", c.current_step_limit_a},
+      {"stale_limit_ticks", c.stale_limit_ticks},
+      {"catch_up_max_ticks", c.catch_up_max_ticks},
+      {"catch_up_max_steps", c.catch_up_max_steps},
+      {"catch_up_max_voltage_steps", c.catch_up_max_voltage_steps},
+      {"resync_at_cv_end", c.resync_at_cv_end},
+      {"resync_at_start", c.resync_at_start},
+      {"resync_current_a", c.resync_current_a},
+      {"resync_window_ticks", c.resync_window_ticks},
+      {"nominal_inventory_mol", c.nominal_inventory_mol},
+      {"rcsi_warmup_s", c.rcsi_warmup_s},
       {"learning", c.learning}};
-  for (int k = 0; k < 2; ++k) f.emplace_back("estimator.theta0(" + std::to_string(k) + ")", c.estimator.theta0(k));
+  add_path_fields(c.film_path, f);
   return f;
 }
 
+// f(CoreTag<Core>{}) with the core the profile names (as bmssim estimate and bms-firmware pick it).
+template <class F>
+void with_core(fw::Profile p, F&& f) {
+  fw::with_core_for<double, Model, 1, 0>(p, std::forward<F>(f));
+}
+
 const fw::Profile kProfiles[] = {fw::Profile::paper, fw::Profile::best, fw::Profile::nominal_growth};
+
+// Each profile builds the film path it names: at build time (CoreFor, the board images) and at
+// start (with_core_for, the host and bms-firmware); make_config refuses a core of the other path.
+static_assert(std::is_same<RcsiCore::FilmPath, fw::RcsiFilmPath<double, 1, 0>>::value, "paper runs RCSI");
+static_assert(std::is_same<fw::CoreFor<fw::Profile::nominal_growth, double, Model>::FilmPath,
+                           fw::RcsiFilmPath<double, 1, 0>>::value,
+              "nominal-growth runs RCSI");
+static_assert(std::is_same<IdentifierCore::FilmPath, fw::IdentifierFilmPath<double>>::value, "best identifies");
+static_assert(std::is_same<fw::CoreFor<fw::Profile::best, float, fw::ReducedCell<float>>::FilmPath,
+                           fw::IdentifierFilmPath<float>>::value,
+              "the M4F image's best identifies in float");
+TEST(FilmPath, EachProfileBuildsThePathItNames) {
+  EXPECT_EQ(fw::film_path_of(fw::Profile::paper), fw::FilmPathKind::rcsi);
+  EXPECT_EQ(fw::film_path_of(fw::Profile::nominal_growth), fw::FilmPathKind::rcsi);
+  EXPECT_EQ(fw::film_path_of(fw::Profile::best), fw::FilmPathKind::identifier);
+  for (fw::Profile p : kProfiles) {
+    const fw::FilmPathKind started = fw::with_core_for<double, Model, 1, 0>(
+        p, [](auto core) { return decltype(core)::type::FilmPath::kKind; });
+    EXPECT_EQ(started, fw::film_path_of(p)) << fw::profile_name(p);
+    with_core(p, [&](auto core) {
+      using Core = typename decltype(core)::type;
+      EXPECT_TRUE(fw::runs_path_of<Core>(p));
+      // The other path's core is refused, naming the profile's option.
+      using Other = std::conditional_t<std::is_same<Core, RcsiCore>::value, IdentifierCore, RcsiCore>;
+      typename Other::Config cfg{};
+      const fw::Refusal r = fw::make_config<Other>(fw::paper_nominal_cell<double>(), p, fw::Overrides{}, cfg);
+      ASSERT_NE(r.option, nullptr) << fw::profile_name(p);
+      EXPECT_STREQ(r.option, "settings");
+    });
+  }
+}
+
+// The identifier's path takes the model's probes, RCSI's never: the tick runs what its type says.
+TEST(FilmPath, TheTickRunsThePathsSteps) {
+  for (fw::Profile p : kProfiles) {
+    with_core(p, [&](auto core_tag) {
+      using Core = typename decltype(core_tag)::type;
+      Model m, plant;
+      m.init_default();
+      plant.init_default();
+      Core core(fw::paper_cell_config<Core>(p), m);
+      typename Core::Output out{};
+      for (int k = 0; k < 13000; ++k) {  // a CC discharge, then a CC charge past the warm-ups
+        const double current_a = k < 7500 ? 2.5 : -2.5;
+        const auto y = plant.step_current(current_a, fw::PaperCellTraits::kInitialFilmOhmM2, 0.2);
+        out = core.tick({y.voltage_v, current_a, true});
+      }
+      ASSERT_EQ(out.mode, fw::Mode::cc_charge) << fw::profile_name(p);
+      const bool identifies = fw::film_path_of(p) == fw::FilmPathKind::identifier;
+      EXPECT_EQ(std::isnan(out.r_film_sd_ohm_m2), !identifies) << fw::profile_name(p);
+      EXPECT_EQ(out.inventory_sensitivity_v != 0.0, identifies) << fw::profile_name(p);
+    });
+  }
+}
 
 // bmssim estimate on the paper cell's reduced model, each profile without options, runs exactly
 // the configuration bms-firmware and the board images run (bit for bit).
 TEST(EstimateConfig, EqualsTheFirmwaresForEachProfile) {
   const bms::CellParameters cell = bms::load_cell("paper");
   for (fw::Profile p : kProfiles) {
-    bms::EstimateOptions o;
-    o.profile = p;
-    Core::Config estimate{};
-    const fw::Refusal r = bms::estimate_config<Core>(cell, o, 0.2, estimate);
-    ASSERT_EQ(r.option, nullptr) << fw::profile_name(p);
-    const auto a = fields(estimate), b = fields(fw::paper_cell_config<Core>(p));
-    ASSERT_EQ(a.size(), b.size());
-    for (std::size_t i = 0; i < a.size(); ++i)
-      EXPECT_EQ(a[i].second, b[i].second) << fw::profile_name(p) << ": " << a[i].first;
+    with_core(p, [&](auto core) {
+      using Core = typename decltype(core)::type;
+      bms::EstimateOptions o;
+      o.profile = p;
+      typename Core::Config estimate{};
+      const fw::Refusal r = bms::estimate_config<Core>(cell, o, 0.2, estimate);
+      ASSERT_EQ(r.option, nullptr) << fw::profile_name(p);
+      const auto a = fields(estimate), b = fields(fw::paper_cell_config<Core>(p));
+      ASSERT_EQ(a.size(), b.size());
+      for (std::size_t i = 0; i < a.size(); ++i)
+        EXPECT_EQ(a[i].second, b[i].second) << fw::profile_name(p) << ": " << a[i].first;
+    });
   }
 }
 
 // The profiles differ where they say they do (the comparison above is not vacuous).
 TEST(EstimateConfig, ProfilesDiffer) {
-  const auto paper = fw::paper_cell_config<Core>(fw::Profile::paper);
-  const auto best = fw::paper_cell_config<Core>(fw::Profile::best);
-  const auto growth = fw::paper_cell_config<Core>(fw::Profile::nominal_growth);
-  EXPECT_FALSE(paper.markov_from_model || paper.resync_at_cv_end || paper.identify_growth);
-  EXPECT_EQ(paper.estimator.markov_v_per_ohm_m2, fw::kPaperMarkovVPerOhmM2);
-  EXPECT_EQ(paper.estimator.p0_u, fw::kPaperCovarianceP0);
-  EXPECT_TRUE(best.identify_growth && best.resync_at_cv_end && best.rcsi_warmup_s == 900.0);
-  EXPECT_TRUE(growth.calibrate_bias && growth.average_estimate && growth.nominal_growth_ohm_m2_per_a_m3_s > 0.0);
+  const auto paper = fw::paper_cell_config<RcsiCore>(fw::Profile::paper);
+  const auto best = fw::paper_cell_config<IdentifierCore>(fw::Profile::best);
+  const auto growth = fw::paper_cell_config<RcsiCore>(fw::Profile::nominal_growth);
+  EXPECT_FALSE(paper.film_path.markov_from_model || paper.resync_at_cv_end);
+  EXPECT_EQ(paper.film_path.estimator.markov_v_per_ohm_m2, fw::kPaperMarkovVPerOhmM2);
+  EXPECT_EQ(paper.film_path.estimator.p0_u, fw::kPaperCovarianceP0);
+  EXPECT_TRUE(best.resync_at_cv_end && best.rcsi_warmup_s == 900.0);
+  EXPECT_GT(best.film_path.model_bias_ohm, 0.0);
+  EXPECT_GT(best.film_path.identifier.growth_nominal_ohm_m2_per_a_m3_s, 0.0);
+  EXPECT_TRUE(growth.film_path.calibrate_bias && growth.film_path.average_estimate &&
+              growth.film_path.nominal_growth_ohm_m2_per_a_m3_s > 0.0);
   EXPECT_EQ(growth.rcsi_warmup_s, 600.0);
   EXPECT_GT(paper.voltage_min_v, 0.0);  // the cell's window, not 0-5 V
 }
@@ -162,15 +251,18 @@ TEST(EstimateConfig, EveryUnusedOverrideIsRefusedAndNoUsedOne) {
     for (const auto& c : override_cases()) {
       fw::Overrides o;
       c.set(o);
-      Core::Config cfg{};
-      const fw::Refusal r = fw::make_config<Core>(fw::paper_nominal_cell<double>(), p, o, cfg);
-      if (unused.count(c.option) != 0) {
-        ASSERT_NE(r.option, nullptr) << fw::profile_name(p) << " --" << c.option << " was accepted";
-        EXPECT_STREQ(r.option, c.option) << fw::profile_name(p);
-        EXPECT_GT(std::strlen(r.reason), 10u);
-      } else {
-        EXPECT_EQ(r.option, nullptr) << fw::profile_name(p) << " --" << c.option << " refused: " << r.reason;
-      }
+      with_core(p, [&](auto core) {
+        using Core = typename decltype(core)::type;
+        typename Core::Config cfg{};
+        const fw::Refusal r = fw::make_config<Core>(fw::paper_nominal_cell<double>(), p, o, cfg);
+        if (unused.count(c.option) != 0) {
+          ASSERT_NE(r.option, nullptr) << fw::profile_name(p) << " --" << c.option << " was accepted";
+          EXPECT_STREQ(r.option, c.option) << fw::profile_name(p);
+          EXPECT_GT(std::strlen(r.reason), 10u);
+        } else {
+          EXPECT_EQ(r.option, nullptr) << fw::profile_name(p) << " --" << c.option << " refused: " << r.reason;
+        }
+      });
     }
   }
 }
@@ -179,12 +271,14 @@ TEST(EstimateConfig, EveryUnusedOverrideIsRefusedAndNoUsedOne) {
 TEST(EstimateConfig, AcceptedOverridesChangeTheConfiguration) {
   for (fw::Profile p : kProfiles) {
     const std::set<std::string> unused = expected_unused(p);
+    with_core(p, [&](auto core) {
+    using Core = typename decltype(core)::type;
     const auto base = fields(fw::paper_cell_config<Core>(p));
     for (const auto& c : override_cases()) {
       if (unused.count(c.option) != 0) continue;
       fw::Overrides o;
       c.set(o);
-      Core::Config cfg{};
+      typename Core::Config cfg{};
       ASSERT_EQ((fw::make_config<Core>(fw::paper_nominal_cell<double>(), p, o, cfg).option), nullptr);
       const auto got = fields(cfg);
       bool changed = false;
@@ -200,6 +294,7 @@ TEST(EstimateConfig, AcceptedOverridesChangeTheConfiguration) {
         EXPECT_TRUE(changed) << fw::profile_name(p) << " --" << c.option << " changed nothing";
       }
     }
+    });
   }
 }
 

@@ -84,10 +84,10 @@ struct BiasedRig {
 
 Core::Config beyond_config() {
   Core::Config cfg;
-  cfg.markov_from_model = true;
+  cfg.film_path.markov_from_model = true;
   cfg.rcsi_warmup_s = 60.0;
-  cfg.calibrate_bias = true;
-  cfg.average_estimate = true;
+  cfg.film_path.calibrate_bias = true;
+  cfg.film_path.average_estimate = true;
   return cfg;
 }
 
@@ -95,14 +95,14 @@ TEST(BmsCoreBiasCalibration, ReferenceChargeLearnsTheBiasAndRemovesItsFilmError)
   const double offset_v = 0.1e-3;  // 0.1 mV: the reduced model's measured bias in CC charge
   BiasedRig with(beyond_config(), offset_v);
   const auto out = with.two_charges();
-  ASSERT_TRUE(with.core.bias_calibrated());
-  EXPECT_NEAR(with.core.bias_v(), -offset_v, 2e-6);  // z = y_hat - y
+  ASSERT_TRUE(with.core.film_path().bias_calibrated());
+  EXPECT_NEAR(with.core.film_path().bias_v(), -offset_v, 2e-6);  // z = y_hat - y
   EXPECT_EQ(out.mode, Mode::cc_charge);
   EXPECT_LT(std::abs(out.r_film_est_ohm_m2 / kFilm - 1.0), 2e-3);
 
   // The same data without the calibration read the bias as film: several % off.
   Core::Config plain = beyond_config();
-  plain.calibrate_bias = false;
+  plain.film_path.calibrate_bias = false;
   BiasedRig without(plain, offset_v);
   const auto raw = without.two_charges();
   EXPECT_GT(std::abs(raw.r_film_est_ohm_m2 / kFilm - 1.0), 1e-2);
@@ -129,13 +129,13 @@ TEST(BmsCoreBiasCalibration, SaveRestoreCarriesTheCalibration) {
   a.discharge();
   for (int k = 0; k < 4000; ++k) a.tick(-2.5);
   for (int k = 0; k < 10; ++k) a.tick(0.0);
-  ASSERT_TRUE(a.core.bias_calibrated());
+  ASSERT_TRUE(a.core.film_path().bias_calibrated());
   const auto image = a.core.save();
   Model m2;
   Core b(beyond_config(), m2);
   ASSERT_TRUE(b.restore(image));
-  EXPECT_TRUE(b.bias_calibrated());
-  EXPECT_EQ(b.bias_v(), a.core.bias_v());
+  EXPECT_TRUE(b.film_path().bias_calibrated());
+  EXPECT_EQ(b.film_path().bias_v(), a.core.film_path().bias_v());
 }
 
 // Power-up re-synchronisation: a model started 1 % off (the paper's initial-condition case)
@@ -240,7 +240,7 @@ struct GrowingRig {
 
 Core::Config growth_config() {
   Core::Config cfg = beyond_config();
-  cfg.nominal_growth_ohm_m2_per_a_m3_s = Model::nominal_film_growth_ohm_m2_per_a_m3_s();
+  cfg.film_path.nominal_growth_ohm_m2_per_a_m3_s = Model::nominal_film_growth_ohm_m2_per_a_m3_s();
   return cfg;
 }
 
@@ -275,14 +275,14 @@ TEST(BmsCoreGrowthPropagation, SaveRestoreCarriesThePendingGrowth) {
   a.run(2.5, 10000);
   a.run(-2.5, 2000);  // inside the reference charge: growth pending, not yet folded
   const auto image = a.core.save();
-  ASSERT_GT(image.film.growth_ohm_m2, 0.0);
+  ASSERT_GT(image.film_path.film.growth_ohm_m2, 0.0);
   GrowingRig b(growth_config());
   ASSERT_TRUE(b.core.restore(image));
   ASSERT_TRUE(b.plant.restore(a.plant.state()));
   b.r_true = a.r_true;
   for (int k = 0; k < 3000; ++k) ASSERT_EQ(a.tick(-2.5).r_film_est_ohm_m2, b.tick(-2.5).r_film_est_ohm_m2);
   auto bad = image;
-  bad.film.growth_ohm_m2 = std::nan("");
+  bad.film_path.film.growth_ohm_m2 = std::nan("");
   EXPECT_FALSE(b.core.restore(bad));
 }
 
@@ -310,10 +310,10 @@ TEST(BmsCoreGrowthPropagation, FloatKeepsThePerTickIncrements) {
   using ModelF = bms::fw::ReducedCell<float>;
   using CoreF = bms::fw::BmsCore<float, ModelF, 1, 0>;
   CoreF::Config cf;
-  cf.markov_from_model = true;
-  cf.calibrate_bias = true;
-  cf.average_estimate = true;
-  cf.nominal_growth_ohm_m2_per_a_m3_s = static_cast<float>(ModelF::nominal_film_growth_ohm_m2_per_a_m3_s());
+  cf.film_path.markov_from_model = true;
+  cf.film_path.calibrate_bias = true;
+  cf.film_path.average_estimate = true;
+  cf.film_path.nominal_growth_ohm_m2_per_a_m3_s = static_cast<float>(ModelF::nominal_film_growth_ohm_m2_per_a_m3_s());
   ModelF mf;
   mf.init_default();
   CoreF cfl(cf, mf);

@@ -55,7 +55,7 @@ TEST(BmsCore, RejectsBadSamplesAndKeepsState) {
     // moves), and no NaN leaves the tick.
     auto now = rig.core.save();
     EXPECT_EQ(std::memcmp(&now.model, &before.model, sizeof(now.model)), 0);
-    EXPECT_EQ(std::memcmp(&now.estimator, &before.estimator, sizeof(now.estimator)), 0);
+    EXPECT_EQ(std::memcmp(&now.film_path.estimator, &before.film_path.estimator, sizeof(now.film_path.estimator)), 0);
     rig.core.tick(rig.sample(2.5));  // a good sample in between resets staleness
     rig.core.restore(before);
   }
@@ -71,7 +71,7 @@ TEST(BmsCore, MissingSamplesFreezeThenResume) {
   const auto third = rig.core.tick({0, 0, false});
   EXPECT_TRUE(bms::fw::has_status(third.status, FwStatus::kMeasurementStale));
   auto now = rig.core.save();
-  EXPECT_EQ(std::memcmp(&now.estimator, &before.estimator, sizeof(now.estimator)), 0);
+  EXPECT_EQ(std::memcmp(&now.film_path.estimator, &before.film_path.estimator, sizeof(now.film_path.estimator)), 0);
   const auto back = rig.core.tick(rig.sample(2.5));
   EXPECT_FALSE(bms::fw::has_status(back.status, FwStatus::kMeasurementStale));
   EXPECT_EQ(back.tick, before.ticks + 1);
@@ -83,7 +83,7 @@ struct GapRig {
   Model truth, model;
   Core core;
   double film;
-  explicit GapRig(const Core::Config& cfg) : core(cfg, model), film(cfg.estimator.r_film_init_ohm_m2) {
+  explicit GapRig(const Core::Config& cfg) : core(cfg, model), film(cfg.film_path.estimator.r_film_init_ohm_m2) {
     truth.init_default();  // plant = model and the same film: only the lag differs
     model.init_default();
   }

@@ -32,7 +32,7 @@ bms::fw::EffectParameters<double> effect(double r_c_ohm, double offset_a) {
 template <class Model>
 typename bms::fw::BmsCore<double, Model>::Config config() {
   typename bms::fw::BmsCore<double, Model>::Config cfg;
-  cfg.markov_from_model = true;  // H = dV/dR_film: the loop then settles within one charge
+  cfg.film_path.markov_from_model = true;  // H = dV/dR_film: the loop then settles within one charge
   return cfg;
 }
 

@@ -1,7 +1,9 @@
 // LearningGate alone: when RCSI / the identifier may learn (start, continue, stop).
 #include <gtest/gtest.h>
 
+#include "bms/fw/estimation/identifier_film_path.hpp"
 #include "bms/fw/estimation/learning_gate.hpp"
+#include "bms/fw/estimation/rcsi_film_path.hpp"
 
 namespace {
 
@@ -55,7 +57,6 @@ TEST(LearningGate, PhaseEndResetsTheWarmUp) {
 
 TEST(LearningGate, IdentifierLearnsOnlyWhenCurrentDrivenAndLearningOn) {
   Gate::Config c = warmup_config(0.0);
-  c.identify_growth = true;
   Gate g(c);
   EXPECT_TRUE(g.should_identify(true, false));
   EXPECT_FALSE(g.should_identify(true, true)) << "voltage-driven step";
@@ -68,8 +69,11 @@ TEST(LearningGate, IdentifierLearnsOnlyWhenCurrentDrivenAndLearningOn) {
   c.learning = false;
   EXPECT_FALSE(Gate(c).should_identify(true, false)) << "control run";
   c.learning = true;
-  c.identify_growth = false;
-  EXPECT_FALSE(Gate(c).should_identify(true, false)) << "RCSI learns instead";
+  // Which path learns is the core's type: RCSI's path never asks for the identifier's probes.
+  const bms::fw::RcsiFilmPath<double> rcsi({}, 0.2);
+  const bms::fw::IdentifierFilmPath<double> identifier({}, 0.2);
+  EXPECT_FALSE(rcsi.learns_from_probes(Gate(c), true, false)) << "RCSI learns instead";
+  EXPECT_TRUE(identifier.learns_from_probes(Gate(c), true, false));
 }
 
 TEST(LearningGate, SaveRestoreRoundTripsAndRejectsUnknownFlags) {
@@ -92,15 +96,17 @@ TEST(LearningGate, SaveRestoreRoundTripsAndRejectsUnknownFlags) {
 namespace {
 
 TEST(LearningGate, MarkovFromTheModelOnlyAtTheWindowsStartAndOnlyWhenConfigured) {
-  Gate::Config c;
-  Gate paper(c);
-  EXPECT_FALSE(paper.should_take_markov_from_model(true)) << "the paper's constant H";
+  using Path = bms::fw::RcsiFilmPath<double>;
+  Gate g(Gate::Config{});
+  Path::Config c;
+  const Path paper(c, 0.2);
+  EXPECT_FALSE(paper.should_take_markov_from_model(g, true)) << "the paper's constant H";
   c.markov_from_model = true;
-  Gate g(c);
-  EXPECT_TRUE(g.should_take_markov_from_model(true));
-  EXPECT_FALSE(g.should_take_markov_from_model(false));
+  const Path from_model(c, 0.2);
+  EXPECT_TRUE(from_model.should_take_markov_from_model(g, true));
+  EXPECT_FALSE(from_model.should_take_markov_from_model(g, false));
   g.close_tick(true);
-  EXPECT_FALSE(g.should_take_markov_from_model(true)) << "continuing: H kept";
+  EXPECT_FALSE(from_model.should_take_markov_from_model(g, true)) << "continuing: H kept";
 }
 
 }  // namespace

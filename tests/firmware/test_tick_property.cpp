@@ -18,15 +18,15 @@ using Core = bms::fw::BmsCore<double, Model, 1, 0>;
 
 Core::Config all_features() {
   Core::Config c;
-  c.markov_from_model = true;
+  c.film_path.markov_from_model = true;
   c.resync_at_cv_end = true;
   c.nominal_inventory_mol = Model::inventory_of(0.8408, 0.1592);
   c.rcsi_warmup_s = 2.0;
-  c.calibrate_bias = true;
-  c.average_estimate = true;
-  c.nominal_growth_ohm_m2_per_a_m3_s = Model::nominal_film_growth_ohm_m2_per_a_m3_s();
-  c.estimator.p0_u = 1e-2;  // far larger than the paper's: a loop that can run away
-  c.estimator.p0_y0 = 1e-2;
+  c.film_path.calibrate_bias = true;
+  c.film_path.average_estimate = true;
+  c.film_path.nominal_growth_ohm_m2_per_a_m3_s = Model::nominal_film_growth_ohm_m2_per_a_m3_s();
+  c.film_path.estimator.p0_u = 1e-2;  // far larger than the paper's: a loop that can run away
+  c.film_path.estimator.p0_y0 = 1e-2;
   return c;
 }
 
@@ -79,8 +79,8 @@ void run(unsigned seed, int ticks, Coverage& cov) {
     const auto out = core.tick({v, i, present});
     cov.active += out.rcsi_active;
     ASSERT_TRUE(std::isfinite(out.r_film_est_ohm_m2)) << "seed " << seed << " tick " << k;
-    ASSERT_GE(out.r_film_est_ohm_m2, cfg.estimator.r_film_min_ohm_m2);
-    ASSERT_LE(out.r_film_est_ohm_m2, cfg.estimator.r_film_max_ohm_m2);
+    ASSERT_GE(out.r_film_est_ohm_m2, cfg.film_path.estimator.r_film_min_ohm_m2);
+    ASSERT_LE(out.r_film_est_ohm_m2, cfg.film_path.estimator.r_film_max_ohm_m2);
     ASSERT_TRUE(std::isfinite(out.z_v));
     ASSERT_TRUE(std::isfinite(out.theta[0]) && std::isfinite(out.theta[1]));
     ASSERT_TRUE(std::isfinite(out.li_loss_ah));
@@ -91,7 +91,7 @@ void run(unsigned seed, int ticks, Coverage& cov) {
     }
   }
   cov.resyncs += core.resync_count();
-  cov.calibrated += core.bias_calibrated();
+  cov.calibrated += core.film_path().bias_calibrated();
 }
 
 TEST(TickProperty, RandomAndWorstCaseSequencesKeepEveryOutputFiniteAndBounded) {

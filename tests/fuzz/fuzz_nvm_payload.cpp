@@ -1,5 +1,6 @@
 // Fuzz target: restoring the payload the firmware really commits (BmsApplication::Persisted of
-// the firmware's core, BmsCore<double, ReducedCell<double>, 1, 0>) from non-volatile memory.
+// the firmware's core, BmsCore<double, ReducedCell<double>, 1, 0> with the best profile's film
+// path) from non-volatile memory.
 //
 // A real image is made once (the core driven through a discharge and a CC charge by a second
 // model). Each input patches it and stores it as a record with a correct CRC in one slot (so
@@ -29,7 +30,7 @@ namespace hal = bms::hal;
 namespace {
 
 using Model = fw::ReducedCell<double>;
-using Core = fw::BmsCore<double, Model, 1, 0>;
+using Core = fw::CoreFor<fw::Profile::best, double, Model>;
 using App = bms::app::BmsApplication<Core>;
 using Persisted = App::Persisted;
 

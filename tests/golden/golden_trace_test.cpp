@@ -1,8 +1,9 @@
 // Golden per-tick trace of the estimator (PX4 replay style): the recorded CCCV cycle of
-// target/data/ through BmsCore<double> with each profile. Every tick's outputs are hashed bit for
-// bit in blocks of kBlockTicks; the committed trace (tests/golden/*.trace) holds each block's
-// hash and its last tick's values, so any change to any output of any tick fails here and the
-// first block that differs says where and by how much. A change made on purpose is recorded with
+// target/data/ through BmsCore<double> with each profile and the film path it names. Every
+// tick's outputs are hashed bit for bit in blocks of kBlockTicks; the committed trace
+// (tests/golden/*.trace) holds each block's hash and its last tick's values, so any change to
+// any output of any tick fails here and the first block that differs says where and by how
+// much. A change made on purpose is recorded with
 //   scripts/regenerate-golden.sh
 // and the diff of the trace files goes into review.
 #include <gtest/gtest.h>
@@ -24,8 +25,7 @@
 namespace bms {
 namespace {
 
-using Core = fw::BmsCore<double>;
-using Output = Core::Output;
+using Output = fw::TickOutput<double, 1>;
 constexpr std::size_t kBlockTicks = 500;
 
 // FNV-1a over the bytes of every output field (doubles by their bit patterns).
@@ -54,7 +54,8 @@ class TraceHash {
   std::uint64_t h_ = 14695981039346656037ull;
 };
 
-std::vector<std::string> trace_of(fw::Profile profile) {
+template <class Core>
+std::vector<std::string> trace_with(fw::Profile profile) {
   fw::ReducedCell<double> model;
   model.init_default();
   Core core(fw::paper_cell_config<Core>(profile), model);
@@ -73,6 +74,12 @@ std::vector<std::string> trace_of(fw::Profile profile) {
     }
   }
   return lines;
+}
+
+// The core the profile names, chosen at start as bms-firmware and bmssim estimate choose it.
+std::vector<std::string> trace_of(fw::Profile profile) {
+  return fw::with_core_for<double, fw::ReducedCell<double>, 1, 0>(
+      profile, [&](auto tag) { return trace_with<typename decltype(tag)::type>(profile); });
 }
 
 std::string golden_path(const char* name) { return std::string(BMS_SOURCE_DIR) + "/tests/golden/" + name; }

@@ -329,13 +329,16 @@ TEST(BmsApplication, RealTimeWindowDropsReplaysAndFollowsARestartedHost) {
 namespace {
 
 using Model = fw::ReducedCell<double>;
-using Core = fw::BmsCore<double, Model, 1, 0>;
+using Core = fw::CoreFor<fw::Profile::best, double, Model>;
+using RcsiCore = fw::CoreFor<fw::Profile::nominal_growth, double, Model>;
 using RealApp = bms::app::BmsApplication<Core>;
 
 // The firmware's core driven through a CC charge by a second model (the plant): a state
 // with everything in use, as the firmware saves it.
-struct RealRig {
-  RealRig() : core(fw::paper_cell_config<Core>(fw::Profile::best), model) {
+template <class C = Core>
+struct RealRigT {
+  using Core = C;
+  explicit RealRigT(fw::Profile profile = fw::Profile::best) : core(fw::paper_cell_config<Core>(profile), model) {
     model.init_default();
     plant.init_default();
   }
@@ -345,8 +348,8 @@ struct RealRig {
       core.tick({p.voltage_v, current_a, true});
     }
   }
-  RealApp::Persisted persisted(std::uint32_t tick) const {
-    RealApp::Persisted p{};
+  typename bms::app::BmsApplication<Core>::Persisted persisted(std::uint32_t tick) const {
+    typename bms::app::BmsApplication<Core>::Persisted p{};
     p.core = core.save();
     p.tick = tick;
     p.budget_credit_ticks = 7;
@@ -355,6 +358,7 @@ struct RealRig {
   Model model, plant;
   Core core;
 };
+using RealRig = RealRigT<>;
 
 }  // namespace
 
@@ -380,12 +384,9 @@ TEST(NvmRestore, EveryScalarFieldIsRangeChecked) {
       {"model.ce", [](Core::State& x) { x.model.ce_mol_m3[0] = 1e7; }},
       {"model.charge_c", [](Core::State& x) { x.model.charge_c = 1e300; }},
       {"model.current_a", [](Core::State& x) { x.model.current_a = 1e6; }},
-      {"bias_v", [](Core::State& x) { x.bias.bias_v = 5.0; }},
-      {"r_held", [](Core::State& x) { x.film.r_held_ohm_m2 = 1e200; }},
-      {"growth", [](Core::State& x) { x.film.growth_ohm_m2 = -1e100; }},
       {"last_current_a", [](Core::State& x) { x.last_current_a = 1e200; }},
       {"inventory_deviation", [](Core::State& x) { x.resync.inventory_deviation_model = 0.9; }},
-      {"identifier.growth", [](Core::State& x) { x.identifier.growth_ohm_m2 = 1e250; }},
+      {"identifier.growth", [](Core::State& x) { x.film_path.identifier.growth_ohm_m2 = 1e250; }},
   };
   for (const Bad& b : cases) {
     Core::State x = good;
@@ -393,6 +394,35 @@ TEST(NvmRestore, EveryScalarFieldIsRangeChecked) {
     EXPECT_FALSE(fresh.restore(x)) << b.field;
   }
   EXPECT_TRUE(fresh.restore(good)) << "a rejected image changed nothing";
+}
+
+// The same for the RCSI path's own parts (nominal-growth: bias calibration and film level in use).
+TEST(NvmRestore, TheRcsiPathsFieldsAreRangeChecked) {
+  RealRigT<RcsiCore> rig(fw::Profile::nominal_growth);
+  rig.run(50, -2.5);
+  const RcsiCore::State good = rig.core.save();
+  Model m2;
+  m2.init_default();
+  RcsiCore fresh(fw::paper_cell_config<RcsiCore>(fw::Profile::nominal_growth), m2);
+  struct Bad {
+    const char* field;
+    void (*apply)(RcsiCore::State&);
+  };
+  const Bad cases[] = {
+      {"bias_v", [](RcsiCore::State& x) { x.film_path.bias.bias_v = 5.0; }},
+      {"r_held", [](RcsiCore::State& x) { x.film_path.film.r_held_ohm_m2 = 1e200; }},
+      {"growth", [](RcsiCore::State& x) { x.film_path.film.growth_ohm_m2 = -1e100; }},
+      {"inventory_deviation", [](RcsiCore::State& x) { x.resync.inventory_deviation_model = 0.01; }},
+  };
+  for (const Bad& b : cases) {
+    RcsiCore::State x = good;
+    b.apply(x);
+    EXPECT_FALSE(fresh.restore(x)) << b.field;
+  }
+  EXPECT_TRUE(fresh.restore(good)) << "a rejected image changed nothing";
+  // The film path is part of the image's schema: one path's image never restores into the other.
+  EXPECT_NE(fw::schema::state_schema_hash<Core>(), fw::schema::state_schema_hash<RcsiCore>());
+  EXPECT_NE(RealApp::kPersistedTag, bms::app::BmsApplication<RcsiCore>::kPersistedTag);
 }
 
 TEST(NvmRestore, TheLayoutTagIsASchemaHash) {
@@ -425,7 +455,7 @@ TEST(NvmRestore, TheLayoutTagIsASchemaHash) {
   static_assert(!fw::schema::covers(fd, sizeof(D), alignof(D)), "a field missing from the table");
   static_assert(fw::schema::covers(fa, sizeof(A), alignof(A)), "complete");
   // The firmware's tag is the schema hash, and it differs between the float and double cores.
-  using FloatCore = fw::BmsCore<float, fw::ReducedCell<float>, 1, 0>;
+  using FloatCore = fw::CoreFor<fw::Profile::best, float, fw::ReducedCell<float>>;
   EXPECT_NE(RealApp::kPersistedTag, bms::app::BmsApplication<FloatCore>::kPersistedTag);
   EXPECT_NE(fw::schema::state_schema_hash<Core>(), 0u);
 }

@@ -213,10 +213,10 @@ void tell_missed(Core& core, long long missed) {
   }
 }
 
-template <int Nc, class Model>
-void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, const CellParameters& cell,
-              double dt_s, EstimateResult& res, const EstimateProgress& progress) {
-  using Core = fw::BmsCore<double, Model, Nc, 0>;
+template <class Core, class Model>
+void run_core_with(Model& model, const MeasuredSeries& d, const EstimateOptions& o, const CellParameters& cell,
+                   double dt_s, EstimateResult& res, const EstimateProgress& progress) {
+  constexpr int Nc = Core::kNc;
   typename Core::Config cfg{};
   const fw::Refusal refused = estimate_config<Core>(cell, o, dt_s, cfg);
   if (refused.option != nullptr) throw InputError(fmt::format("--{}: {}", refused.option, refused.reason));
@@ -246,6 +246,15 @@ void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, c
     if (progress && (i % 20000 == 0 || i + 1 == n)) progress(i + 1, n);
   }
   res.theta = res.theta_rows.back();
+}
+
+// The core with the film path the profile names (make_config.hpp's with_core_for).
+template <int Nc, class Model>
+void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, const CellParameters& cell,
+              double dt_s, EstimateResult& res, const EstimateProgress& progress) {
+  fw::with_core_for<double, Model, Nc, 0>(o.profile, [&](auto core) {
+    run_core_with<typename decltype(core)::type>(model, d, o, cell, dt_s, res, progress);
+  });
 }
 
 double nominal_growth_ohm_m2_per_a_m3_s(const CellParameters& cell) {

@@ -3,6 +3,7 @@
 // file, with either the firmware's reduced model or the full truth DFN as the main model,
 // and scores the film-resistance estimate against the truth when the file carries it.
 #include <cmath>
+#include <type_traits>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -111,30 +112,35 @@ EstimateConfigSummary summarise_config(const Config& c, int nc) {
   EstimateConfigSummary s;
   s.filled = true;
   s.nc = nc;
-  s.h_v_per_ohm_m2 = c.estimator.markov_v_per_ohm_m2;
-  s.p0_u = c.estimator.p0_u;
-  s.p0_y0 = c.estimator.p0_y0;
-  s.lambda = c.estimator.lambda;
-  s.eta = c.estimator.eta;
-  s.h_from_model = c.markov_from_model;
   s.resync_at_cv_end = c.resync_at_cv_end;
   s.resync_at_start = c.resync_at_start;
   s.resync_window_ticks = c.resync_window_ticks;
-  s.reference_after_resyncs = c.reference_after_resyncs;
   s.resync_current_a = c.resync_current_a;
   s.warmup_s = c.rcsi_warmup_s;
   s.nominal_inventory_mol = c.nominal_inventory_mol;
   s.voltage_min_v = c.voltage_min_v;
   s.voltage_max_v = c.voltage_max_v;
   s.dt_s = c.dt_s;
-  s.calibrate_bias = c.calibrate_bias;
-  s.average_estimate = c.average_estimate;
   s.learning = c.learning;
-  s.identify_growth = c.identify_growth;
-  s.learn_inventory = c.identifier.learn_inventory;
-  s.propagated_growth_ohm_m2_per_a_m3_s = c.nominal_growth_ohm_m2_per_a_m3_s;
-  s.model_bias_ohm = c.model_bias_ohm;
-  s.relinearise_inventory = c.relinearise_inventory;
+  const auto& p = c.film_path;
+  if constexpr (std::decay_t<decltype(p)>::kKind == fw::FilmPathKind::rcsi) {
+    s.h_v_per_ohm_m2 = p.estimator.markov_v_per_ohm_m2;
+    s.p0_u = p.estimator.p0_u;
+    s.p0_y0 = p.estimator.p0_y0;
+    s.lambda = p.estimator.lambda;
+    s.eta = p.estimator.eta;
+    s.h_from_model = p.markov_from_model;
+    s.reference_after_resyncs = p.reference_after_resyncs;
+    s.calibrate_bias = p.calibrate_bias;
+    s.average_estimate = p.average_estimate;
+    s.propagated_growth_ohm_m2_per_a_m3_s = p.nominal_growth_ohm_m2_per_a_m3_s;
+  } else {
+    s.identify_growth = true;
+    s.h_from_model = true;  // the identifier takes H = dV/dR_film from the model at every learning tick
+    s.learn_inventory = p.identifier.learn_inventory;
+    s.model_bias_ohm = p.model_bias_ohm;
+    s.relinearise_inventory = p.relinearise_inventory;
+  }
   return s;
 }
 

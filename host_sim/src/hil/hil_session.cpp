@@ -550,13 +550,15 @@ void HilSession::write_outputs(const hil::FaultSpec& spec) {
   EstimateOptions eo;
   eo.profile = c_.profile;
   eo.overrides = c_.overrides;
-  // The firmware's configuration (the same make_config call bms-firmware makes).
-  using FirmwareCore = fw::BmsCore<double>;
-  FirmwareCore::Config firmware_config{};
+  // The firmware's configuration (the same core and make_config call bms-firmware makes).
   fw::NominalCell nominal{};
   (void)firmware_nominal_cell(c_.sim.cell, nominal);  // checked in run_hil
-  (void)fw::make_config<FirmwareCore>(nominal, c_.profile, c_.overrides, firmware_config);
-  res_.config = summarise_config(firmware_config, 1);
+  res_.config = fw::with_core_for<double, fw::ReducedCell<double>, 1, 0>(c_.profile, [&](auto core) {
+    using FirmwareCore = typename decltype(core)::type;
+    typename FirmwareCore::Config firmware_config{};
+    (void)fw::make_config<FirmwareCore>(nominal, c_.profile, c_.overrides, firmware_config);
+    return summarise_config(firmware_config, 1);
+  });
   auto summary = estimate_summary_json(res_, eo);
   const auto& samples = run_.result.samples;
   const double sim_s = samples[n_ - 1].t_s - samples[0].t_s + c_.sim.dt_s;

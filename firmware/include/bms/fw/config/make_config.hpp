@@ -19,10 +19,17 @@
 //
 // An override the profile does not use is refused (make_config returns its name): no option is
 // silently ignored (the contract's "exits 2 naming it").
+//
+// Each profile names its film path (film_path_of: best the identifier's, the others RCSI's), and
+// the core is built for that path: CoreFor<profile, ...> at build time (the board images),
+// with_core_for(profile, f) at start (bms-firmware, bmssim estimate and hil). make_config
+// refuses a profile whose path is not the core's.
 #include <cstdint>
 #include <cstring>
 
 #include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/estimation/identifier_film_path.hpp"
+#include "bms/fw/estimation/rcsi_film_path.hpp"
 #include "bms/fw/model/reduced_cell.hpp"
 #include "bms/fw/model/reduced_model_bias.hpp"
 
@@ -50,6 +57,48 @@ inline bool parse_profile(const char* text, Profile& out) {
   if (std::strcmp(text, "beyond-paper") != 0) return false;
   out = Profile::nominal_growth;
   return true;
+}
+
+/// The film path a profile runs: best identifies the film with its growth law, the paper and
+/// nominal-growth profiles run RCSI.
+constexpr FilmPathKind film_path_of(Profile p) {
+  return p == Profile::best ? FilmPathKind::identifier : FilmPathKind::rcsi;
+}
+
+/// The path type of a kind.
+template <FilmPathKind K, class Scalar, int Nc, int D>
+struct FilmPathOf {
+  using type = RcsiFilmPath<Scalar, Nc, D>;
+};
+template <class Scalar, int Nc, int D>
+struct FilmPathOf<FilmPathKind::identifier, Scalar, Nc, D> {
+  using type = IdentifierFilmPath<Scalar>;
+};
+
+/// The core a profile runs, chosen at build time (the board images).
+template <Profile P, class Scalar = double, class MainModel = ReducedCell<Scalar>, int Nc = 1, int D = 0>
+using CoreFor = BmsCore<Scalar, MainModel, Nc, D, typename FilmPathOf<film_path_of(P), Scalar, Nc, D>::type>;
+
+/// A core type handed to with_core_for's function (f(CoreTag<Core>{})).
+template <class Core>
+struct CoreTag {
+  using type = Core;
+};
+
+/// The core a profile runs, chosen at start (the host, the Linux firmware): calls
+/// f(CoreTag<Core>{}) with the core of the profile's film path and returns what f returns.
+template <class Scalar, class MainModel, int Nc, int D, class F>
+decltype(auto) with_core_for(Profile p, F&& f) {
+  using Rcsi = BmsCore<Scalar, MainModel, Nc, D, RcsiFilmPath<Scalar, Nc, D>>;
+  using Identifier = BmsCore<Scalar, MainModel, Nc, D, IdentifierFilmPath<Scalar>>;
+  if (film_path_of(p) == FilmPathKind::identifier) return f(CoreTag<Identifier>{});
+  return f(CoreTag<Rcsi>{});
+}
+
+/// Whether Core runs the film path the profile names.
+template <class Core>
+constexpr bool runs_path_of(Profile p) {
+  return Core::FilmPath::kKind == film_path_of(p);
 }
 
 /// The nominal cell as the firmware knows it.
@@ -202,7 +251,7 @@ namespace profiles {
 // (re-synchronisation at power-up and at each CV end over a 50-tick window).
 template <class Config>
 void observer(Config& c) {
-  c.markov_from_model = true;
+  if constexpr (decltype(c.film_path)::kKind == FilmPathKind::rcsi) c.film_path.markov_from_model = true;
   c.resync_at_cv_end = true;
   c.resync_at_start = true;
   c.resync_window_ticks = 50u;
@@ -215,10 +264,11 @@ void best(const NominalCell& cell, Config& c) {
   using Scalar = decltype(Config::dt_s);
   observer(c);
   c.rcsi_warmup_s = Scalar(900);
-  c.identify_growth = true;
-  c.identifier.r_film_nominal_ohm_m2 = Scalar(cell.initial_film_ohm_m2);
-  c.identifier.growth_nominal_ohm_m2_per_a_m3_s = Scalar(cell.growth_ohm_m2_per_a_m3_s);
-  c.model_bias_ohm = Scalar(cell.model_bias_ohm);
+  if constexpr (decltype(c.film_path)::kKind == FilmPathKind::identifier) {
+    c.film_path.identifier.r_film_nominal_ohm_m2 = Scalar(cell.initial_film_ohm_m2);
+    c.film_path.identifier.growth_nominal_ohm_m2_per_a_m3_s = Scalar(cell.growth_ohm_m2_per_a_m3_s);
+    c.film_path.model_bias_ohm = Scalar(cell.model_bias_ohm);
+  }
 }
 
 // nominal-growth: RCSI's level, 600 s warm-up, bias calibrated on the first charge after a
@@ -228,21 +278,28 @@ void nominal_growth(const NominalCell& cell, Config& c) {
   using Scalar = decltype(Config::dt_s);
   observer(c);
   c.rcsi_warmup_s = Scalar(600);
-  c.calibrate_bias = true;
-  c.reference_after_resyncs = 1u;
-  c.average_estimate = true;
-  c.nominal_growth_ohm_m2_per_a_m3_s = Scalar(cell.growth_ohm_m2_per_a_m3_s);
+  if constexpr (decltype(c.film_path)::kKind == FilmPathKind::rcsi) {
+    c.film_path.calibrate_bias = true;
+    c.film_path.reference_after_resyncs = 1u;
+    c.film_path.average_estimate = true;
+    c.film_path.nominal_growth_ohm_m2_per_a_m3_s = Scalar(cell.growth_ohm_m2_per_a_m3_s);
+  }
 }
 
 }  // namespace profiles
 
-/// The profile over the nominal cell, no overrides.
+/// The profile over the nominal cell, no overrides. Precondition: Core runs the profile's film
+/// path (runs_path_of; CoreFor and with_core_for pick such a core). A core of the other path
+/// gets the profile's settings that are not the path's and its own path's defaults; the
+/// overload with overrides refuses it.
 template <class Core>
 typename Core::Config make_config(const NominalCell& cell, Profile profile) {
   using Scalar = decltype(Core::Config::dt_s);
   typename Core::Config cfg{};
-  cfg.estimator.r_film_init_ohm_m2 = Scalar(cell.initial_film_ohm_m2);
   cfg.nominal_inventory_mol = Scalar(cell.inventory_mol);
+  if constexpr (Core::FilmPath::kKind == FilmPathKind::rcsi) {
+    cfg.film_path.estimator.r_film_init_ohm_m2 = Scalar(cell.initial_film_ohm_m2);
+  }
   if (profile == Profile::best) profiles::best(cell, cfg);
   if (profile == Profile::nominal_growth) profiles::nominal_growth(cell, cfg);
   apply_voltage_window(cell, cfg);
@@ -260,42 +317,53 @@ void set_if(const Given<T>& g, Field& field) {
 // (power-up re-synchronisation, one re-synchronisation before the reference charge).
 template <class Config>
 void apply_observer(const Overrides& o, Config& cfg) {
+  constexpr bool kRcsi = decltype(cfg.film_path)::kKind == FilmPathKind::rcsi;
   if (o.resync.given) {
     const bool on = o.resync.value;
     const bool was_on = cfg.resync_at_cv_end;
     cfg.resync_at_cv_end = on;
     cfg.resync_at_start = on;
-    if (on && !was_on) cfg.reference_after_resyncs = 1u;
-    if (!on) cfg.reference_after_resyncs = 0u;
+    if constexpr (kRcsi) {
+      if (on && !was_on) cfg.film_path.reference_after_resyncs = 1u;
+      if (!on) cfg.film_path.reference_after_resyncs = 0u;
+    }
   }
   set_if(o.resync_at_start, cfg.resync_at_start);
   set_if(o.resync_window_ticks, cfg.resync_window_ticks);
   set_if(o.resync_current_a, cfg.resync_current_a);
-  set_if(o.reference_after_resyncs, cfg.reference_after_resyncs);
+  if constexpr (kRcsi) set_if(o.reference_after_resyncs, cfg.film_path.reference_after_resyncs);
 }
 
 template <class Core>
 Refusal apply_rcsi(const NominalCell& cell, const Overrides& o, typename Core::Config& cfg) {
   using Scalar = decltype(Core::Config::dt_s);
+  auto& p = cfg.film_path;
   if (o.nc.given && o.nc.value != Core::kNc) return {"nc", "the core was built for another n_c"};
-  set_if(o.h_v_per_ohm_m2, cfg.estimator.markov_v_per_ohm_m2);
-  set_if(o.h_from_model, cfg.markov_from_model);
-  set_if(o.p0, cfg.estimator.p0_u);
-  set_if(o.p0, cfg.estimator.p0_y0);
-  set_if(o.p0_y0, cfg.estimator.p0_y0);
-  set_if(o.lambda, cfg.estimator.lambda);
-  set_if(o.eta, cfg.estimator.eta);
+  set_if(o.h_v_per_ohm_m2, p.estimator.markov_v_per_ohm_m2);
+  set_if(o.h_from_model, p.markov_from_model);
+  set_if(o.p0, p.estimator.p0_u);
+  set_if(o.p0, p.estimator.p0_y0);
+  set_if(o.p0_y0, p.estimator.p0_y0);
+  set_if(o.lambda, p.estimator.lambda);
+  set_if(o.eta, p.estimator.eta);
   if (o.theta0.given) {
     if (o.theta0.value.count != 2 * Core::kNc) return {"theta0", "needs 2 n_c values"};
-    for (int k = 0; k < 2 * Core::kNc; ++k) cfg.estimator.theta0(k) = Scalar(o.theta0.value.values[k]);
+    for (int k = 0; k < 2 * Core::kNc; ++k) p.estimator.theta0(k) = Scalar(o.theta0.value.values[k]);
   }
-  set_if(o.r_film_init_ohm_m2, cfg.estimator.r_film_init_ohm_m2);
-  set_if(o.calibrate_bias, cfg.calibrate_bias);
-  set_if(o.average_estimate, cfg.average_estimate);
-  const bool propagate = o.propagate_growth.or_else(cfg.nominal_growth_ohm_m2_per_a_m3_s != Scalar(0));
-  cfg.nominal_growth_ohm_m2_per_a_m3_s =
+  set_if(o.r_film_init_ohm_m2, p.estimator.r_film_init_ohm_m2);
+  set_if(o.calibrate_bias, p.calibrate_bias);
+  set_if(o.average_estimate, p.average_estimate);
+  const bool propagate = o.propagate_growth.or_else(p.nominal_growth_ohm_m2_per_a_m3_s != Scalar(0));
+  p.nominal_growth_ohm_m2_per_a_m3_s =
       propagate ? Scalar(o.growth_scale.or_else(1.0) * cell.growth_ohm_m2_per_a_m3_s) : Scalar(0);
   return {nullptr, nullptr};
+}
+
+template <class Core>
+void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
+  set_if(o.learn_inventory, cfg.film_path.identifier.learn_inventory);
+  set_if(o.model_bias_ohm, cfg.film_path.model_bias_ohm);
+  set_if(o.relinearise_inventory, cfg.film_path.relinearise_inventory);
 }
 
 }  // namespace detail
@@ -306,15 +374,17 @@ template <class Core>
 Refusal make_config(const NominalCell& cell, Profile profile, const Overrides& o, typename Core::Config& out) {
   Refusal r = unused_override(profile, o);
   if (r.option != nullptr) return r;
+  if (!runs_path_of<Core>(profile)) return {"settings", "the core was built for another film path (with_core_for)"};
   typename Core::Config cfg = make_config<Core>(cell, profile);
-  if (profile != Profile::best) r = detail::apply_rcsi<Core>(cell, o, cfg);
+  if constexpr (Core::FilmPath::kKind == FilmPathKind::rcsi) {
+    r = detail::apply_rcsi<Core>(cell, o, cfg);
+  } else {
+    detail::apply_identifier<Core>(o, cfg);
+  }
   if (r.option != nullptr) return r;
   detail::set_if(o.learning, cfg.learning);
   detail::set_if(o.warmup_s, cfg.rcsi_warmup_s);
   detail::apply_observer(o, cfg);
-  detail::set_if(o.learn_inventory, cfg.identifier.learn_inventory);
-  detail::set_if(o.model_bias_ohm, cfg.model_bias_ohm);
-  detail::set_if(o.relinearise_inventory, cfg.relinearise_inventory);
   out = cfg;
   return r;
 }

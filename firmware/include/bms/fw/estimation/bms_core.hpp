@@ -1,13 +1,17 @@
 #pragma once
 // The firmware's tick: one call per 0.2 s with the measured voltage and current, returning
 // the film-resistance estimate and status. Owns the main-system model, the mode detector
-// and the RCSI estimator; no heap, no exceptions, no globals (the HAL owns the rest).
+// and the film path; no heap, no exceptions, no globals (the HAL owns the rest).
 //
 // One tick is the numbered step list at the top of tick() (docs/architecture.md uses the same
 // numbers). The parts beyond the paper each sit in their own header with named start, continue
 // and stop conditions, and are switched on by Config alone (the profiles of make_config.hpp): LearningGate
-// (learning_gate.hpp), StateResync (state_resync.hpp), BiasCalibration (bias_calibration.hpp),
-// FilmLevel (film_level.hpp), and the `best` profile's FilmGrowthIdentifier.
+// (learning_gate.hpp), StateResync (state_resync.hpp), and the film path.
+//
+// The film path is a type (film_path.hpp): RcsiFilmPath (the paper's RCSI with BiasCalibration
+// and FilmLevel, the paper and nominal-growth profiles) or IdentifierFilmPath (the `best`
+// profile's FilmGrowthIdentifier). The tick calls the path's steps and never asks which it is;
+// make_config.hpp maps a profile to its path (film_path_of, CoreFor, with_core_for).
 // The model answers within the same tick to the u_hat it was given (the film drop is
 // algebraic), so the default delay is D = 0 (see bms/fw/estimation/rcsi_estimator.hpp).
 //
@@ -22,14 +26,12 @@
 #include <cstdint>
 #include <limits>
 
-#include "bms/fw/estimation/bias_calibration.hpp"
-#include "bms/fw/estimation/film_growth_identifier.hpp"
-#include "bms/fw/estimation/film_level.hpp"
+#include "bms/fw/estimation/film_path.hpp"
 #include "bms/fw/estimation/fw_status.hpp"
 #include "bms/fw/estimation/learning_gate.hpp"
 #include "bms/fw/estimation/mode_detector.hpp"
 #include "bms/fw/estimation/operating_mode.hpp"
-#include "bms/fw/estimation/rcsi_estimator.hpp"
+#include "bms/fw/estimation/rcsi_film_path.hpp"
 #include "bms/fw/model/reduced_cell.hpp"
 #include "bms/fw/estimation/resync_window.hpp"
 #include "bms/fw/estimation/state_resync.hpp"
@@ -78,22 +80,21 @@ struct TickOutput {
   std::uint8_t newton_iterations;
 };
 
-template <typename Scalar = double, typename MainModel = ReducedCell<Scalar>, int Nc = 1, int D = 0>
+template <typename Scalar = double, typename MainModel = ReducedCell<Scalar>, int Nc = 1, int D = 0,
+          typename FilmPathT = RcsiFilmPath<Scalar, Nc, D>>
 class BmsCore {
  public:
-  using Estimator = RcsiEstimator<Scalar, Nc, D>;
+  using FilmPath = FilmPathT;
   using Detector = ModeDetector<Scalar>;
   using Output = TickOutput<Scalar, Nc>;
   using ModelState = typename MainModel::State;
   static constexpr int kNc = Nc;
 
   struct Config {
-    typename Estimator::Config estimator = default_estimator();
+    // What only the film path uses (rcsi_film_path.hpp or identifier_film_path.hpp).
+    typename FilmPath::Config film_path{};
     typename Detector::Config detector{};
     Scalar dt_s = Scalar(0.2);
-    // LearningGate. Paper: constant H = 0.01. When true, H = dV/dR_film of the model at the start of each
-    // CC charge (about 0.88 V per ohm m2 for the paper cell at 2.5 A).
-    bool markov_from_model = false;
     Scalar voltage_min_v = Scalar(0);
     Scalar voltage_max_v = Scalar(5);
     Scalar current_limit_a = Scalar(20);       // about 9C for the paper cell
@@ -136,76 +137,15 @@ class BmsCore {
     // after a deep CV discharge are where the reduced model is least accurate (a reaction
     // front it cannot hold); the film estimate is held meanwhile.
     Scalar rcsi_warmup_s = Scalar(0);
-    // BiasCalibration. Beyond the paper: the first CC charge is a reference charge at the known initial film
-    // resistance: the mean residual after the warm-up is stored as the model's voltage bias
-    // and subtracted from z in every later charge (in CC, a constant bias is collinear with
-    // R_film and would otherwise be read as film resistance).
-    bool calibrate_bias = false;
-    // With the observer on, the reference charge waits for this many re-synchronisations: a
-    // model started from a wrong state can leave the first discharge with clipped particle
-    // profiles that a uniform shift does not repair (measured: 0.3 mV in the first charge).
-    std::uint32_t reference_after_resyncs = 0u;
-    // FilmLevel. Beyond the paper: report (and hold for the next charge) the mean of u_hat over the
-    // charge's learning window instead of its last value. The film changes by about 1 % per
-    // charge while the RCSI loop (M1 ~ 1: two integrators) oscillates by a few %.
-    bool average_estimate = false;
-    // FilmLevel. Beyond the paper: between and within RCSI's updates the reported film resistance
-    // follows the growth the model's own side current predicts, dR_film = -k j_side dt with k this
-    // factor: the *nominal* cell's Ramadass law (ReducedCell::nominal_film_growth_ohm_m2_per_a_m3_s()),
-    // assumed, not learned (the nominal-growth profile; a cell whose law differs is tracked only
-    // through RCSI's level: docs/results/blind.md, arm nominal-growth). RCSI's data then set the level only. The film
-    // grows about 0.9 % during each CC charge, and a held or charge-averaged estimate lags it by
-    // about half of that. 0: held (the paper).
-    Scalar nominal_growth_ohm_m2_per_a_m3_s = Scalar(0);
-    // LearningGate. The `best` profile: the film is identified in output-error form with its growth gain and
-    // the cell's lithium inventory (FilmGrowthIdentifier) instead of the paper's ARX RCSI;
-    // calibrate_bias, average_estimate and nominal_growth_ohm_m2_per_a_m3_s are then unused.
-    bool identify_growth = false;
-    typename FilmGrowthIdentifier<Scalar>::Config identifier{};
-    // The reduced model's voltage bias in CC charge per ampere of charge current, computed once
-    // at design time against a converged DFN of the nominal cell (never against the cell in use;
-    // scripts/calibrate-model-bias.sh). In CC a bias is collinear with the film, so without it the
-    // film would carry it (about 2.7 % of R_film for the paper cell).
-    Scalar model_bias_ohm = Scalar(0);
-    // With identify_growth: a re-synchronisation that moves the model's inventory by more than
-    // this (relative) restarts the film parameters' learning (FilmGrowthIdentifier::relinearise).
-    Scalar relinearise_inventory = Scalar(1e-3);
     // LearningGate. The control run: every RCSI / RLS update switched off (the model and its observers run).
     bool learning = true;
-    // Innovation test of the identifier's learning ticks (as PX4 EKF2 gates a fusion): the
-    // residual less the design-time bias, averaged over innovation_time_constant_s (an
-    // exponential mean restarted at each learning window, so the sensor noise averages out), is
-    // compared with innovation_gate x innovation_sd_v, the reduced model's own residual in CC
-    // charge at the right film (0.29 mV rms against the converged DFN, docs/results/firmware-model.md).
-    // test ratio = (mean / (gate sd))^2; above 1 the model does not fit the cell (kModelMisfit).
-    // It only reports: the learning goes on (the estimate's validity is the caller's decision).
-    Scalar innovation_time_constant_s = Scalar(60);
-    Scalar innovation_sd_v = Scalar(3e-4);
-    Scalar innovation_gate = Scalar(5);
-    // 1-sigma of the temperature sensor [K]: in CC charge a temperature error is nearly collinear
-    // with the film (measured about 5 % of the paper cell's film per K), so it enters the film's sd
-    // as |dV/dT / H| x this (the model's sensitivity, probed at each learning tick). A stated
-    // accuracy of the sensor, not learned; 0 leaves it out.
-    Scalar temperature_sd_k = Scalar(0.2);
   };
 
   // The profiles (paper, best, nominal-growth) are built from the nominal cell in one place,
-  // bms/fw/config/make_config.hpp; a default Config is the paper's RCSI.
-  static typename Estimator::Config default_estimator() {
-    typename Estimator::Config c;
-    c.markov_v_per_ohm_m2 = Scalar(kPaperMarkovVPerOhmM2);
-    c.p0_u = Scalar(kPaperCovarianceP0);
-    c.p0_y0 = Scalar(kPaperCovarianceP0);
-    c.theta0 = Estimator::Vector::Zero();
-    c.theta0(0) = Scalar(1);  // hold the film at a charge start (u_hat(k) = u_hat(k-1))
-    c.r_film_init_ohm_m2 = Scalar(PaperCellTraits::kInitialFilmOhmM2);
-    c.r_film_min_ohm_m2 = Scalar(0);
-    c.r_film_max_ohm_m2 = Scalar(1);
-    return c;
-  }
+  // bms/fw/config/make_config.hpp; a default Config is the paper's RCSI (with RcsiFilmPath).
 
   struct State {
-    typename FilmGrowthIdentifier<Scalar>::State identifier;
+    typename FilmPath::State film_path;
     std::uint32_t layout_tag;
     std::uint32_t ticks;
     std::uint32_t stale_ticks;
@@ -213,11 +153,8 @@ class BmsCore {
     Scalar last_current_a;
     Scalar last_j_side_a_m3;
     typename LearningGate<Scalar>::State learning;
-    typename BiasCalibration<Scalar>::State bias;
-    typename FilmLevel<Scalar>::State film;
     typename StateResync<Scalar>::State resync;
     typename Detector::State detector;
-    typename Estimator::State estimator;
     ModelState model;
   };
   static constexpr std::uint32_t kLayoutTag =
@@ -225,10 +162,9 @@ class BmsCore {
       static_cast<std::uint32_t>(sizeof(Scalar));
 
   BmsCore(const Config& config, MainModel& model)
-      : config_(config), model_(model), detector_(config.detector), estimator_(config.estimator),
-        identifier_(config.identifier), gate_(gate_config(config)), bias_(bias_config(config)),
-        film_(film_config(config), config.estimator.r_film_init_ohm_m2), resync_(resync_config(config)) {
-    last_j_side_ = config.estimator.j_side_init_a_m3;
+      : config_(config), model_(model), detector_(config.detector), path_(config.film_path, config.dt_s),
+        gate_(gate_config(config)), resync_(resync_config(config)) {
+    last_j_side_ = path_.initial_j_side_a_m3();
   }
 
   Output tick(const TickInput<Scalar>& in) {
@@ -239,15 +175,18 @@ class BmsCore {
     //                    the model steps over the ticks missed since the last accepted sample
     //                    (catch_up()); the power-up re-synchronisation window opens
     //   3 detect mode    ModeDetector::update(): debounced operating mode
-    //   4 learning gate  open_gate(): LearningGate (CC charge, warm-up, bias ready; at the window's
-    //                    start RCSI is reset), BiasCalibration stops at the end of a CC charge
-    //   5 film in use    film_in_use(): u_hat = RcsiEstimator::predict() inside the window, else the
-    //                    held FilmLevel, or the FilmGrowthIdentifier's film
+    //   4 learning gate  open_gate(): LearningGate (CC charge, warm-up, the path ready; at the
+    //                    window's start the path is told: RCSI is reset), the path's BiasCalibration
+    //                    stops at the end of a CC charge
+    //   5 film in use    FilmPath::film_in_use(): u_hat = RcsiEstimator::predict() inside the window,
+    //                    else the held FilmLevel, or the FilmGrowthIdentifier's film
     //   6 model step     step_model(): voltage-driven in CV (debounced and confirmed by this
     //                    sample's class), current-driven otherwise
     //   7 resync         resync_step(): StateResync's window at the end of a CV phase or at power-up
     //   8 residual       z = y_hat - y; BiasCalibration::collect() over the reference charge
-    //   9 learning       learn(): RcsiEstimator::update (or the identifier) from z inside the window
+    //                    (FilmPath::collect_reference)
+    //   9 learning       learn(): FilmPath::learn, RcsiEstimator::update (or the identifier) from z
+    //                    inside the window
     //  10 output         finish_tick()
     StatusWord st = 0u;
     if (!in.present) return held_output(raise_stale(st));                        // 1
@@ -256,21 +195,21 @@ class BmsCore {
     st |= accept_sample(in);                                                      // 2
     const Mode mode = detector_.update(in.voltage_v, in.current_a);               // 3
     const Gate gate = open_gate(mode);                                            // 4
-    const Scalar u = film_in_use(gate.open);                                      // 5
+    const Scalar u = path_.film_in_use(gate.open);                                // 5
     const ModelStep step = step_model(in, mode, u, gate.open);                    // 6
     last_voltage_driven_ = step.voltage_driven;
     if (!step.r.valid) return model_failed(st, gate.open);
     if (!step.r.converged) st |= bit(FwStatus::kModelNotConverged);
     st |= resync_step(in, u, step.voltage_driven);                                // 7
     const Scalar z = step.r.voltage_v - in.voltage_v;
-    if (gate.reference) bias_.collect(z);                                         // 8
+    if (gate.reference) path_.collect_reference(z);                               // 8
     const Learned learned = learn(in, u, z, step, gate.open);                     // 9
     return finish_tick(mode, gate, step, z, learned, st | learned.status);        // 10
   }
 
   State save() const {
     State s{};
-    s.identifier = identifier_.save();
+    s.film_path = path_.save();
     s.layout_tag = kLayoutTag;
     s.ticks = ticks_;
     s.stale_ticks = stale_ticks_;
@@ -278,11 +217,8 @@ class BmsCore {
     s.last_current_a = last_current_;
     s.last_j_side_a_m3 = last_j_side_;
     s.learning = gate_.save();
-    s.bias = bias_.save();
-    s.film = film_.save();
     s.resync = resync_.save();
     s.detector = detector_.state();
-    s.estimator = estimator_.save();
     s.model = model_.state();
     return s;
   }
@@ -299,49 +235,38 @@ class BmsCore {
                            within(s.last_current_a, -Scalar(kMaxCurrent_a), Scalar(kMaxCurrent_a)) &&
                            within(s.last_j_side_a_m3, -Scalar(kMaxSideCurrent_a_m3), Scalar(kMaxSideCurrent_a_m3));
     Detector d = detector_;
-    FilmGrowthIdentifier<Scalar> id = identifier_;
-    Estimator e = estimator_;
+    FilmPath p = path_;
     LearningGate<Scalar> g = gate_;
-    BiasCalibration<Scalar> b = bias_;
-    FilmLevel<Scalar> f = film_;
     StateResync<Scalar> rs = resync_;
     const ModelState model_backup = model_.state();
-    const bool ok = header_ok && d.restore(s.detector) && e.restore(s.estimator) && id.restore(s.identifier) &&
-                    g.restore(s.learning) && b.restore(s.bias) &&
-                    f.restore(s.film, config_.estimator.r_film_min_ohm_m2, config_.estimator.r_film_max_ohm_m2) &&
-                    rs.restore(s.resync, config_.identifier.inventory_limit) && model_.restore(s.model);
+    const bool ok = header_ok && d.restore(s.detector) && p.restore(s.film_path) && g.restore(s.learning) &&
+                    rs.restore(s.resync, path_.inventory_limit()) && model_.restore(s.model);
     if (!ok) {
       model_.restore(model_backup);
       status_ |= bit(FwStatus::kRestoreRejected);
       return false;
     }
     detector_ = d;
-    estimator_ = e;
-    identifier_ = id;
+    path_ = p;
     gate_ = g;
-    bias_ = b;
-    film_ = f;
     resync_ = rs;
     ticks_ = s.ticks;
     stale_ticks_ = s.stale_ticks;
     have_sample_ = (s.flags & 1u) != 0u;
     last_current_ = s.last_current_a;
     last_j_side_ = s.last_j_side_a_m3;
-    capacity_ah_ = std::numeric_limits<Scalar>::quiet_NaN();  // recomputed from the restored inventory
     held_film_sd_ohm_m2_ = std::numeric_limits<Scalar>::quiet_NaN();  // the next full tick computes it
-    identifying_ = false;
     last_voltage_driven_ = false;  // not in the image: the next catch-up is current-driven
     return true;
   }
 
-  const Estimator& estimator() const { return estimator_; }
+  const FilmPath& film_path() const { return path_; }
   const Detector& detector() const { return detector_; }
   const MainModel& model() const { return model_; }
-  StatusWord status() const { return status_ | estimator_.status(); }
-  const FilmGrowthIdentifier<Scalar>& identifier() const { return identifier_; }
-  // The film resistance in use: identified (best profile), or the held level plus the growth
-  // predicted since it was set.
-  Scalar r_film_ohm_m2() const { return gate_.identifies() ? identifier_.film_ohm_m2() : film_.value_ohm_m2(); }
+  StatusWord status() const { return status_ | path_.status(); }
+  // The film resistance in use: identified (IdentifierFilmPath), or the held level plus the
+  // growth predicted since it was set (RcsiFilmPath).
+  Scalar r_film_ohm_m2() const { return path_.r_film_ohm_m2(); }
   std::uint32_t resync_count() const { return resync_.count(); }
   // Ticks that passed without reaching tick() at all (the application's clock or the bus's
   // sequence numbers say how many): counted as ticks without a sample, as `tick` would, without
@@ -351,8 +276,6 @@ class BmsCore {
   }
   // Ticks without an accepted sample the model was stepped over since construction (not persisted).
   std::uint32_t catch_up_ticks() const { return catch_up_ticks_; }
-  bool bias_calibrated() const { return bias_.calibrated(); }
-  Scalar bias_v() const { return bias_.bias_v(); }
   const Config& config() const { return config_; }
 
  private:
@@ -363,27 +286,13 @@ class BmsCore {
   struct ModelStep {
     ModelTickResult<Scalar> r;
     bool voltage_driven;
-    bool identify;      // the FilmGrowthIdentifier learns in this tick
-    Scalar v_probe_v;   // the model's voltage at the probed inventory (identify only)
+    bool probed;        // the path learns from the model's probes in this tick
+    Scalar v_probe_v;   // the model's voltage at the probed inventory (probed only)
   };
-  struct Learned {
-    StatusWord status;
-    bool active;
-    Scalar inventory_sensitivity_v;
-  };
+  using Learned = FilmLearned<Scalar>;
 
   static typename LearningGate<Scalar>::Config gate_config(const Config& c) {
-    return {c.rcsi_warmup_s, c.dt_s, c.learning, c.identify_growth, c.markov_from_model};
-  }
-  static typename BiasCalibration<Scalar>::Config bias_config(const Config& c) {
-    typename BiasCalibration<Scalar>::Config b;
-    b.enabled = c.calibrate_bias;
-    b.after_resyncs = c.reference_after_resyncs;
-    b.dt_s = c.dt_s;
-    return b;
-  }
-  static typename FilmLevel<Scalar>::Config film_config(const Config& c) {
-    return {c.average_estimate, c.nominal_growth_ohm_m2_per_a_m3_s};
+    return {c.rcsi_warmup_s, c.dt_s, c.learning};
   }
   static typename StateResync<Scalar>::Config resync_config(const Config& c) {
     return {c.resync_at_start, c.resync_at_cv_end, c.resync_current_a, c.resync_window_ticks};
@@ -450,161 +359,69 @@ class BmsCore {
                        : model_.step_current(last_current_ + w * (in.current_a - last_current_), r_film_ohm_m2(), dt);
       if (!r.valid) return;
       // The film grew over the gap too: without this, each lost frame drops a tick of growth.
-      propagate_film(r.j_side_a_m3, dt);
+      path_.propagate(r.j_side_a_m3, dt);
     }
     catch_up_ticks_ = catch_up_ticks_ + gap < catch_up_ticks_ ? 0xFFFFFFFFu : catch_up_ticks_ + gap;
-  }
-
-  void propagate_film(Scalar j_side_a_m3, Scalar dt_s) {
-    if (gate_.identifies()) {
-      identifier_.propagate(j_side_a_m3, dt_s);
-    } else {
-      film_.add_growth(j_side_a_m3, dt_s);
-    }
   }
 
   // Step 4.
   Gate open_gate(Mode mode) {
     const bool in_cc_charge = mode == Mode::cc_charge;
-    if (gate_.phase_ended(in_cc_charge)) bias_.stop_at_charge_end();
+    if (gate_.phase_ended(in_cc_charge)) path_.charge_ended();
     gate_.count_phase(in_cc_charge);
     Gate g{};
-    g.reference = bias_.should_collect(in_cc_charge, gate_.warm(), resync_.count());
-    g.open = gate_.should_open(in_cc_charge, !bias_.blocks_learning());
-    if (!gate_.identifies() && gate_.should_start(g.open)) {
-      estimator_.reset_history(film_.begin_charge(), last_j_side_);
-      estimator_.reset();
-    }
+    g.reference = path_.should_collect_reference(in_cc_charge, gate_.warm(), resync_.count());
+    g.open = gate_.should_open(in_cc_charge, path_.ready_to_learn());
+    if (gate_.should_start(g.open)) path_.window_opens(last_j_side_);
     return g;
-  }
-
-  // Step 5.
-  Scalar film_in_use(bool open) {
-    if (gate_.identifies()) return identifier_.film_ohm_m2();
-    return open ? estimator_.predict() : r_film_ohm_m2();
   }
 
   // Step 6.
   ModelStep step_model(const TickInput<Scalar>& in, Mode mode, Scalar u, bool open) {
     const Mode raw = detector_.raw_mode();
     const bool voltage_driven = (raw == Mode::cv_charge || raw == Mode::cv_discharge) && raw == mode;
-    const bool identify = gate_.should_identify(open, voltage_driven);
-    const Scalar v_probe = identify ? model_.inventory_probe_voltage(in.current_a, u, config_.dt_s,
-                                                                     kInventoryProbe * config_.nominal_inventory_mol)
-                                    : Scalar(0);
-    if constexpr (kProbesTemperature<MainModel, Scalar>) {
-      if (identify && config_.temperature_sd_k > Scalar(0)) {
-        v_warm_v_ = model_.temperature_probe_voltage(in.current_a, u, config_.dt_s, kTemperatureProbeK);
-      }
-    }
+    const bool probed = path_.learns_from_probes(gate_, open, voltage_driven);
+    const Scalar v_probe =
+        probed ? path_.probe(model_, in.current_a, u, config_.dt_s, config_.nominal_inventory_mol) : Scalar(0);
     const ModelTickResult<Scalar> r = voltage_driven ? model_.step_voltage(in.voltage_v, u, config_.dt_s)
                                                      : model_.step_current(in.current_a, u, config_.dt_s);
-    return ModelStep{r, voltage_driven, identify, v_probe};
+    return ModelStep{r, voltage_driven, probed, v_probe};
   }
 
   Output model_failed(StatusWord st, bool open) {
     st |= bit(FwStatus::kModelInvalid);
-    if (open && !gate_.identifies()) st |= estimator_.advance_without_learning(last_j_side_);
+    st |= path_.model_failed(open, last_j_side_);
     gate_.close_tick(open);
     status_ |= st;
     return held_output(st);
   }
 
-  // Step 7: the model is re-synchronised to the identified inventory (nominal without the
-  // identifier) less its own lithium loss.
+  // Step 7: the model is re-synchronised to the path's inventory (identified, or nominal with
+  // RCSI) less its own lithium loss.
   StatusWord resync_step(const TickInput<Scalar>& in, Scalar u, bool voltage_driven) {
     resync_.follow_phase(voltage_driven, in.current_a);
     typename StateResync<Scalar>::Fit m{};
     if (!resync_.collect(in.voltage_v, in.current_a, m)) return 0u;
-    const bool id = gate_.identifies();
-    const Scalar nu = id ? identifier_.inventory_deviation() : Scalar(0);
+    const Scalar nu = path_.inventory_deviation();
     const Scalar target_mol = config_.nominal_inventory_mol * (Scalar(1) + nu) - model_.li_loss_mol();
     if (!model_.resync(m.voltage_v, m.current_a, u, config_.dt_s, target_mol)) return bit(FwStatus::kResyncFailed);
-    if (resync_.succeeded(nu, config_.relinearise_inventory) && id) identifier_.relinearise();
+    if (resync_.succeeded(nu, path_.relinearise_inventory())) path_.relinearise();
     return 0u;
   }
 
-  // Step 9.
+  // Step 9 (the film's propagation over the tick included).
   Learned learn(const TickInput<Scalar>& in, Scalar u, Scalar z, const ModelStep& step, bool open) {
-    if (gate_.identifies()) return identify(in, u, z, step);
-    Learned l{0u, false, Scalar(0)};
-    if (!open) return l;
-    if (gate_.should_take_markov_from_model(open)) {
-      estimator_.set_markov_parameter(step.r.markov_v_per_ohm_m2);
-    }
-    l.status = gate_.learning() ? estimator_.update(bias_.corrected(z), step.r.j_side_a_m3)
-                                : estimator_.advance_without_learning(step.r.j_side_a_m3);
-    l.active = gate_.learning() && estimator_.theta_updated();
-    film_.record(u - film_.growth_ohm_m2());  // what RCSI's data say, less the predicted growth
-    return l;
-  }
-
-  // Step 9 with Config::identify_growth: the film, its growth gain and the inventory in output-error form.
-  Learned identify(const TickInput<Scalar>& in, Scalar u, Scalar z, const ModelStep& step) {
-    Learned l{0u, false, Scalar(0)};
-    innovation_ratio_ = Scalar(0);
-    if (step.identify) {
-      const bool start = gate_.should_start_identifying(step.identify);
-      if (start) identifier_.begin_charge();
-      l.status |= innovation_test(z + config_.model_bias_ohm * in.current_a, start);
-      l.inventory_sensitivity_v = (step.v_probe_v - step.r.voltage_v) / kInventoryProbe;
-      const Scalar per_k = (v_warm_v_ - step.r.voltage_v) / (kTemperatureProbeK * step.r.markov_v_per_ohm_m2);
-      if (config_.temperature_sd_k > Scalar(0) && std::isfinite(per_k)) film_per_kelvin_ohm_m2_ = std::fabs(per_k);
-      l.status |= identifier_.learn(u, z, step.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
-                                    resync_.inventory_deviation_model(), -config_.model_bias_ohm * in.current_a);
-      l.active = (l.status & kIdentifierRejectMask) == 0u;
-    }
-    identifier_.propagate(step.r.j_side_a_m3, config_.dt_s);
-    gate_.identified(step.identify);
-    update_capacity(step.identify);
-    return l;
-  }
-
-  // The film's 1-sigma: the identifier's (regression and model bound) and the temperature
-  // sensor's, |dV/dT / H| x temperature_sd_k, in quadrature.
-  Scalar film_sd_ohm_m2() const {
-    const Scalar sd = identifier_.film_sd_ohm_m2();
-    const Scalar t = film_per_kelvin_ohm_m2_ * config_.temperature_sd_k;
-    return std::isfinite(t) ? std::sqrt(sd * sd + t * t) : sd;
-  }
-
-  // The innovation test (Config::innovation_*) on this learning tick's bias-corrected residual.
-  StatusWord innovation_test(Scalar z_corrected_v, bool window_start) {
-    if (!(config_.innovation_sd_v > Scalar(0)) || !std::isfinite(z_corrected_v)) return 0u;
-    const Scalar a = config_.dt_s / (config_.innovation_time_constant_s + config_.dt_s);
-    innovation_mean_v_ = window_start ? z_corrected_v : innovation_mean_v_ + a * (z_corrected_v - innovation_mean_v_);
-    const Scalar limit = config_.innovation_gate * config_.innovation_sd_v;
-    innovation_ratio_ = (innovation_mean_v_ / limit) * (innovation_mean_v_ / limit);
-    return innovation_ratio_ > Scalar(1) ? bit(FwStatus::kModelMisfit) : 0u;
-  }
-
-  // The open-circuit capacity of the identified inventory (less the model's own lithium loss),
-  // at the first tick, every kCapacityEveryTicks learning ticks and when a learning window
-  // closes: two bisections, not every tick.
-  void update_capacity(bool identifying) {
-    const bool window_closed = identifying_ && !identifying;
-    identifying_ = identifying;
-    capacity_ticks_ = identifying ? capacity_ticks_ + 1u : 0u;
-    const bool due = window_closed || capacity_ticks_ >= kCapacityEveryTicks;
-    if constexpr (kGivesCapacity<MainModel, Scalar>) {
-      if (!(due || std::isnan(capacity_ah_)) || !(config_.nominal_inventory_mol > Scalar(0))) return;
-      capacity_ticks_ = 0u;
-      const Scalar n0 = config_.nominal_inventory_mol;
-      const Scalar n = n0 * (Scalar(1) + identifier_.inventory_deviation()) - model_.li_loss_mol();
-      capacity_ah_ = MainModel::open_circuit_capacity_ah(n);
-      // The capacity moves with the inventory nearly one to one near the nominal cell (0.98:
-      // tests/firmware/test_temperature.cpp): its relative sd is the inventory's.
-      capacity_sd_ah_ = capacity_ah_ * identifier_.inventory_sd() * n0 / n;
-    }
+    const FilmTick<Scalar> t{step.r, in.current_a, u, z, step.v_probe_v, config_.dt_s, config_.nominal_inventory_mol,
+                             open, step.probed};
+    return path_.learn(t, model_, gate_, resync_);
   }
 
   // Step 10.
   Output finish_tick(Mode mode, Gate gate, const ModelStep& step, Scalar z, const Learned& learned, StatusWord st) {
-    if (!gate_.identifies()) film_.add_growth(step.r.j_side_a_m3, config_.dt_s);
     gate_.close_tick(gate.open);
     last_j_side_ = step.r.j_side_a_m3;
     ++ticks_;
-    const Scalar film_sd = film_sd_ohm_m2();
+    const Scalar film_sd = path_.film_sd_ohm_m2();
     held_film_sd_ohm_m2_ = film_sd;
     Output out = base_output(mode, film_sd);
     out.rcsi_active = learned.active;
@@ -615,7 +432,7 @@ class BmsCore {
     out.j_side_a_m3 = step.r.j_side_a_m3;
     out.markov_v_per_ohm_m2 = step.r.markov_v_per_ohm_m2;
     out.inventory_sensitivity_v = learned.inventory_sensitivity_v;
-    out.innovation_test_ratio = innovation_ratio_;
+    out.innovation_test_ratio = path_.innovation_test_ratio();
     out.newton_iterations = step.r.newton_iterations;
     out.status = st;
     status_ |= st;
@@ -639,18 +456,9 @@ class BmsCore {
     o.model_current_a = last_current_;
     o.j_side_a_m3 = last_j_side_;
     o.li_loss_ah = model_.li_loss_ah();
-    for (int i = 0; i < 2 * Nc; ++i) o.theta[i] = estimator_.theta()(i);
-    const bool id = gate_.identifies();
-    o.film_initial_ohm_m2 = id ? identifier_.initial_film_ohm_m2() : Scalar(0);
-    o.growth_gain = id ? identifier_.gain() : Scalar(0);
-    o.inventory_deviation = id ? identifier_.inventory_deviation() : Scalar(0);
+    path_.write_outputs(o, film_sd);  // theta, the identified parameters and their uncertainties
     o.markov_v_per_ohm_m2 = Scalar(0);
     o.inventory_sensitivity_v = Scalar(0);
-    o.growth_ohm_m2 = id ? identifier_.growth_ohm_m2() : Scalar(0);
-    constexpr Scalar kNan = std::numeric_limits<Scalar>::quiet_NaN();
-    o.r_film_sd_ohm_m2 = id ? film_sd : kNan;
-    o.capacity_ah = id ? capacity_ah_ : kNan;
-    o.capacity_sd_ah = id ? capacity_sd_ah_ : kNan;
     o.innovation_test_ratio = Scalar(0);
     o.tick = ticks_;
     o.newton_iterations = 0;
@@ -664,20 +472,11 @@ class BmsCore {
     return o;
   }
 
-  // Relative inventory probe for S = dV/dnu: large enough for float, small against the 1 %
-  // deviations a cell has.
-  static constexpr Scalar kInventoryProbe = Scalar(1e-3);
-  static constexpr StatusWord kIdentifierRejectMask =
-      bit(FwStatus::kRejectedNonFinite) | bit(FwStatus::kThetaRestored) | bit(FwStatus::kConfigInvalid);
-
   Config config_;
   MainModel& model_;
   Detector detector_;
-  Estimator estimator_;
-  FilmGrowthIdentifier<Scalar> identifier_;
+  FilmPath path_;
   LearningGate<Scalar> gate_;
-  BiasCalibration<Scalar> bias_;
-  FilmLevel<Scalar> film_;
   StateResync<Scalar> resync_;
   Scalar last_current_ = Scalar(0);
   Scalar last_voltage_ = Scalar(0);   // the last accepted sample's (catch-up in CV; not persisted)
@@ -688,23 +487,11 @@ class BmsCore {
   bool have_sample_ = false;
   std::uint32_t catch_up_ticks_ = 0u;
   StatusWord status_ = 0u;
-  // Not persisted: recomputed from the persisted parts (capacity at the first tick after a
-  // restore; the innovation mean restarts with the next learning window).
-  Scalar capacity_ah_ = std::numeric_limits<Scalar>::quiet_NaN();
   // The film's sd of the last full tick, reported by held ticks: nothing it depends on moves
   // without a full tick, and computing it (software double on the M4F) in each of a gap's
   // missed ticks took the catch-up probe from 135 000 to 1.1 million instructions. NaN until
   // the first full tick after power-up or a restore.
   Scalar held_film_sd_ohm_m2_ = std::numeric_limits<Scalar>::quiet_NaN();
-  Scalar capacity_sd_ah_ = std::numeric_limits<Scalar>::quiet_NaN();
-  Scalar innovation_mean_v_ = Scalar(0);
-  Scalar innovation_ratio_ = Scalar(0);
-  bool identifying_ = false;
-  Scalar v_warm_v_ = Scalar(0);                       // this tick's voltage at +kTemperatureProbeK
-  Scalar film_per_kelvin_ohm_m2_ = Scalar(0);         // |dV/dT / H| of the last learning tick
-  static constexpr Scalar kTemperatureProbeK = Scalar(1);
-  std::uint32_t capacity_ticks_ = 0u;  // learning ticks since the capacity was last computed
-  static constexpr std::uint32_t kCapacityEveryTicks = 1500u;  // 5 minutes at 0.2 s
 };
 
 }  // namespace bms::fw

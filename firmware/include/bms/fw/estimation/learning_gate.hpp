@@ -1,6 +1,6 @@
 #pragma once
-// When the film is learned (tick steps 4 and 9): RCSI, or the FilmGrowthIdentifier of the
-// `best` profile, learns only in a constant-current charge (elsewhere the film is not
+// When the film is learned (tick steps 4 and 9): the film path (RCSI, or the
+// FilmGrowthIdentifier of the `best` profile) learns only in a constant-current charge (elsewhere the film is not
 // identifiable), after a warm-up (the first seconds after a deep CV discharge are where the
 // reduced model is least accurate: a reaction front it cannot hold), and once the voltage bias
 // is known (BiasCalibration::blocks_learning). The film is held outside that window.
@@ -8,11 +8,12 @@
 // Conditions, in the style of an aid source:
 //   should_open      start and continue: CC charge, warm, bias ready;
 //   should_start     the window opens in this tick: RCSI's theta and P are reset (paper) and its
-//                    history restarts from the film held so far; H is taken from the model
-//                    (should_take_markov_from_model);
+//                    history restarts from the film held so far, and H is taken from the model
+//                    when its path says so (rcsi_film_path.hpp);
 //   phase_ended      the CC charge ended (the bias calibration's stop);
-//   should_identify  the identifier learns: the window is open, learning is on and the model is
-//                    current-driven; should_start_identifying: first such tick of a charge.
+//   should_identify  the identifier's path learns: the window is open, learning is on and the
+//                    model is current-driven; should_start_identifying: first such tick of a charge.
+// Which path learns is the core's type (film_path.hpp), not a flag here.
 // Header-only C++17: no heap, no exceptions, no RTTI.
 #include <cstdint>
 
@@ -24,10 +25,7 @@ class LearningGate {
   struct Config {
     Scalar warmup_s = Scalar(0);
     Scalar dt_s = Scalar(0.2);
-    bool learning = true;          // false: the control run, every RCSI / RLS update off
-    bool identify_growth = false;  // the FilmGrowthIdentifier learns instead of RCSI
-    // Paper: constant H. When true, H = dV/dR_film of the model at the window's start.
-    bool markov_from_model = false;
+    bool learning = true;  // false: the control run, every RCSI / RLS update off
   };
 
   // Trivially copyable, for the NVM image.
@@ -45,13 +43,11 @@ class LearningGate {
   bool warm() const { return static_cast<Scalar>(cc_ticks_) * c_.dt_s > c_.warmup_s; }
   bool should_open(bool in_cc_charge, bool bias_ready) const { return in_cc_charge && warm() && bias_ready; }
   bool should_start(bool open) const { return open && !was_open_; }
-  bool should_take_markov_from_model(bool open) const { return c_.markov_from_model && should_start(open); }
   void close_tick(bool open) { was_open_ = open; }
 
-  bool identifies() const { return c_.identify_growth; }
   bool learning() const { return c_.learning; }
   bool should_identify(bool open, bool voltage_driven) const {
-    return c_.identify_growth && c_.learning && open && !voltage_driven;
+    return c_.learning && open && !voltage_driven;
   }
   bool should_start_identifying(bool identify) const { return identify && !was_identifying_; }
   void identified(bool identify) { was_identifying_ = identify; }

@@ -26,9 +26,11 @@
 #include "bms/fw/model/cell_effects.hpp"
 #include "bms/fw/estimation/film_growth_identifier.hpp"
 #include "bms/fw/estimation/film_level.hpp"
+#include "bms/fw/estimation/identifier_film_path.hpp"
 #include "bms/fw/estimation/learning_gate.hpp"
 #include "bms/fw/estimation/mode_detector.hpp"
 #include "bms/fw/estimation/rcsi_estimator.hpp"
+#include "bms/fw/estimation/rcsi_film_path.hpp"
 #include "bms/fw/model/reduced_cell.hpp"
 #include "bms/fw/estimation/resync_window.hpp"
 #include "bms/fw/estimation/rls.hpp"
@@ -236,11 +238,31 @@ constexpr std::uint32_t state_schema(Type<EffectsModel<Inner, Effects>> /*tag*/)
   return fnv_number(hash("EffectsModel.State", f, sizeof(St)), Effects);
 }
 
-template <class S, class M, int Nc, int D>
-constexpr std::uint32_t state_schema(Type<BmsCore<S, M, Nc, D>> /*tag*/) {
-  using C = BmsCore<S, M, Nc, D>;
+// The film paths' states: each path's own parts (film_path.hpp). The path is in the core's
+// schema, so an image of one path never restores into a core of the other.
+template <class S, int Nc, int D>
+constexpr std::uint32_t state_schema(Type<RcsiFilmPath<S, Nc, D>> /*tag*/) {
+  using P = RcsiFilmPath<S, Nc, D>;
+  using St = typename P::State;
+  constexpr Field f[] = {BMS_SCHEMA_NESTED(St, estimator, typename P::Estimator),
+                         BMS_SCHEMA_NESTED(St, bias, BiasCalibration<S>), BMS_SCHEMA_NESTED(St, film, FilmLevel<S>)};
+  static_assert(covers(f, sizeof(St), alignof(St)), "RcsiFilmPath::State changed: update its schema table");
+  return hash("RcsiFilmPath.State", f, sizeof(St));
+}
+
+template <class S>
+constexpr std::uint32_t state_schema(Type<IdentifierFilmPath<S>> /*tag*/) {
+  using St = typename IdentifierFilmPath<S>::State;
+  constexpr Field f[] = {BMS_SCHEMA_NESTED(St, identifier, FilmGrowthIdentifier<S>)};
+  static_assert(covers(f, sizeof(St), alignof(St)), "IdentifierFilmPath::State changed: update its schema table");
+  return hash("IdentifierFilmPath.State", f, sizeof(St));
+}
+
+template <class S, class M, int Nc, int D, class P>
+constexpr std::uint32_t state_schema(Type<BmsCore<S, M, Nc, D, P>> /*tag*/) {
+  using C = BmsCore<S, M, Nc, D, P>;
   using St = typename C::State;
-  constexpr Field f[] = {BMS_SCHEMA_NESTED(St, identifier, FilmGrowthIdentifier<S>),
+  constexpr Field f[] = {BMS_SCHEMA_NESTED(St, film_path, P),
                          BMS_SCHEMA_FIELD(St, layout_tag),
                          BMS_SCHEMA_FIELD(St, ticks),
                          BMS_SCHEMA_FIELD(St, stale_ticks),
@@ -248,11 +270,8 @@ constexpr std::uint32_t state_schema(Type<BmsCore<S, M, Nc, D>> /*tag*/) {
                          BMS_SCHEMA_FIELD(St, last_current_a),
                          BMS_SCHEMA_FIELD(St, last_j_side_a_m3),
                          BMS_SCHEMA_NESTED(St, learning, LearningGate<S>),
-                         BMS_SCHEMA_NESTED(St, bias, BiasCalibration<S>),
-                         BMS_SCHEMA_NESTED(St, film, FilmLevel<S>),
                          BMS_SCHEMA_NESTED(St, resync, StateResync<S>),
                          BMS_SCHEMA_NESTED(St, detector, typename C::Detector),
-                         BMS_SCHEMA_NESTED(St, estimator, typename C::Estimator),
                          BMS_SCHEMA_NESTED(St, model, M)};
   static_assert(covers(f, sizeof(St), alignof(St)), "BmsCore::State changed: update its schema table");
   return hash("BmsCore.State", f, sizeof(St));

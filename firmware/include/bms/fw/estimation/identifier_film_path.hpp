@@ -1,0 +1,218 @@
+#pragma once
+// The `best` profile's film path: the film, its growth gain relative to the nominal law and the
+// cell's lithium inventory identified together in output-error form (FilmGrowthIdentifier)
+// against the reduced model's design-time bias, with an innovation test of the fit, the film's
+// 1-sigma (regression, stated model bound, temperature sensor) and the open-circuit capacity of
+// the identified inventory. The interface is film_path.hpp's; everything the identifier's path
+// needs and RCSI's does not lives in its Config.
+// Header-only C++17: no heap, no exceptions, no RTTI.
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+#include "bms/fw/estimation/film_growth_identifier.hpp"
+#include "bms/fw/estimation/film_path.hpp"
+#include "bms/fw/estimation/learning_gate.hpp"
+#include "bms/fw/estimation/state_resync.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
+
+namespace bms::fw {
+
+template <typename Scalar = double>
+class IdentifierFilmPath {
+ public:
+  static constexpr FilmPathKind kKind = FilmPathKind::identifier;
+  using Identifier = FilmGrowthIdentifier<Scalar>;
+
+  struct Config {
+    static constexpr FilmPathKind kKind = FilmPathKind::identifier;
+    typename Identifier::Config identifier{};
+    // The reduced model's voltage bias in CC charge per ampere of charge current, computed once
+    // at design time against a converged DFN of the nominal cell (never against the cell in use;
+    // scripts/calibrate-model-bias.sh). In CC a bias is collinear with the film, so without it the
+    // film would carry it (about 2.7 % of R_film for the paper cell).
+    Scalar model_bias_ohm = Scalar(0);
+    // A re-synchronisation that moves the model's inventory by more than this (relative)
+    // restarts the film parameters' learning (FilmGrowthIdentifier::relinearise).
+    Scalar relinearise_inventory = Scalar(1e-3);
+    // Innovation test of the learning ticks (as PX4 EKF2 gates a fusion): the residual less the
+    // design-time bias, averaged over innovation_time_constant_s (an exponential mean restarted
+    // at each learning window, so the sensor noise averages out), is compared with
+    // innovation_gate x innovation_sd_v, the reduced model's own residual in CC charge at the
+    // right film (0.29 mV rms against the converged DFN, docs/results/firmware-model.md).
+    // test ratio = (mean / (gate sd))^2; above 1 the model does not fit the cell (kModelMisfit).
+    // It only reports: the learning goes on (the estimate's validity is the caller's decision).
+    Scalar innovation_time_constant_s = Scalar(60);
+    Scalar innovation_sd_v = Scalar(3e-4);
+    Scalar innovation_gate = Scalar(5);
+    // 1-sigma of the temperature sensor [K]: in CC charge a temperature error is nearly collinear
+    // with the film (measured about 5 % of the paper cell's film per K), so it enters the film's sd
+    // as |dV/dT / H| x this (the model's sensitivity, probed at each learning tick). A stated
+    // accuracy of the sensor, not learned; 0 leaves it out.
+    Scalar temperature_sd_k = Scalar(0.2);
+  };
+
+  // Trivially copyable, for the NVM image.
+  struct State {
+    typename Identifier::State identifier;
+  };
+
+  IdentifierFilmPath(const Config& c, Scalar /*dt_s*/) : c_(c), identifier_(c.identifier) {}
+
+  Scalar initial_j_side_a_m3() const { return Scalar(0); }
+
+  // Step 4: no bias calibration, no reset at the window's start (the identifier keeps the
+  // information of every charge; its window starts in learn()).
+  void charge_ended() {}
+  bool ready_to_learn() const { return true; }
+  bool should_collect_reference(bool /*in_cc_charge*/, bool /*warm*/, std::uint32_t /*resyncs*/) const { return false; }
+  void window_opens(Scalar /*last_j_side_a_m3*/) {}
+
+  // Step 5: the identified film.
+  Scalar film_in_use(bool /*open*/) const { return identifier_.film_ohm_m2(); }
+
+  // Step 6: the identifier learns in the open window when learning is on and the model is
+  // current-driven; then the model is probed at a shifted inventory (S = dV/dnu) and, with a
+  // stated temperature-sensor accuracy, at +kTemperatureProbeK.
+  bool learns_from_probes(const LearningGate<Scalar>& gate, bool open, bool voltage_driven) const {
+    return gate.should_identify(open, voltage_driven);
+  }
+  template <class Model>
+  Scalar probe(Model& model, Scalar current_a, Scalar u, Scalar dt_s, Scalar inventory_mol) {
+    const Scalar v_probe = model.inventory_probe_voltage(current_a, u, dt_s, kInventoryProbe * inventory_mol);
+    if constexpr (kProbesTemperature<Model, Scalar>) {
+      if (c_.temperature_sd_k > Scalar(0)) v_warm_v_ = model.temperature_probe_voltage(current_a, u, dt_s, kTemperatureProbeK);
+    }
+    return v_probe;
+  }
+
+  // Step 7: the model is re-synchronised to the identified inventory; a move larger than
+  // relinearise_inventory restarts the learning of the film's parameters.
+  Scalar inventory_deviation() const { return identifier_.inventory_deviation(); }
+  Scalar relinearise_inventory() const { return c_.relinearise_inventory; }
+  void relinearise() { identifier_.relinearise(); }
+  Scalar inventory_limit() const { return c_.identifier.inventory_limit; }
+
+  // Step 8: nothing (no reference charge).
+  void collect_reference(Scalar /*z_v*/) {}
+
+  // Step 9: the film, its growth gain and the inventory in output-error form.
+  template <class Model>
+  FilmLearned<Scalar> learn(const FilmTick<Scalar>& t, const Model& model, LearningGate<Scalar>& gate,
+                            const StateResync<Scalar>& resync) {
+    FilmLearned<Scalar> l{0u, false, Scalar(0)};
+    innovation_ratio_ = Scalar(0);
+    if (t.probed) {
+      const bool start = gate.should_start_identifying(t.probed);
+      if (start) identifier_.begin_charge();
+      l.status |= innovation_test(t.z_v + c_.model_bias_ohm * t.current_a, start, t.dt_s);
+      l.inventory_sensitivity_v = (t.v_probe_v - t.r.voltage_v) / kInventoryProbe;
+      const Scalar per_k = (v_warm_v_ - t.r.voltage_v) / (kTemperatureProbeK * t.r.markov_v_per_ohm_m2);
+      if (c_.temperature_sd_k > Scalar(0) && std::isfinite(per_k)) film_per_kelvin_ohm_m2_ = std::fabs(per_k);
+      l.status |= identifier_.learn(t.u_ohm_m2, t.z_v, t.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
+                                    resync.inventory_deviation_model(), -c_.model_bias_ohm * t.current_a);
+      l.active = (l.status & kIdentifierRejectMask) == 0u;
+    }
+    identifier_.propagate(t.r.j_side_a_m3, t.dt_s);
+    gate.identified(t.probed);
+    update_capacity(model, t.probed, t.nominal_inventory_mol);
+    return l;
+  }
+
+  void propagate(Scalar j_side_a_m3, Scalar dt_s) { identifier_.propagate(j_side_a_m3, dt_s); }
+  StatusWord model_failed(bool /*open*/, Scalar /*last_j_side_a_m3*/) { return 0u; }
+
+  Scalar r_film_ohm_m2() const { return identifier_.film_ohm_m2(); }
+  // The film's 1-sigma: the identifier's (regression and model bound) and the temperature
+  // sensor's, |dV/dT / H| x temperature_sd_k, in quadrature.
+  Scalar film_sd_ohm_m2() const {
+    const Scalar sd = identifier_.film_sd_ohm_m2();
+    const Scalar t = film_per_kelvin_ohm_m2_ * c_.temperature_sd_k;
+    return std::isfinite(t) ? std::sqrt(sd * sd + t * t) : sd;
+  }
+  Scalar innovation_test_ratio() const { return innovation_ratio_; }
+  // The identified parameters and their uncertainties. theta: the ARX subsystem RCSI fits is not
+  // used here; it reads as the hold RCSI starts from, [M1 = 1, 0, ...] (the identifier's film
+  // is an integrator too: M1 = 1).
+  template <class Output>
+  void write_outputs(Output& o, Scalar film_sd_ohm_m2) const {
+    constexpr int kTheta = static_cast<int>(sizeof(o.theta) / sizeof(o.theta[0]));
+    for (int i = 0; i < kTheta; ++i) o.theta[i] = i == 0 ? Scalar(1) : Scalar(0);
+    o.film_initial_ohm_m2 = identifier_.initial_film_ohm_m2();
+    o.growth_gain = identifier_.gain();
+    o.inventory_deviation = identifier_.inventory_deviation();
+    o.growth_ohm_m2 = identifier_.growth_ohm_m2();
+    o.r_film_sd_ohm_m2 = film_sd_ohm_m2;
+    o.capacity_ah = capacity_ah_;
+    o.capacity_sd_ah = capacity_sd_ah_;
+  }
+  StatusWord status() const { return 0u; }
+
+  // Not persisted: the capacity is recomputed at the first tick after a restore, the innovation
+  // mean restarts with the next learning window.
+  State save() const { return State{identifier_.save()}; }
+  bool restore(const State& s) {
+    Identifier id = identifier_;
+    if (!id.restore(s.identifier)) return false;
+    identifier_ = id;
+    capacity_ah_ = std::numeric_limits<Scalar>::quiet_NaN();  // recomputed from the restored inventory
+    identifying_ = false;
+    return true;
+  }
+
+  const Identifier& identifier() const { return identifier_; }
+  const Config& config() const { return c_; }
+
+ private:
+  // The innovation test (Config::innovation_*) on this learning tick's bias-corrected residual.
+  StatusWord innovation_test(Scalar z_corrected_v, bool window_start, Scalar dt_s) {
+    if (!(c_.innovation_sd_v > Scalar(0)) || !std::isfinite(z_corrected_v)) return 0u;
+    const Scalar a = dt_s / (c_.innovation_time_constant_s + dt_s);
+    innovation_mean_v_ = window_start ? z_corrected_v : innovation_mean_v_ + a * (z_corrected_v - innovation_mean_v_);
+    const Scalar limit = c_.innovation_gate * c_.innovation_sd_v;
+    innovation_ratio_ = (innovation_mean_v_ / limit) * (innovation_mean_v_ / limit);
+    return innovation_ratio_ > Scalar(1) ? bit(FwStatus::kModelMisfit) : 0u;
+  }
+
+  // The open-circuit capacity of the identified inventory (less the model's own lithium loss),
+  // at the first tick, every kCapacityEveryTicks learning ticks and when a learning window
+  // closes: two bisections, not every tick.
+  template <class Model>
+  void update_capacity(const Model& model, bool identifying, Scalar nominal_inventory_mol) {
+    const bool window_closed = identifying_ && !identifying;
+    identifying_ = identifying;
+    capacity_ticks_ = identifying ? capacity_ticks_ + 1u : 0u;
+    const bool due = window_closed || capacity_ticks_ >= kCapacityEveryTicks;
+    if constexpr (kGivesCapacity<Model, Scalar>) {
+      if (!(due || std::isnan(capacity_ah_)) || !(nominal_inventory_mol > Scalar(0))) return;
+      capacity_ticks_ = 0u;
+      const Scalar n0 = nominal_inventory_mol;
+      const Scalar n = n0 * (Scalar(1) + identifier_.inventory_deviation()) - model.li_loss_mol();
+      capacity_ah_ = Model::open_circuit_capacity_ah(n);
+      // The capacity moves with the inventory nearly one to one near the nominal cell (0.98:
+      // tests/firmware/test_temperature.cpp): its relative sd is the inventory's.
+      capacity_sd_ah_ = capacity_ah_ * identifier_.inventory_sd() * n0 / n;
+    }
+  }
+
+  // Relative inventory probe for S = dV/dnu: large enough for float, small against the 1 %
+  // deviations a cell has.
+  static constexpr Scalar kInventoryProbe = Scalar(1e-3);
+  static constexpr Scalar kTemperatureProbeK = Scalar(1);
+  static constexpr StatusWord kIdentifierRejectMask =
+      bit(FwStatus::kRejectedNonFinite) | bit(FwStatus::kThetaRestored) | bit(FwStatus::kConfigInvalid);
+  static constexpr std::uint32_t kCapacityEveryTicks = 1500u;  // 5 minutes at 0.2 s
+
+  Config c_;
+  Identifier identifier_;
+  Scalar capacity_ah_ = std::numeric_limits<Scalar>::quiet_NaN();
+  Scalar capacity_sd_ah_ = std::numeric_limits<Scalar>::quiet_NaN();
+  Scalar innovation_mean_v_ = Scalar(0);
+  Scalar innovation_ratio_ = Scalar(0);
+  bool identifying_ = false;
+  Scalar v_warm_v_ = Scalar(0);                // this tick's voltage at +kTemperatureProbeK
+  Scalar film_per_kelvin_ohm_m2_ = Scalar(0);  // |dV/dT / H| of the last learning tick
+  std::uint32_t capacity_ticks_ = 0u;          // learning ticks since the capacity was last computed
+};
+
+}  // namespace bms::fw
