@@ -27,6 +27,7 @@ int main(int argc, char** argv) {
   add(bms::app::add_baseline);
   add(bms::app::add_diagnose);
   add(bms::app::add_cell_config);
+  add(bms::app::add_fit);
   bms::install_interrupt_handlers();
   try {
     app.parse(argc, argv);
