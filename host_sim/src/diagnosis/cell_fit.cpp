@@ -428,7 +428,9 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
   for (std::size_t c = 0; c < candidates.size(); ++c)
     by_norm.emplace_back(J0.col(static_cast<long>(c)).norm() / std::sqrt(static_cast<double>(J0.rows())),
                          static_cast<int>(c));
-  std::sort(by_norm.rbegin(), by_norm.rend());
+  // Priority, not sensitivity, orders the collinearity test: the electrode balance, then the
+  // series resistance, then diffusion, kinetics and the electrolyte (a kinetic overpotential at
+  // one current level looks like a series resistance; the simpler explanation is kept).
   Eigen::MatrixXd Jn = J0;
   for (long c = 0; c < Jn.cols(); ++c) Jn.col(c) /= std::max(Jn.col(c).norm(), 1e-300);
   std::vector<int> chosen_cols, active;
@@ -444,7 +446,7 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
     const double col = collinearity(Jn, c, chosen_cols);
     if (col > settings.max_collinearity) {
       why[static_cast<std::size_t>(k)] =
-          fmt::format("its Jacobian column is nearly collinear with those of more sensitive parameters (|cos| {:.4f})", col);
+          fmt::format("its Jacobian column is nearly collinear with those of the parameters fitted before it (balance, series resistance, diffusion, kinetics, electrolyte in that order) (|cos| {:.4f})", col);
       continue;
     }
     chosen_cols.push_back(c);

@@ -40,7 +40,7 @@ struct CellFitSettings {
   double v_min = std::numeric_limits<double>::quiet_NaN();  // the fitted cell's window
   double v_max = std::numeric_limits<double>::quiet_NaN();
   double max_relative_sd = 0.5;     // above: not identifiable
-  double max_collinearity = 0.995;  // |cos| of a column to the span of the others
+  double max_collinearity = 0.99;   // |cos| of a column to the span of the others
   double min_sensitivity_mv = 0.2;  // RMS voltage change for a change of 1 in the parameter's unit of search
   std::vector<std::string> only;    // non-empty: fit only these names
 };
