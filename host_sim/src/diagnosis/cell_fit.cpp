@@ -106,12 +106,14 @@ double electrode_capacity_ah(const CellParameters& cell, const ElectrodeParamete
          3600.0;
 }
 
-double bisect(const std::function<double(double)>& f, double a, double b) {  // f(a) < 0 < f(b)
+// f(a) < 0 < f(b): the root's bracket end where f > 0 (the balance's f > 0 is inside the window,
+// so the cell's full and empty states never lie a rounding error outside it).
+double bisect(const std::function<double(double)>& f, double a, double b) {
   for (int it = 0; it < 200 && b - a > 1e-13; ++it) {
     const double m = 0.5 * (a + b);
     (f(m) < 0 ? a : b) = m;
   }
-  return 0.5 * (a + b);
+  return b;
 }
 
 struct Balance {
