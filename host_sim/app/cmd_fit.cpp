@@ -295,6 +295,17 @@ int run_fit(const FitOptions& o) {
                                                                           : template_cell.upper_voltage_v;
   settings.v_min = vmin < template_cell.lower_voltage_v - kWindowMarginV ? std::round(vmin * 100) / 100
                                                                           : template_cell.lower_voltage_v;
+  // The largest charge one discharge of the training rows delivered (current > 0 throughout).
+  for (std::size_t g = 0; g < groups.size(); ++g) {
+    const auto& d = groups[g].data;
+    double q = 0;
+    for (std::size_t k = 1; k < d.t_s.size(); ++k) {
+      const bool on = roles[g][k] == diagnosis::kRoleTrain && d.current_a[k] > kRestCurrentA &&
+                      d.current_a[k - 1] > kRestCurrentA;
+      q = on ? q + 0.5 * (d.current_a[k] + d.current_a[k - 1]) * (d.t_s[k] - d.t_s[k - 1]) / 3600.0 : 0.0;
+      settings.measured_capacity_ah = std::max(settings.measured_capacity_ah, q);
+    }
+  }
   std::vector<diagnosis::FitPiece> pieces;
   std::vector<std::string> labels;
   for (std::size_t g = 0; g < groups.size(); ++g) add_pieces(groups[g], roles[g], pieces, labels);

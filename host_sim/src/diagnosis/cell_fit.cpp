@@ -159,11 +159,24 @@ class Problem {
     };
     const double lo = std::max(kStoichEdge, (n0 - (1 - kStoichEdge) * qp0_) / qn0_);
     const double hi = std::min(1 - kStoichEdge, (n0 - kStoichEdge * qp0_) / qn0_);
-    if (!(f(lo) < 0 && f(hi) > 0))
-      throw InputError(fmt::format("--template {}: its open-circuit voltage does not reach the data's upper voltage "
-                                   "{:.3f} V with its lithium inventory",
-                                   name, s_.v_max));
-    x100_0_ = std::abs(s_.v_max - base_.upper_voltage_v) < 1e-9 ? base_.negative.stoich_max : bisect(f, lo, hi);
+    if (std::abs(s_.v_max - base_.upper_voltage_v) < 1e-9) {
+      x100_0_ = base_.negative.stoich_max;
+    } else if (f(lo) < 0 && f(hi) > 0) {
+      x100_0_ = bisect(f, lo, hi);
+    } else {
+      // The template's lithium cannot reach the data's upper voltage: start from its negative
+      // electrode's full state instead (the positive's state there follows from the voltage).
+      x100_0_ = base_.negative.stoich_max;
+      notes_.push_back(fmt::format("the template's lithium inventory does not reach {:.3f} V: the start keeps its "
+                                   "negative electrode's full stoichiometry {:.5f} and takes the positive's from the "
+                                   "voltage",
+                                   s_.v_max, x100_0_));
+    }
+    Balance check = balance(base_, qn0_, qp0_, x100_0_, s_.v_min, s_.v_max);
+    if (!check.ok)
+      throw InputError(fmt::format("--template {}: its open-circuit curves have no state at the data's voltage "
+                                   "window {:.3f}-{:.3f} V; give --template a cell for this chemistry",
+                                   name, s_.v_min, s_.v_max));
     template_values_ = {
         number_of(field(tmpl_, "Cell", "Electrode area [m2]"), "Cell.Electrode area [m2]"),
         number_of(field(tmpl_, "Positive electrode", "Maximum concentration [mol.m-3]"),
@@ -178,9 +191,20 @@ class Problem {
     if (!base_.side.enabled) notes_.push_back("the template has no side reaction: the series film is not fitted");
   }
 
+  // The template (its parameters in the data's voltage window).
   Eigen::VectorXd z0() const {
     Eigen::VectorXd z = Eigen::VectorXd::Zero(kKnobs);
     z[static_cast<int>(Knob::negative_stoich_full)] = x100_0_;
+    return z;
+  }
+  // Where the search starts: the template with its area scaled to the measured capacity.
+  Eigen::VectorXd start() const {
+    Eigen::VectorXd z = z0();
+    if (s_.measured_capacity_ah > 0) {
+      Balance b = balance(base_, qn0_, qp0_, x100_0_, s_.v_min, s_.v_max);
+      const KnobInfo& a = info(Knob::electrode_area);
+      z[static_cast<int>(Knob::electrode_area)] = std::clamp(std::log(s_.measured_capacity_ah / b.capacity_ah), a.lo, a.hi);
+    }
     return z;
   }
   double template_value(int k) const { return template_values_[static_cast<std::size_t>(k)]; }
@@ -400,13 +424,16 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
   CellFitResult out;
   out.notes = problem.notes();
   Search search{problem, settings, log};
-  Eigen::VectorXd z = problem.z0();
+  Eigen::VectorXd z = problem.start();
+  if (settings.measured_capacity_ah > 0)
+    log(fmt::format("start: electrode area x {:.4f} (the largest measured discharge, {:.4f} Ah, in the window)",
+                    std::exp(z[0]), settings.measured_capacity_ah));
   std::vector<double> r = search.eval(z);
   if (r.empty())
     throw RuntimeFailure("the template's model fails on the training data (solver or electrode balance); try "
                          "another --template or check the record's voltage window");
   out.train_samples = r.size();
-  log(fmt::format("template: training RMSE {:.3f} mV over {} samples (search mesh)",
+  log(fmt::format("start: training RMSE {:.3f} mV over {} samples (search mesh)",
                   std::sqrt(sum_sq(r) / static_cast<double>(r.size())), r.size()));
 
   // Candidates: every knob (or those asked for) the template has a value for.
@@ -483,7 +510,7 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
     log(fmt::format("{} not identifiable (relative sd {:.3g}); refitting without it", info(static_cast<Knob>(k)).name,
                     worst_rel));
     active.erase(active.begin() + worst);
-    z[k] = problem.z0()[k];
+    z[k] = problem.z0()[k];  // the template's value
     r = search.eval(z);
     if (r.empty()) throw RuntimeFailure("the model failed after a parameter was reset to its template value");
   }

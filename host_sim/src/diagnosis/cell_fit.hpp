@@ -43,6 +43,9 @@ struct CellFitSettings {
   double max_collinearity = 0.99;   // |cos| of a column to the span of the others
   double min_sensitivity_mv = 0.2;  // RMS voltage change for a change of 1 in the parameter's unit of search
   std::vector<std::string> only;    // non-empty: fit only these names
+  // > 0: the largest charge (Ah) one discharge of the training rows delivered; the search starts
+  // from the electrode area that gives the template's window this capacity.
+  double measured_capacity_ah = 0.0;
 };
 
 struct FitParameter {
