@@ -34,6 +34,13 @@ constexpr double kRestCurrentA = 0.01;
 // A logging gap longer than this, at rest on both sides, restarts the model from the rest voltage
 // (as a BMS re-synchronises at power-up): the data cannot say what happened in between.
 constexpr double kResyncGapS = 3600.0;
+// A rest this long ends near equilibrium: the model restarts from its last voltage, as a BMS
+// resets its state of charge from the open-circuit voltage after a rest. Without it the model
+// integrates the cycler's charge counting over many cycles and drifts with its gain mismatch
+// (CS2_35 counts about 2 % more charge in than out: the cell's side reactions and the sensor).
+constexpr double kResyncRestS = 1200.0;
+// A charge whose last sample is this close to the upper voltage ended full.
+constexpr double kFullChargeV = 0.02;
 // The fitted cell's voltage window: the template's unless the data go beyond it by more than this.
 constexpr double kWindowMarginV = 5e-3;
 
@@ -111,14 +118,23 @@ struct Group {
 };
 
 // Rows of one group into pieces (split after long rests), with roles from `role_of`.
-void add_pieces(const Group& g, const std::vector<char>& role, std::vector<diagnosis::FitPiece>& pieces,
+void add_pieces(const Group& g, const std::vector<char>& role, double v_max, std::vector<diagnosis::FitPiece>& pieces,
                 std::vector<std::string>& piece_labels) {
   const EstimateData& d = g.data;
   std::vector<std::size_t> starts{0};
-  for (std::size_t k = 1; k < d.t_s.size(); ++k)
-    if (d.t_s[k] - d.t_s[k - 1] > kResyncGapS && std::abs(d.current_a[k]) < kRestCurrentA &&
-        std::abs(d.current_a[k - 1]) < kRestCurrentA && k - starts.back() >= diagnosis::kMinSamples)
-      starts.push_back(k);
+  double rest_since_s = d.t_s.front();
+  for (std::size_t k = 1; k < d.t_s.size(); ++k) {
+    const bool rest = std::abs(d.current_a[k]) < kRestCurrentA, was_rest = std::abs(d.current_a[k - 1]) < kRestCurrentA;
+    if (!was_rest) rest_since_s = d.t_s[k];
+    // The last sample of a long rest (or the first after a long logging gap at rest) starts a piece.
+    const bool rest_ends = rest && was_rest && (k + 1 == d.t_s.size() || std::abs(d.current_a[k + 1]) >= kRestCurrentA);
+    // A charge that ended at the upper voltage (CV to its end current): the cell is full, as a
+    // BMS resets its state of charge at the end of a full charge.
+    const bool charged_full = rest && d.current_a[k - 1] < -kRestCurrentA && d.voltage_v[k - 1] >= v_max - kFullChargeV;
+    const bool resync = (rest && was_rest && d.t_s[k] - d.t_s[k - 1] > kResyncGapS) ||
+                        (rest_ends && d.t_s[k] - rest_since_s >= kResyncRestS) || charged_full;
+    if (resync && k - starts.back() >= diagnosis::kMinSamples) starts.push_back(k);
+  }
   if (starts.size() > 1 && d.t_s.size() - starts.back() < diagnosis::kMinSamples) starts.pop_back();
   starts.push_back(d.t_s.size());
   for (std::size_t s = 0; s + 1 < starts.size(); ++s) {
@@ -308,7 +324,7 @@ int run_fit(const FitOptions& o) {
   }
   std::vector<diagnosis::FitPiece> pieces;
   std::vector<std::string> labels;
-  for (std::size_t g = 0; g < groups.size(); ++g) add_pieces(groups[g], roles[g], pieces, labels);
+  for (std::size_t g = 0; g < groups.size(); ++g) add_pieces(groups[g], roles[g], settings.v_max, pieces, labels);
   settings.search_mesh = {o.search_points, o.search_points, o.search_points, o.search_radial};
   settings.final_mesh = {o.points, o.points, o.points, o.radial};
   settings.rtol = o.rtol;
