@@ -7,9 +7,9 @@
 
 #include <vector>
 
-#include "bms/fw/bms_core.hpp"
-#include "bms/fw/make_config.hpp"
-#include "bms/fw/paper_cell.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/config/make_config.hpp"
+#include "bms/fw/model/paper_cell.hpp"
 
 namespace {
 

@@ -2,7 +2,7 @@
 # Design-time calibration of the firmware's reduced model: its voltage bias in CC charge per
 # ampere over the ticks the best profile learns from (after its warm-up), against a converged DFN (40/40 volumes, rtol 1e-9) of the *nominal* paper cell, with
 # the nominal film, growth law and inventory (no --set: nothing of any cell in use).
-# Prints the value for firmware/include/bms/fw/reduced_model_bias.hpp (kPaperReducedModelBiasOhm).
+# Prints the value for firmware/include/bms/fw/model/reduced_model_bias.hpp (kPaperReducedModelBiasOhm).
 # Usage: scripts/calibrate-model-bias.sh [OUT_DIR]   (about 10 s)
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"

@@ -8,7 +8,7 @@ The section whose heading starts with "## One 0.2 s tick" holds a numbered list 
 `kConstant`). Every such name in the section is checked: the file exists, every part of Name
 occurs in it as a word, and a function's name as `name(` (or `name<...>(`). The section's
 "tick step N, **name**" bullets must be the list written at the top of BmsCore::tick
-(firmware/include/bms/fw/bms_core.hpp: `//   N name   ...`), same numbers, same names, all of
+(firmware/include/bms/fw/estimation/bms_core.hpp: `//   N name   ...`), same numbers, same names, all of
 them: one numbering of the tick in the code and the document. A step renamed, moved or
 removed in the code makes this fail until the list is updated.
 
@@ -24,7 +24,7 @@ ITEM = re.compile(r"^(\d+)\.\s")
 REF = re.compile(r"`([\w./-]+\.(?:hpp|cpp|h|c|py|sh)):([\w:~]+)`")
 TICK_DOC = re.compile(r"tick step (\d+), \*\*([^*]+)\*\*")
 TICK_CODE = re.compile(r"^\s*//\s+(\d+) (\S+(?: \S+)*?)\s{2,}\S")
-CORE = "firmware/include/bms/fw/bms_core.hpp"
+CORE = "firmware/include/bms/fw/estimation/bms_core.hpp"
 
 
 def read_section(doc_path):

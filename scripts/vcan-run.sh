@@ -116,7 +116,13 @@ saved_tty=""
 tty_fd=2
 cleanup() {
   if [ -n "$watchdog_pid" ]; then kill "$watchdog_pid" 2>/dev/null || true; fi
-  if [ -n "$guest_pid" ]; then kill -KILL -- "-$guest_pid" 2>/dev/null || true; fi
+  if [ -n "$guest_pid" ]; then
+    kill -KILL -- "-$guest_pid" 2>/dev/null || true
+    # Gone before we exit: whoever waits for us may remove what the guest was writing.
+    wait "$guest_pid" 2>/dev/null || true
+    local n=0
+    while kill -0 -- "-$guest_pid" 2>/dev/null && [ "$n" -lt 50 ]; do sleep 0.1; n=$((n + 1)); done
+  fi
   if [ -n "$saved_tty" ]; then stty "$saved_tty" <&"$tty_fd" 2>/dev/null || true; fi
   if [ -n "$rundir" ] && [ "$keep" != 1 ]; then rm -rf "$rundir"; fi
 }

@@ -20,9 +20,9 @@
 #include <type_traits>
 #include <vector>
 
-#include <bms/fw/bms_core.hpp>
-#include <bms/fw/make_config.hpp>
-#include <bms/fw/reduced_cell.hpp>
+#include <bms/fw/estimation/bms_core.hpp>
+#include <bms/fw/config/make_config.hpp>
+#include <bms/fw/model/reduced_cell.hpp>
 
 namespace {
 

@@ -1,7 +1,7 @@
 // See replay_tick.hpp.
 #include "replay_tick.hpp"
 
-#include <bms/fw/make_config.hpp>
+#include <bms/fw/config/make_config.hpp>
 
 namespace bms::target {
 
@@ -13,7 +13,7 @@ Model initial_model() {
 }
 }  // namespace
 
-// The default profile of every caller (bms/fw/make_config.hpp): best, in double (host,
+// The default profile of every caller (bms/fw/config/make_config.hpp): best, in double (host,
 // Cortex-M7) and in float (Cortex-M4F; the numerics that keep the film signal in float are
 // described in reduced_cell.hpp and docs/results/target.md).
 Core::Config firmware_config() {

@@ -7,8 +7,8 @@
 // scalar type: the host and Cortex-M7 builds use double, the Cortex-M4F build float.
 #pragma once
 
-#include <bms/fw/bms_core.hpp>
-#include <bms/fw/reduced_cell.hpp>
+#include <bms/fw/estimation/bms_core.hpp>
+#include <bms/fw/model/reduced_cell.hpp>
 
 #ifndef BMS_REPLAY_SCALAR
 #define BMS_REPLAY_SCALAR double

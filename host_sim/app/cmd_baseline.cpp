@@ -10,7 +10,7 @@
 
 #include "baselines/baseline_output.hpp"
 #include "baselines/baseline_run.hpp"
-#include "bms/fw/paper_cell.hpp"
+#include "bms/fw/model/paper_cell.hpp"
 #include "commands.hpp"
 #include "io/input_error.hpp"
 #include "io/output_folder.hpp"

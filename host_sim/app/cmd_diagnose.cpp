@@ -15,7 +15,9 @@
 #include "simulate_options.hpp"
 #include "diagnosis/diagnose.hpp"
 #include "diagnosis/report.hpp"
+#include "io/child_process.hpp"
 #include "io/input_error.hpp"
+#include "io/output_folder.hpp"
 #include "io/measured_profile.hpp"
 #include "sim/cell_catalog.hpp"
 
@@ -111,6 +113,9 @@ int run_diagnose(const DiagnoseOptions& o) {
                                    d, kRestCurrentA));
     diagnosis::set_initial_state(records.back(), cell, o.initial_soc);
   }
+  // Checked before the long work; every file is written under DIR.partial-PID, which replaces
+  // DIR only once the report, its plots and summary.json are all written (io/output_folder.hpp).
+  OutputFolder folder(o.out);
   auto log = [q = o.quiet](const std::string& s) {
     if (!q) std::fprintf(stderr, "diagnose: %s\n", s.c_str());
   };
@@ -118,7 +123,9 @@ int run_diagnose(const DiagnoseOptions& o) {
   if (!result.excitation_note.empty())
     std::fprintf(stderr, "diagnose: note: %s\n", result.excitation_note.c_str());
   const diagnosis::ReportContext ctx{command_line(o), o.cell, settings};
-  const auto plots = diagnosis::write_report(o.out, result, ctx);
+  const auto plots = diagnosis::write_report(folder.staging(), result, ctx);
+  throw_if_interrupted();
+  folder.commit();
   if (plots.empty()) std::fprintf(stderr, "diagnose: warning: no plots (see %s/report.md)\n", o.out.c_str());
   std::fprintf(stderr, "diagnose: %s: held-out RMSE %.3f -> %.3f mV, all %.3f -> %.3f mV (%s) -> %s\n",
                diagnosis::effect_name(result.answer), result.heldout_before_mv,

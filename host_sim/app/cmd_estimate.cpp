@@ -8,7 +8,7 @@
 
 #include <fmt/format.h>
 
-#include "bms/fw/fw_status.hpp"
+#include "bms/fw/estimation/fw_status.hpp"
 #include "commands.hpp"
 #include "estimation/aging_report.hpp"
 #include "estimation/charges.hpp"
@@ -134,9 +134,11 @@ void add_charges(nlohmann::json& summary, const EstimateResult& r, const Estimat
   const std::vector<ChargeReport> charges = find_charges(r.rows, input.data, cell);
   summary["charges"] = charges_json(charges);
   summary["charges_note"] =
-      "capacity_ah: charge counted on the measured current over each charge (CC and CV), not yet the estimator's "
-      "own capacity; r_film_sd_ohm_m2: null, the estimator reports no film uncertainty yet; r_step_ohm: the voltage "
-      "step at the charge's onset over the current";
+      "capacity_ah, capacity_sd_ah: the estimator's open-circuit capacity and 1-sigma at the CC end "
+      "(capacity_source 'estimator'), or where it identifies none the charge counted on the measured current over "
+      "the charge (CC and CV; capacity_source 'counted'); counted_ah: that counted charge always; r_film_sd_ohm_m2: "
+      "the estimator's 1-sigma (null where it has none); r_step_ohm: the voltage step at the charge's onset over the "
+      "current";
   if (input.cycler_cycles.empty()) return;
   // Every CC charge the mode detector found, learned in or not (a control run learns in none).
   const AgingComparison a = compare_aging(find_charges(r.rows, input.data, cell, false), input.cycler_cycles);
@@ -214,7 +216,7 @@ Runner add_estimate(CLI::App& app) {
                   "film growth: the paper's setting)")
       ->capture_default_str();
   sub->add_option("--settings", c->settings,
-                  "Estimator profile (bms/fw/make_config.hpp, the firmware's own): 'best' (from the nominal cell "
+                  "Estimator profile (bms/fw/config/make_config.hpp, the firmware's own): 'best' (from the nominal cell "
                   "only: the film, its growth gain and the lithium inventory identified together), 'paper' (the "
                   "paper's RCSI: n_c = 1, eta = 0, P(0) = " + fmt::format("{}", fw::kPaperCovarianceP0) +
                       " I, H = " + fmt::format("{}", fw::kPaperMarkovVPerOhmM2) +

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include "commands.hpp"
+#include "io/atomic_file.hpp"
 #include "io/input_error.hpp"
 #include "io/output_folder.hpp"
 #include "io/measured_profile.hpp"
@@ -53,6 +54,8 @@ Runner add_simulate(CLI::App& app) {
     std::string failure;
     try {
       result = execute_simulation(plan, truth, opts->quiet ? ProgressFn{} : ProgressFn(progress));
+    } catch (const WriteFailure&) {
+      throw;  // the disk: nothing can be kept
     } catch (const RuntimeFailure& e) {
       failure = e.what();  // keep what was finished, marked incomplete
     }

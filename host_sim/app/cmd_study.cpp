@@ -9,7 +9,7 @@
 #include <fmt/format.h>
 
 #include "commands.hpp"
-#include "study_blind.hpp"
+#include "studies/study_blind.hpp"
 #include "io/input_error.hpp"
 #include "sim/truth_output.hpp"
 #include "studies/study_collect.hpp"
@@ -72,7 +72,7 @@ int collect_and_report(const fs::path& dir, const nlohmann::json& options, const
 }
 
 int run_blind(const StudyCli& c, const CLI::App& sub) {
-  BlindStudyOptions b;
+  study::BlindStudyOptions b;
   b.seeds = sub.count("--seeds") ? c.o.seeds : (c.o.quick ? 2 : 10);
   b.cycles = c.o.quick && sub.count("--cycles") == 0 ? 3 : c.blind_cycles;
   b.sets = c.o.quick && sub.count("--sets") == 0 ? "1" : c.blind_sets;
@@ -80,7 +80,7 @@ int run_blind(const StudyCli& c, const CLI::App& sub) {
   b.out = c.out;
   const std::string command = fmt::format("bmssim study blind --seeds {} --cycles {} --sets {} --out {}", b.seeds,
                                           b.cycles, b.sets, c.out);
-  const int failed = run_blind_study(b, command);
+  const int failed = study::run_blind_study(b, command);
   if (failed > 0) std::fprintf(stderr, "study blind: %d truth(s) could not be simulated (summary.json: truth_failures)\n", failed);
   return failed > 0 ? 1 : 0;
 }
@@ -120,6 +120,7 @@ int run_all_cases(const StudyCli& c, const std::vector<study::CaseSpec>& cases, 
   const long cores = sysconf(_SC_NPROCESSORS_ONLN);
   const int jobs = c.jobs > 0 ? c.jobs : static_cast<int>(std::max(1L, cores));
   fs::create_directories(out);
+  study::record_plan(out, cases);  // for --collect: what was planned, run or not
   std::fprintf(stderr, "study: %zu cases, %d at once -> %s\n", cases.size(), jobs, out.c_str());
   const int failed = study::run_cases(self, out, cases, jobs, [&](const study::CaseSpec& cs) {
     return case_argv(c, out.string(), cs.name);
@@ -153,6 +154,7 @@ int run_study(StudyCli& c, const CLI::App& sub, CLI::App& root) {
   const fs::path exe = fs::read_symlink(self);
   const fs::path out = fs::absolute(c.out);
   if (c.list_cases) {
+    study::record_plan(out, cases);  // for --collect: what was planned, run or not
     print_case_commands(c, cases, exe, out);
     return 0;
   }

@@ -6,6 +6,7 @@
 #include "commands.hpp"
 #include "io/child_process.hpp"
 #include "io/input_error.hpp"
+#include "io/output_folder.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -29,6 +30,7 @@ int main(int argc, char** argv) {
   add(bms::app::add_cell_config);
   add(bms::app::add_fit);
   bms::install_interrupt_handlers();
+  bms::adopt_output_folder_owner();
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -7,7 +7,7 @@
 
 Keeps what the firmware receives, at the resolution it receives it: the measured voltage and
 current as the raw integers of the HOST_Measurement CAN frame (10 uV and 0.1 mA steps,
-firmware/include/bms/fw/can_protocol.hpp, rounded half away from zero like its encoder). The
+firmware/include/bms/fw/can/can_protocol.hpp, rounded half away from zero like its encoder). The
 true mode and film resistance are kept for reports only (they are not put in the image).
 The output is gzip-compressed with a fixed time stamp, so the same input gives the same bytes.
 """

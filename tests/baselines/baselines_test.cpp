@@ -10,7 +10,7 @@
 #include "baselines/baseline_run.hpp"
 #include "baselines/crlb.hpp"
 #include "baselines/noise_levels.hpp"
-#include "bms/fw/paper_cell.hpp"
+#include "bms/fw/model/paper_cell.hpp"
 #include "io/input_error.hpp"
 
 namespace bms::baselines {

@@ -77,6 +77,25 @@ ok = (c3['r_film_err_median_pct'] <= 2.0 and c3['film_within_2sd_pct'] >= 90.0 a
 sys.exit(0 if ok else 1)
 PY
   fail estimate_follows_temperature "see the numbers above"
+# The contract's charges carry the estimator's capacity and sds (not the counted charge), each
+# charge's capacity within 0.5 % of the truth's at the charge's end, its sd finite and positive.
+python3 - est/summary.json cold/truth.csv <<'PY' && pass charges_capacity_estimated || fail charges_capacity_estimated "see above"
+import bisect, csv, json, sys
+s = json.load(open(sys.argv[1]))
+t, cap = [], []
+for row in csv.DictReader(open(sys.argv[2])):
+    t.append(float(row['t_s'])); cap.append(float(row['capacity_ah']))
+ok = len(s['charges']) >= 2
+for c in s['charges']:
+    truth = cap[min(bisect.bisect_left(t, c['t_end_s']), len(t) - 1)]
+    err = (c['capacity_ah'] - truth) / truth * 100
+    print("    charge %d: %s capacity %.4f Ah (sd %.4f), truth %.4f: %.3f %%; film sd %s; counted %.4f Ah" % (
+        c['index'], c['capacity_source'], c['capacity_ah'], c['capacity_sd_ah'], truth, err, c['r_film_sd_ohm_m2'],
+        c['counted_ah']))
+    ok = ok and c['capacity_source'] == 'estimator' and abs(err) <= 0.5 and c['capacity_sd_ah'] > 0
+    ok = ok and (c['r_film_sd_ohm_m2'] or 0) > 0
+sys.exit(0 if ok else 1)
+PY
 
 echo "passed $PASSED, failed $FAILED"
 [ "$FAILED" -eq 0 ]

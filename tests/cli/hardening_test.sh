@@ -112,5 +112,74 @@ left=$(pgrep -f "$WORK/study" | wc -l)
 if [ $rc -eq 143 ] && [ "$left" -eq 0 ]; then pass study_sigterm_stops_children
 else fail study_sigterm_stops_children "exit $rc, $left processes left"; fi
 
+# --collect of that interrupted study lists every planned step that did not complete (the
+# steps of the cases it never started too), not only those of the cases it started.
+"$BMSSIM" study noise --collect study > /dev/null 2> collect.err
+rc=$?
+counts=$(python3 - study <<'PY'
+import json, os, sys
+d = sys.argv[1]
+plan = json.load(open(os.path.join(d, "plan.json")))
+steps = [(c["name"], s["name"]) for c in plan["cases"] for s in c["steps"]]
+done = sum(os.path.exists(os.path.join(d, "cases", c, s, "summary.json")) for c, s in steps)
+started = sum(os.path.exists(os.path.join(d, "cases", c["name"], "case.json")) for c in plan["cases"])
+listed = len(json.load(open(os.path.join(d, "summary.json")))["missing_steps"])
+print(len(steps), done, listed, started, len(plan["cases"]))
+PY
+)
+read -r planned done listed started ncases <<< "${counts:-0 0 -1 0 0}"
+if [ $rc -eq 0 ] && [ "$listed" -eq $((planned - done)) ] && [ "$started" -lt "$ncases" ] &&
+   grep -q "study: .* $listed missing steps" collect.err; then
+  pass "study_collect_counts_missing ($listed missing of $planned planned steps, $done done; $started of $ncases cases started)"
+else fail study_collect_counts_missing "exit $rc; listed $listed, planned $planned, done $done, started $started of $ncases: $(tail -n 1 collect.err)"; fi
+
+# A signal to diagnose or estimate mid-run: they stop within a few seconds, exit 128 + N and
+# leave no folder (no summary.json, no staging folder). diagnose also when the signal comes
+# while it draws its plots (gnuplot, here a stand-in that waits, gets the signal too).
+sim --cycles 1 --dt 1 --effect contact_resistance=0.002 --out sig_sim
+# stopped NAME SIGNAL DELAY OUT -- COMMAND...: COMMAND in the background, SIGNAL after DELAY
+# seconds (or, with DELAY "file:F", once F exists); then exit 128 + N within 10 s, nothing left.
+stopped() {
+  local name=$1 sig=$2 delay=$3 out=$4 pid t0 rc want; shift 5
+  "$@" > /dev/null 2> "err_$name" & pid=$!
+  if [ "${delay#file:}" != "$delay" ]; then
+    for _ in $(seq 300); do [ -e "${delay#file:}" ] && break; sleep 0.1; done
+  else sleep "$delay"; fi
+  t0=$(date +%s); kill "-$sig" $pid
+  timeout 30 tail --pid=$pid -f /dev/null; wait $pid; rc=$?
+  want=$((128 + $(kill -l "$sig")))
+  if [ $rc -eq $want ] && [ $(($(date +%s) - t0)) -le 10 ] && [ ! -e "$out" ] && ! ls -d "$out".partial-* >/dev/null 2>&1 &&
+     grep -q "interrupted by signal.*unfinished output removed" "err_$name"; then
+    pass "$name (exit $rc in $(($(date +%s) - t0)) s, nothing left)"
+  else fail "$name" "exit $rc (want $want) after $(($(date +%s) - t0)) s; left: $(ls -d "$out"* 2>/dev/null); $(tail -n 1 "err_$name")"; fi
+}
+stopped diagnose_sigterm TERM 2 sig_d -- timeout 120 "$BMSSIM" diagnose --data sig_sim/truth.csv --cell paper --quiet --out sig_d
+mkdir -p slowplot
+printf '#!/bin/sh\n: > "%s/plotting"\nexec sleep 60\n' "$WORK" > slowplot/gnuplot && chmod +x slowplot/gnuplot
+stopped diagnose_sigterm_plotting TERM "file:$WORK/plotting" sig_dp -- \
+  env PATH="$WORK/slowplot:$PATH" timeout 120 "$BMSSIM" diagnose --data sig_sim/truth.csv --cell paper --candidates contact_resistance --quiet --out sig_dp
+stopped estimate_sigterm TERM 1.5 sig_e -- timeout 120 "$BMSSIM" estimate --data sig_sim/truth.csv --model full --quiet --out sig_e
+stopped estimate_sigint INT 1.5 sig_ei -- timeout 120 "$BMSSIM" estimate --data sig_sim/truth.csv --model full --quiet --out sig_ei
+
+# A full disk (a 64 KiB tmpfs, mounted in a mount namespace of its own): exit 1, one line
+# saying what happened and what to try, nothing left on the disk.
+disk_full() {  # runs in the namespace: mount, run, list what is left
+  mount -t tmpfs -o size=64k tmpfs small || exit 77
+  "$@" > /dev/null 2> err_full
+  echo "rc=$? left=$(ls -A small | tr '\n' ' ')"
+}
+mkdir -p small
+if [ "$(id -u)" -eq 0 ]; then ns=(unshare -m); else ns=(unshare -rm); fi
+for cmd in simulate estimate; do
+  if [ $cmd = simulate ]; then args=(simulate --cycles 1 --quiet --out small/run); file=run/truth.csv
+  else args=(estimate --data sig_sim/truth.csv --quiet --out small/run); file=run/estimates.csv; fi
+  res=$("${ns[@]}" bash -c "$(declare -f disk_full); disk_full \"\$@\"" _ "$BMSSIM" "${args[@]}" 2>/dev/null)
+  if [ $? -eq 77 ] || [ -z "$res" ]; then echo "ok - disk_full_$cmd # SKIP cannot mount a tmpfs here (not root, no user namespaces)"; continue; fi
+  if [ "$res" = "rc=1 left=" ] && [ "$(wc -l < err_full)" -eq 1 ] &&
+     grep -q "^bmssim: failure: no space left on device writing small/$file: free space or choose --out on another disk$" err_full; then
+    pass "disk_full_$cmd ($res)"
+  else fail "disk_full_$cmd" "$res: $(cat err_full)"; fi
+done
+
 echo "$PASSED passed, $FAILED failed"
 [ "$FAILED" -eq 0 ]

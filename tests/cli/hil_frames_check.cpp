@@ -1,5 +1,5 @@
 // HIL == offline, bit for bit: the offline `bmssim estimate` on a HIL run's truth.csv,
-// encoded through the firmware's own codec (bms/fw/can_protocol.hpp) with the firmware
+// encoded through the firmware's own codec (bms/fw/can/can_protocol.hpp) with the firmware
 // application's rules (seq = tick mod 4096, alive counter = frames sent mod 16, valid =
 // finite film, theta as float32), must give the firmware's BMS_Estimate1/2/3 and BMS_Health
 // frames of the run's can.log byte for byte, CRC included.
@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "bms/fw/can_protocol.hpp"
+#include "bms/fw/can/can_protocol.hpp"
 #include "io/candump_log.hpp"
 #include "io/csv_table.hpp"
 
@@ -40,7 +40,7 @@ can::Mode mode_of(const std::string& name) {
   throw std::runtime_error("unknown mode '" + name + "' in estimates.csv");
 }
 
-// The four estimate frames the firmware sends for tick k, from the offline row k.
+// The five estimate frames the firmware sends for tick k, from the offline row k.
 std::vector<Frame> offline_frames(const bms::CsvTable& t, std::size_t k) {
   const auto seq = static_cast<std::uint16_t>(k & can::kSeqMask);
   const auto counter = static_cast<std::uint8_t>(k & can::kCounterMask);
@@ -53,11 +53,15 @@ std::vector<Frame> offline_frames(const bms::CsvTable& t, std::size_t k) {
   can::Estimate2 e2{seq, static_cast<float>(t.numbers("theta_m1")[k])};
   can::Estimate3 e3{seq, static_cast<float>(t.numbers("theta_n1")[k])};
   can::Health h{seq, t.numbers("li_loss_ah")[k], t.numbers("z_v")[k]};
-  std::vector<Frame> out(4);
+  can::Uncertainty u{seq, can::below_none(t.numbers("r_film_sd_ohm_m2")[k], can::sig::kRFilmSd),
+                     can::below_none(t.numbers("capacity_est_ah")[k], can::sig::kCapacity),
+                     can::below_none(t.numbers("capacity_sd_ah")[k], can::sig::kCapacitySd)};
+  std::vector<Frame> out(5);
   can::encode(e1, counter, out[0]);
   can::encode(e2, counter, out[1]);
   can::encode(e3, counter, out[2]);
   can::encode(h, counter, out[3]);
+  can::encode(u, counter, out[4]);
   return out;
 }
 
@@ -66,14 +70,15 @@ int run(const char* log_path, const char* csv_path) {
   const bms::CsvTable t = bms::read_csv(csv_path, {"mode"});
   std::map<std::uint32_t, std::vector<const bms::CanLogEntry*>> by_id;
   for (const auto& e : log) by_id[e.id].push_back(&e);
-  const std::uint32_t ids[4] = {can::id::kEstimate1, can::id::kEstimate2, can::id::kEstimate3, can::id::kHealth};
+  const std::uint32_t ids[5] = {can::id::kEstimate1, can::id::kEstimate2, can::id::kEstimate3, can::id::kHealth,
+                                can::id::kUncertainty};
   std::size_t mismatches = 0, compared = 0, first_bad = SIZE_MAX;
   bool counts_ok = true;
   for (std::uint32_t id : ids) counts_ok &= by_id[id].size() == t.rows();
   for (std::size_t k = 0; counts_ok && k < t.rows(); ++k) {
     const auto want = offline_frames(t, k);
     bool same = true;
-    for (int i = 0; i < 4; ++i) {
+    for (int i = 0; i < 5; ++i) {
       const bms::CanLogEntry& got = *by_id[ids[i]][k];
       const Frame& w = want[static_cast<std::size_t>(i)];
       const bool equal = got.dlc == w.len && std::memcmp(got.data.data(), w.data, got.dlc) == 0;
@@ -92,7 +97,7 @@ int run(const char* log_path, const char* csv_path) {
   }
   const bool pass = counts_ok && mismatches == 0;
   std::printf("%s offline `bmssim estimate` encoded with the firmware's codec equals the firmware's estimate frames "
-              "bit for bit: %zu ticks, %zu frames (BMS_Estimate1/2/3, BMS_Health, CRC included), %zu mismatched "
+              "bit for bit: %zu ticks, %zu frames (BMS_Estimate1/2/3, BMS_Health, BMS_Uncertainty, CRC included), %zu mismatched "
               "ticks%s\n",
               pass ? "PASS" : "FAIL", t.rows(), compared, mismatches,
               !counts_ok ? " (frame counts differ from the offline rows)"

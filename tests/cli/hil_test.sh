@@ -8,7 +8,7 @@
 # usage: hil_test.sh BMSSIM SOURCE_DIR WORK_DIR [FIRMWARE [FRAMES_CHECK]]. Exit 77 (skipped) when no vcan backend works.
 set -euo pipefail
 bmssim="$1"; src="$2"; work="$3"
-fw="${4:-$(dirname "$(dirname "$bmssim")")/hal/bms-firmware}"
+fw="${4:-$(dirname "$(dirname "$bmssim")")/apps/bms-firmware}"
 frames_check="${5:-$(dirname "$(dirname "$bmssim")")/tests/cli/hil_frames_check}"
 if ! "$src/scripts/vcan-run.sh" --probe >/dev/null 2>&1; then
   echo "SKIP: no kernel with vcan available (scripts/vcan-run.sh --probe)"; exit 77

@@ -132,7 +132,7 @@ rc=$?
 if [ $rc -eq 2 ] && grep -q "^bmssim: --cycles: '1e3' is not a whole number.*1000, not 1e3" err_c1e3 && [ ! -e c1e3 ]; then
   pass cycles_1e3
 else fail cycles_1e3 "exit $rc: $(head -n 1 err_c1e3)"; fi
-FIRMWARE=$(dirname "$BMSSIM")/../hal/bms-firmware
+FIRMWARE=$(dirname "$BMSSIM")/../apps/bms-firmware
 if [ -x "$FIRMWARE" ]; then
   check_input_error firmware_long_can "--can must name a CAN interface of 1\.\.15 characters" fw_o -- \
     "$FIRMWARE" --can averyveryverylongcanname --lockstep

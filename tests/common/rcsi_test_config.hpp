@@ -2,8 +2,8 @@
 // The RCSI estimator configuration the state, NVM and fuzz tests share: n_c = 2, a slightly
 // forgetting RLS, theta(0) holding the film, the paper cell's initial film, an admissible film
 // range, the paper's H and P(0) (the Config defaults).
-#include "bms/fw/paper_cell.hpp"
-#include "bms/fw/rcsi_estimator.hpp"
+#include "bms/fw/model/paper_cell.hpp"
+#include "bms/fw/estimation/rcsi_estimator.hpp"
 
 namespace bms::test {
 

@@ -11,7 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bms/fw/cells/lco_cell.hpp"
-#include "bms/fw/reduced_cell.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
 #include "cell/reduced_cell_record.hpp"
 #include "io/bpx_reader.hpp"
 #include "io/input_error.hpp"

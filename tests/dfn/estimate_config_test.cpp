@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "bms/fw/make_config.hpp"
+#include "bms/fw/config/make_config.hpp"
 #include "estimation/estimate_run.hpp"
 #include "sim/cell_catalog.hpp"
 

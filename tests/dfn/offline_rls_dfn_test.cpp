@@ -7,7 +7,7 @@
 #include <cstdio>
 #include <vector>
 
-#include <bms/fw/rls_arx.hpp>
+#include <bms/fw/estimation/rls_arx.hpp>
 
 #include "cell/paper_cell.hpp"
 #include "dfn/dfn_model.hpp"

@@ -1,11 +1,11 @@
 // The firmware's reduced model against the truth DFN (paper cell), and the two
-// parameter sets agreeing (one source of truth: bms/fw/paper_cell.hpp).
+// parameter sets agreeing (one source of truth: bms/fw/model/paper_cell.hpp).
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
 
-#include "bms/fw/reduced_cell.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
 #include "cell/paper_cell.hpp"
 #include "estimation/estimate_run.hpp"
 #include "sim/cycler.hpp"

@@ -221,7 +221,7 @@ TEST(SideI0Scale, DoublesBothTheFilmGrowthAndTheLithiumLoss) {
 }
 
 // A cell file without side-reaction keys gets SideReactionParameters' defaults, which must be
-// the paper's printed values (firmware/include/bms/fw/paper_cell.hpp).
+// the paper's printed values (firmware/include/bms/fw/model/paper_cell.hpp).
 TEST(TruthParameters, DefaultSideReactionIsThePapers) {
   const SideReactionParameters d;
   const SideReactionParameters p = make_paper_cell().side;

@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "bms/fw/bias_calibration.hpp"
+#include "bms/fw/estimation/bias_calibration.hpp"
 
 namespace {
 

@@ -6,8 +6,8 @@
 #include <cstring>
 #include <limits>
 
-#include "bms/fw/bms_core.hpp"
-#include "bms/fw/paper_cell.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/model/paper_cell.hpp"
 
 namespace {
 

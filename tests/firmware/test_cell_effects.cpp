@@ -1,4 +1,4 @@
-// Cell and sensor effects around the firmware model (bms/fw/cell_effects.hpp): each effect's
+// Cell and sensor effects around the firmware model (bms/fw/model/cell_effects.hpp): each effect's
 // sign and size against the plain model, zero parameters reproduce the plain model bit for
 // bit, CV ticks hit the voltage with the effects in, state images round-trip.
 #include <gtest/gtest.h>
@@ -6,9 +6,9 @@
 #include <cmath>
 #include <cstring>
 
-#include "bms/fw/bms_core.hpp"
-#include "bms/fw/cell_effects.hpp"
-#include "bms/fw/reduced_cell.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/model/cell_effects.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
 
 namespace {
 

@@ -10,9 +10,9 @@
 #include <cmath>
 #include <cstdio>
 
-#include "bms/fw/bms_core.hpp"
-#include "bms/fw/cell_effects.hpp"
-#include "bms/fw/paper_cell.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/model/cell_effects.hpp"
+#include "bms/fw/model/paper_cell.hpp"
 
 namespace {
 

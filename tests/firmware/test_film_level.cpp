@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "bms/fw/film_level.hpp"
+#include "bms/fw/estimation/film_level.hpp"
 
 namespace {
 

@@ -5,10 +5,10 @@
 
 #include <cmath>
 
-#include "bms/fw/dual.hpp"
-#include "bms/fw/film_growth_identifier.hpp"
-#include "bms/fw/paper_cell.hpp"
-#include "bms/fw/reduced_cell.hpp"
+#include "bms/fw/model/dual.hpp"
+#include "bms/fw/estimation/film_growth_identifier.hpp"
+#include "bms/fw/model/paper_cell.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
 
 namespace {
 

@@ -1,7 +1,7 @@
 // LearningGate alone: when RCSI / the identifier may learn (start, continue, stop).
 #include <gtest/gtest.h>
 
-#include "bms/fw/learning_gate.hpp"
+#include "bms/fw/estimation/learning_gate.hpp"
 
 namespace {
 

@@ -10,9 +10,9 @@
 
 #include <Eigen/Core>
 
-#include <bms/fw/fw_status.hpp>
-#include <bms/fw/rcsi_estimator.hpp>
-#include <bms/fw/rls.hpp>
+#include <bms/fw/estimation/fw_status.hpp>
+#include <bms/fw/estimation/rcsi_estimator.hpp>
+#include <bms/fw/estimation/rls.hpp>
 
 namespace {
 

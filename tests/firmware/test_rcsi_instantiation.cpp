@@ -7,9 +7,9 @@
 #include <cstddef>
 #include <cstring>
 
-#include <bms/fw/rcsi_estimator.hpp>
-#include <bms/fw/rls_arx.hpp>
-#include "bms/fw/paper_cell.hpp"
+#include <bms/fw/estimation/rcsi_estimator.hpp>
+#include <bms/fw/estimation/rls_arx.hpp>
+#include "bms/fw/model/paper_cell.hpp"
 
 template class bms::fw::RcsiEstimator<double, 1, 1>;
 template class bms::fw::RcsiEstimator<double, 2, 1>;

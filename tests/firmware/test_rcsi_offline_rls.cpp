@@ -9,10 +9,10 @@
 
 #include <Eigen/Core>
 
-#include <bms/fw/fw_status.hpp>
-#include <bms/fw/rls.hpp>
-#include <bms/fw/rls_arx.hpp>
-#include "bms/fw/paper_cell.hpp"
+#include <bms/fw/estimation/fw_status.hpp>
+#include <bms/fw/estimation/rls.hpp>
+#include <bms/fw/estimation/rls_arx.hpp>
+#include "bms/fw/model/paper_cell.hpp"
 
 namespace {
 

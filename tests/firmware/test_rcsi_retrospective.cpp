@@ -7,7 +7,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 
-#include <bms/fw/rcsi_retrospective.hpp>
+#include <bms/fw/estimation/rcsi_retrospective.hpp>
 
 namespace {
 

@@ -8,8 +8,8 @@
 
 #include <Eigen/Core>
 
-#include <bms/fw/fw_status.hpp>
-#include <bms/fw/rcsi_estimator.hpp>
+#include <bms/fw/estimation/fw_status.hpp>
+#include <bms/fw/estimation/rcsi_estimator.hpp>
 #include "../common/rcsi_test_config.hpp"
 
 namespace {

@@ -16,9 +16,9 @@
 
 #include <Eigen/Core>
 
-#include <bms/fw/fw_status.hpp>
-#include <bms/fw/rcsi_estimator.hpp>
-#include <bms/fw/rcsi_retrospective.hpp>
+#include <bms/fw/estimation/fw_status.hpp>
+#include <bms/fw/estimation/rcsi_estimator.hpp>
+#include <bms/fw/estimation/rcsi_retrospective.hpp>
 
 namespace {
 

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstring>
 
-#include "bms/fw/reduced_cell.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
 
 namespace {
 

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <random>
 
-#include "bms/fw/resync_window.hpp"
+#include "bms/fw/estimation/resync_window.hpp"
 
 namespace {
 

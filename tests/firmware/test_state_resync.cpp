@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "bms/fw/state_resync.hpp"
+#include "bms/fw/estimation/state_resync.hpp"
 
 namespace {
 

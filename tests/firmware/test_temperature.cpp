@@ -1,15 +1,15 @@
 // The reduced model and the tick at the measured temperature (ReducedCell::set_temperature_k,
-// BmsCore step 2), and the open-circuit capacity (bms/fw/open_circuit_capacity.hpp).
+// BmsCore step 2), and the open-circuit capacity (bms/fw/model/open_circuit_capacity.hpp).
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstring>
 #include <limits>
 
-#include "bms/fw/bms_core.hpp"
-#include "bms/fw/make_config.hpp"
-#include "bms/fw/open_circuit_capacity.hpp"
-#include "bms/fw/reduced_cell.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/config/make_config.hpp"
+#include "bms/fw/model/open_circuit_capacity.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
 
 namespace {
 

@@ -9,7 +9,7 @@
 #include <limits>
 #include <random>
 
-#include "bms/fw/bms_core.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
 
 namespace {
 

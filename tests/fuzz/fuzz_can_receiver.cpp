@@ -13,7 +13,7 @@
 #include <cstdlib>
 #include <cstring>
 
-#include "bms/fw/can_protocol.hpp"
+#include "bms/fw/can/can_protocol.hpp"
 
 namespace can = bms::fw::can;
 
@@ -46,6 +46,10 @@ bool equal(const can::Estimate2& a, const can::Estimate2& b) { return a.seq == b
 bool equal(const can::Estimate3& a, const can::Estimate3& b) { return a.seq == b.seq && same_bits(a.theta1, b.theta1); }
 bool equal(const can::Health& a, const can::Health& b) {
   return a.seq == b.seq && same_bits(a.li_loss_ah, b.li_loss_ah) && same_bits(a.z_v, b.z_v);
+}
+bool equal(const can::Uncertainty& a, const can::Uncertainty& b) {
+  return a.seq == b.seq && same_bits(a.r_film_sd_ohm_m2, b.r_film_sd_ohm_m2) && same_bits(a.capacity_ah, b.capacity_ah) &&
+         same_bits(a.capacity_sd_ah, b.capacity_sd_ah);
 }
 bool equal(const can::BmsStatus& a, const can::BmsStatus& b) {
   return a.status_bits == b.status_bits && a.fault_bits == b.fault_bits && a.tick_count == b.tick_count;
@@ -91,6 +95,11 @@ void encode_physical(const std::uint8_t* p, std::uint8_t counter) {
   h.li_loss_ah = v;
   h.z_v = v * 1e-3;
   can::encode(h, counter, f);
+  can::Uncertainty u;
+  u.r_film_sd_ohm_m2 = v * 1e-6;
+  u.capacity_ah = v;
+  u.capacity_sd_ah = v * 1e-3;
+  can::encode(u, counter, f);
   can::Estimate1 e1;
   e1.r_film_ohm_m2 = v;
   can::encode(e1, counter, f);
@@ -135,6 +144,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         case can::Msg::estimate2: check_round_trip(f, out.estimate2); break;
         case can::Msg::estimate3: check_round_trip(f, out.estimate3); break;
         case can::Msg::health: check_round_trip(f, out.health); break;
+        case can::Msg::uncertainty: check_round_trip(f, out.uncertainty); break;
         case can::Msg::status: check_round_trip(f, out.status); break;
         case can::Msg::rx_stats: check_round_trip(f, out.rx_stats); break;
       }

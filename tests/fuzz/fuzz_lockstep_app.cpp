@@ -20,8 +20,8 @@
 #include <cstring>
 #include <vector>
 
-#include "bms/fw/can_protocol.hpp"
-#include "bms/fw/state_schema.hpp"
+#include "bms/fw/can/can_protocol.hpp"
+#include "bms/fw/nvm/state_schema.hpp"
 #include "bms/app/bms_application.hpp"
 #include "bms/hal/lockstep.hpp"
 

@@ -18,9 +18,9 @@
 #include <cstdlib>
 #include <cstring>
 
-#include "bms/fw/bms_core.hpp"
-#include "bms/fw/nvm_store.hpp"
-#include "bms/fw/make_config.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/nvm/nvm_store.hpp"
+#include "bms/fw/config/make_config.hpp"
 #include "bms/app/bms_application.hpp"
 
 namespace fw = bms::fw;

@@ -1,5 +1,5 @@
 // Fuzz target: the NVM record decoder and the two-slot store's load
-// (firmware/include/bms/fw/nvm_store.hpp), fed with whatever a worn, torn or tampered flash
+// (firmware/include/bms/fw/nvm/nvm_store.hpp), fed with whatever a worn, torn or tampered flash
 // can hold, and the estimator's restore() of any record that passes.
 //
 // Input: byte 0 picks the mode, the rest is the data.
@@ -19,8 +19,8 @@
 #include <cstring>
 #include <vector>
 
-#include "bms/fw/nvm_store.hpp"
-#include "bms/fw/rcsi_estimator.hpp"
+#include "bms/fw/nvm/nvm_store.hpp"
+#include "bms/fw/estimation/rcsi_estimator.hpp"
 #include "../common/rcsi_test_config.hpp"
 
 namespace nvm = bms::fw::nvm;

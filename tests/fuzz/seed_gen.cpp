@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "bms/fw/can_protocol.hpp"
-#include "bms/fw/nvm_store.hpp"
-#include "bms/fw/rcsi_estimator.hpp"
+#include "bms/fw/can/can_protocol.hpp"
+#include "bms/fw/nvm/nvm_store.hpp"
+#include "bms/fw/estimation/rcsi_estimator.hpp"
 #include "../common/rcsi_test_config.hpp"
 
 namespace can = bms::fw::can;
@@ -142,6 +142,13 @@ int main(int argc, char** argv) {
     h.li_loss_ah = 0.012;
     h.z_v = -3e-4;
     tx.encode(h, f);
+    add(in, f, 0);
+    can::Uncertainty u;
+    u.seq = 17;
+    u.r_film_sd_ohm_m2 = 5e-5;
+    u.capacity_ah = 2.3;
+    u.capacity_sd_ah = 0.0012;
+    tx.encode(u, f);
     add(in, f, 0);
     can::BmsStatus st;
     st.status_bits = can::status_bit::kRunning;

@@ -8,8 +8,8 @@
 #include <cstdint>
 
 #include "bms/app/bms_application.hpp"
-#include "bms/fw/can_protocol.hpp"
-#include "bms/fw/state_schema.hpp"
+#include "bms/fw/can/can_protocol.hpp"
+#include "bms/fw/nvm/state_schema.hpp"
 #include "bms/hal/fake/fake_can.hpp"
 #include "bms/hal/fake/fake_log.hpp"
 #include "bms/hal/fake/fake_nvm.hpp"
@@ -224,7 +224,7 @@ TEST(AppSupervision, CallOrderOrConfigFaultsOfTheCoreAndFailedSendsAreInternalFa
   r.wire.set_send_status(Status::io_error);
   r.send_tick(3);
   ASSERT_EQ(r.run(), 1);
-  EXPECT_EQ(r.app.send_failures(), 6u);
+  EXPECT_EQ(r.app.send_failures(), 7u);  // all seven frames of the tick, BMS_Status included
   r.wire.set_send_status(Status::ok);
   r.send_tick(4);
   ASSERT_EQ(r.run(), 1);

@@ -8,10 +8,10 @@
 #include <cstring>
 #include <vector>
 
-#include "bms/fw/bms_core.hpp"
-#include "bms/fw/can_protocol.hpp"
-#include "bms/fw/make_config.hpp"
-#include "bms/fw/state_schema.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/can/can_protocol.hpp"
+#include "bms/fw/config/make_config.hpp"
+#include "bms/fw/nvm/state_schema.hpp"
 #include "bms/app/bms_application.hpp"
 #include "bms/hal/fake/fake_can.hpp"
 #include "bms/hal/fake/fake_log.hpp"

@@ -8,8 +8,8 @@
 #include <cstring>
 #include <limits>
 
-#include "bms/fw/can_protocol.hpp"
-#include "bms/fw/paper_cell.hpp"
+#include "bms/fw/can/can_protocol.hpp"
+#include "bms/fw/model/paper_cell.hpp"
 #include "bms/hal/can_bus.hpp"
 
 namespace can = bms::fw::can;
@@ -289,6 +289,33 @@ TEST(RoundTrip, Health) {
   EXPECT_EQ(raw_of(b, can::sig::kLiLoss) - raw_of(a, can::sig::kLiLoss), 1);
   a.z_v = -1.0;  // saturates
   EXPECT_DOUBLE_EQ(round_trip(a).z_v, -32768e-6);
+}
+
+TEST(RoundTrip, Uncertainty) {
+  const double step_sd = can::sig::kRFilmSd.factor;                          // 1e-8 ohm m2
+  const double step_cap = can::sig::kCapacity.factor / can::kMahPerAh;      // 1 mAh
+  const double step_cap_sd = can::sig::kCapacitySd.factor / can::kMahPerAh;  // 0.1 mAh
+  for (double sd : {0.0, step_sd, 5.1e-5, 6.5e-4}) {
+    for (double cap : {0.0, 1.1, 2.3, 50.0}) {
+      can::Uncertainty u;
+      u.seq = 9;
+      u.r_film_sd_ohm_m2 = sd;
+      u.capacity_ah = cap;
+      u.capacity_sd_ah = 0.0012;
+      const can::Uncertainty r = round_trip(u);
+      EXPECT_EQ(r.seq, 9);
+      EXPECT_NEAR(r.r_film_sd_ohm_m2, sd, step_sd / 2 + 1e-18);
+      EXPECT_NEAR(r.capacity_ah, cap, step_cap / 2 + 1e-12);
+      EXPECT_NEAR(r.capacity_sd_ah, 0.0012, step_cap_sd / 2 + 1e-12);
+    }
+  }
+  // None (NaN) is the largest raw value of each signal, where the receiver reads "none".
+  can::Uncertainty none;
+  none.r_film_sd_ohm_m2 = none.capacity_ah = none.capacity_sd_ah = std::nan("");
+  const can::Uncertainty r = round_trip(none);
+  EXPECT_DOUBLE_EQ(r.r_film_sd_ohm_m2, can::sig::kRFilmSd.max);
+  EXPECT_DOUBLE_EQ(r.capacity_ah, can::sig::kCapacity.max / can::kMahPerAh);
+  EXPECT_DOUBLE_EQ(r.capacity_sd_ah, can::sig::kCapacitySd.max / can::kMahPerAh);
 }
 
 TEST(RoundTrip, StatusAndRxStats) {

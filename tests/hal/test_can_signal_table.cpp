@@ -9,7 +9,7 @@
 #include <iterator>
 #include <vector>
 
-#include "bms/fw/can_protocol.hpp"
+#include "bms/fw/can/can_protocol.hpp"
 #include "bms/hal/can_bus.hpp"
 
 namespace can = bms::fw::can;
@@ -125,6 +125,7 @@ TEST(SignalTableCodec, GoldenFramesDecodeAndEncodeBackToTheSameBytes) {
       case can::Msg::estimate2: can::encode(msg.estimate2, counter, out); break;
       case can::Msg::estimate3: can::encode(msg.estimate3, counter, out); break;
       case can::Msg::health: can::encode(msg.health, counter, out); break;
+      case can::Msg::uncertainty: can::encode(msg.uncertainty, counter, out); break;
       case can::Msg::status: can::encode(msg.status, counter, out); break;
       case can::Msg::rx_stats: can::encode(msg.rx_stats, counter, out); break;
     }
@@ -140,6 +141,7 @@ TEST(SignalTableCodec, EveryBindingListsOneMemberPerPayloadSignal) {
   expect_binding_covers_table<can::Estimate2>();
   expect_binding_covers_table<can::Estimate3>();
   expect_binding_covers_table<can::Health>();
+  expect_binding_covers_table<can::Uncertainty>();
   expect_binding_covers_table<can::BmsStatus>();
   expect_binding_covers_table<can::BmsRxStats>();
 }

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "bms/fw/can_protocol.hpp"
+#include "bms/fw/can/can_protocol.hpp"
 
 namespace can = bms::fw::can;
 

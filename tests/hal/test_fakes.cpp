@@ -5,7 +5,7 @@
 #include <cstring>
 #include <vector>
 
-#include "bms/fw/can_protocol.hpp"
+#include "bms/fw/can/can_protocol.hpp"
 #include "bms/hal/fake/fake_can.hpp"
 #include "bms/hal/fake/fake_log.hpp"
 #include "bms/hal/fake/fake_nvm.hpp"

@@ -16,7 +16,7 @@
 #include <system_error>
 #include <string>
 
-#include "bms/fw/can_protocol.hpp"
+#include "bms/fw/can/can_protocol.hpp"
 #include "bms/hal/fake/fake_log.hpp"
 #include "bms/hal/fake/fake_time.hpp"
 #include "bms/hal/linux/file_nvm.hpp"

@@ -1,4 +1,4 @@
-// Two-slot NVM record store (firmware/include/bms/fw/nvm_store.hpp): record codec, CRC-32,
+// Two-slot NVM record store (firmware/include/bms/fw/nvm/nvm_store.hpp): record codec, CRC-32,
 // sequence wraparound, and persistence through power loss: a write cut at every byte
 // offset of a record, over several successive commits that use both slots and wrap the
 // sequence number, must always leave the last committed state loadable and never let a
@@ -14,8 +14,8 @@
 #include <string>
 #include <vector>
 
-#include "bms/fw/nvm_store.hpp"
-#include "bms/fw/rcsi_estimator.hpp"
+#include "bms/fw/nvm/nvm_store.hpp"
+#include "bms/fw/estimation/rcsi_estimator.hpp"
 #include "../common/rcsi_test_config.hpp"
 #include "bms/hal/fake/fake_nvm.hpp"
 #include "bms/hal/linux/file_nvm.hpp"

@@ -3,7 +3,7 @@
 // Also the lock-step tick classifier.
 #include <gtest/gtest.h>
 
-#include "bms/fw/can_protocol.hpp"
+#include "bms/fw/can/can_protocol.hpp"
 #include "bms/hal/can_bus.hpp"
 
 namespace can = bms::fw::can;

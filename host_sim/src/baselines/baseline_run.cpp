@@ -6,7 +6,7 @@
 
 #include <fmt/format.h>
 
-#include "bms/fw/paper_cell.hpp"
+#include "bms/fw/model/paper_cell.hpp"
 #include "io/input_error.hpp"
 
 namespace bms::baselines {

@@ -2,7 +2,7 @@
 
 #include <fmt/format.h>
 
-#include "bms/fw/mode_detector.hpp"
+#include "bms/fw/estimation/mode_detector.hpp"
 #include "io/input_error.hpp"
 
 namespace bms::baselines {

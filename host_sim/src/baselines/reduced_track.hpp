@@ -1,6 +1,6 @@
 #pragma once
 // The measured data prepared for the baselines: the firmware's reduced model driven over it
-// exactly as the firmware's tick drives it (bms/fw/bms_core.hpp): the debounced mode from the
+// exactly as the firmware's tick drives it (bms/fw/estimation/bms_core.hpp): the debounced mode from the
 // measured signals, voltage-driven only when this sample's raw class confirms a CV phase,
 // current-driven otherwise. Every baseline (EKF, batch fit, Cramer-Rao bound) walks the same
 // track, so they differ only in how they choose the film resistance.
@@ -8,8 +8,8 @@
 #include <utility>
 #include <vector>
 
-#include "bms/fw/operating_mode.hpp"
-#include "bms/fw/reduced_cell.hpp"
+#include "bms/fw/estimation/operating_mode.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
 #include "estimation/estimate_run.hpp"
 
 namespace bms::baselines {

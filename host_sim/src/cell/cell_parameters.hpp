@@ -49,7 +49,7 @@ struct ElectrolyteParameters {
 };
 
 // Ramadass et al. side reaction in the negative electrode (paper eqs 9-12). The defaults are the
-// paper's printed values (firmware/include/bms/fw/paper_cell.hpp; a test holds them together):
+// paper's printed values (firmware/include/bms/fw/model/paper_cell.hpp; a test holds them together):
 // a BPX file without side-reaction keys gets these (io/bpx_reader.cpp, docs/parameters.md).
 struct SideReactionParameters {
   bool enabled = false;

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "bms/fw/paper_cell.hpp"
+#include "bms/fw/model/paper_cell.hpp"
 #include "cell/template_function.hpp"
 
 namespace bms {
@@ -30,7 +30,7 @@ CellParameters make_paper_cell() {
   namespace pc = fw::paper;
   CellParameters c;
   c.name = "paper";
-  c.source = "built-in (firmware/include/bms/fw/paper_cell.hpp)";
+  c.source = "built-in (firmware/include/bms/fw/model/paper_cell.hpp)";
   c.electrode_area_m2 = pc::kElectrodeArea_m2;
   c.lower_voltage_v = pc::kLowerVoltage_v;
   c.upper_voltage_v = pc::kUpperVoltage_v;

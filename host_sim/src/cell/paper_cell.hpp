@@ -3,7 +3,7 @@
 
 namespace bms {
 
-// The paper-reproduction parameter set, built from firmware/include/bms/fw/paper_cell.hpp.
+// The paper-reproduction parameter set, built from firmware/include/bms/fw/model/paper_cell.hpp.
 CellParameters make_paper_cell();
 
 }  // namespace bms

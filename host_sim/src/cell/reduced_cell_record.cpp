@@ -198,7 +198,7 @@ std::string cell_header_text(const ReducedCellRecord& r, const std::string& type
       "// Table errors against the source functions: OCP negative {en:.3g} V, positive {ep:.3g} V over the\n"
       "// stoichiometry windows; electrolyte diffusivity {ed:.3g}, conductivity {ek:.3g} (relative) over\n"
       "// 0.2-2.5 c_e0.{notes}\n"
-      "#include <cstdint>\n\n#include \"bms/fw/cell_table.hpp\"\n#include \"bms/fw/paper_cell.hpp\"\n\n"
+      "#include <cstdint>\n\n#include \"bms/fw/model/cell_table.hpp\"\n#include \"bms/fw/model/paper_cell.hpp\"\n\n"
       "namespace bms::fw::cells {{\n\n"
       "static_assert(kCellConfigSchema == 1, \"generated for cell configuration schema 1: regenerate\");\n\n"
       "struct {type} {{\n",

@@ -1,7 +1,7 @@
 #pragma once
-// The firmware's cell as data: what the reduced model (bms/fw/reduced_cell.hpp) needs of a
+// The firmware's cell as data: what the reduced model (bms/fw/model/reduced_cell.hpp) needs of a
 // cell, built from any parameter set (a BPX file, the paper's), with its open-circuit
-// potentials and electrolyte transport as Hermite tables (bms/fw/cell_table.hpp) and their
+// potentials and electrolyte transport as Hermite tables (bms/fw/model/cell_table.hpp) and their
 // largest errors against the source functions over the cell's operating range.
 //
 // One record, two uses (docs/architecture.md, "The cell as data"):
@@ -13,9 +13,9 @@
 //    compiler (a test holds the two identical for the templates).
 #include <string>
 
-#include "bms/fw/cell_table.hpp"
-#include "bms/fw/paper_cell.hpp"
-#include "bms/fw/reduced_cell.hpp"
+#include "bms/fw/model/cell_table.hpp"
+#include "bms/fw/model/paper_cell.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
 #include "cell/cell_parameters.hpp"
 
 namespace bms {

@@ -1,7 +1,7 @@
 #pragma once
 // Adapts a function template f<T>(T) into a ScalarFunction whose derivative is exact
 // (evaluated with a dual number), so built-in parameter sets need no hand-written derivatives.
-#include "bms/fw/dual.hpp"
+#include "bms/fw/model/dual.hpp"
 #include "cell/scalar_function.hpp"
 
 namespace bms {

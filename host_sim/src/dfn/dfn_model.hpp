@@ -6,8 +6,8 @@
 #include <cmath>
 #include <vector>
 
-#include "bms/fw/dual.hpp"
-#include "bms/fw/physical_constants.hpp"
+#include "bms/fw/model/dual.hpp"
+#include "bms/fw/model/physical_constants.hpp"
 #include "cell/cell_parameters.hpp"
 
 namespace bms {

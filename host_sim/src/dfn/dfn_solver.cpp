@@ -20,6 +20,7 @@
 #include "dfn/fast_serial_ops.hpp"
 #include "dfn/multi_dual.hpp"
 #include "dfn/sparsity_tracer.hpp"
+#include "io/child_process.hpp"
 #include "io/input_error.hpp"
 
 namespace bms {
@@ -582,6 +583,7 @@ DfnSolver::Result DfnSolver::advance(double tout, bool exact) {
   const auto wall0 = std::chrono::steady_clock::now();
   long steps_here = 0;
   while (!im.root_pending && im.tn < tout) {
+    throw_if_interrupted();  // SIGINT/SIGTERM: every command stops within one solver step
     if (++steps_here > settings_.max_steps || (steps_here % 64 == 0 && wall_limit_passed(wall0))) {
       if (exact) IDASetStopTime(im.ida, 1e300);
       throw SolverLimitExceeded(limit_message(tout, steps_here > settings_.max_steps));

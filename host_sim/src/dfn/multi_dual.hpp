@@ -6,7 +6,7 @@
 #include <array>
 #include <cmath>
 
-#include "bms/fw/dual.hpp"
+#include "bms/fw/model/dual.hpp"
 
 namespace bms {
 

@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "bms/fw/dual.hpp"
+#include "bms/fw/model/dual.hpp"
 
 namespace bms {
 

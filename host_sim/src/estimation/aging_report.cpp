@@ -74,6 +74,10 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     r.capacity_est_ah = c.capacity_ah;
     r.capacity_sd_ah = c.capacity_sd_ah;
     r.soh_est = c.capacity_ah / ref->capacity_ah;
+    r.counted_ah = c.counted_ah;
+    r.soh_counted = c.counted_ah / ref->counted_ah;
+    const std::string source = c.capacity_estimated ? "estimator" : "counted";
+    a.capacity_source = a.capacity_source.empty() || a.capacity_source == source ? source : "mixed";
     r.r_growth_est_ohm = c.r_growth_ohm - ref->r_growth_ohm;
     r.r_step_growth_ohm = c.r_step_ohm - ref_step;
     r.discharge_meas_ah = m.discharge_ah;
@@ -84,10 +88,11 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     a.rows.push_back(r);
   }
   std::vector<double> ir, film, step;
-  double sum = 0.0, worst = 0.0;
+  double sum = 0.0, worst = 0.0, sum_counted = 0.0;
   for (const AgingRow& r : a.rows) {
     const double e = std::abs(r.soh_est - r.soh_meas) * 100.0;
     sum += e;
+    sum_counted += std::abs(r.soh_counted - r.soh_meas) * 100.0;
     worst = std::max(worst, e);
     ir.push_back(r.ir_growth_meas_ohm);
     film.push_back(r.r_growth_est_ohm);
@@ -96,6 +101,7 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
   if (!a.rows.empty()) {
     a.soh_mae_pp = sum / static_cast<double>(a.rows.size());
     a.soh_max_abs_pp = worst;
+    a.soh_counted_mae_pp = sum_counted / static_cast<double>(a.rows.size());
   }
   a.film_vs_ir = fit_line(ir, film);
   a.step_vs_ir = fit_line(ir, step);
@@ -110,17 +116,20 @@ nlohmann::json aging_json(const AgingComparison& a) {
   return {{"cycles_compared", a.rows.size()},
           {"soh_mean_abs_err_pp", num(a.soh_mae_pp)},
           {"soh_max_abs_err_pp", num(a.soh_max_abs_pp)},
+          {"capacity_source", a.capacity_source},
+          {"soh_counted_mean_abs_err_pp", num(a.soh_counted_mae_pp)},
           {"r_growth_vs_cycler_ir_growth", fit(a.film_vs_ir)},
           {"r_step_growth_vs_cycler_ir_growth", fit(a.step_vs_ir)},
           {"note",
-           "soh: the estimate's capacity_ah / its first, against the cycler's discharge capacity / its first, same "
-           "cycle; resistance: the estimate's growth (y) regressed on the cycler's internal-resistance growth (x)"}};
+           "soh: the charges' capacity_ah / its first (capacity_source: the estimator's open-circuit capacity, or the "
+           "counted charge where it identifies none), against the cycler's discharge capacity / its first, same cycle; "
+           "soh_counted: the counted charge's; resistance: the estimate's growth (y) regressed on the cycler's internal-resistance growth (x)"}};
 }
 
 std::string write_aging_outputs(const std::filesystem::path& dir, const AgingComparison& a) {
   CsvWriter w(dir / "aging.csv", {"cycle", "capacity_est_ah", "capacity_sd_ah", "soh_est", "discharge_meas_ah",
                                   "soh_meas", "r_growth_est_ohm", "r_step_growth_ohm", "ir_meas_ohm",
-                                  "ir_growth_meas_ohm", "learned"});
+                                  "ir_growth_meas_ohm", "learned", "counted_ah", "soh_counted"});
   const auto cell = [&w](double v) {
     if (std::isfinite(v)) w.cell(v);
     else w.cell("");
@@ -131,6 +140,8 @@ std::string write_aging_outputs(const std::filesystem::path& dir, const AgingCom
                      r.r_growth_est_ohm, r.r_step_growth_ohm, r.ir_meas_ohm, r.ir_growth_meas_ohm})
       cell(v);
     w.cell(r.learned ? 1 : 0);
+    cell(r.counted_ah);
+    cell(r.soh_counted);
     w.end_row();
   }
   w.commit();
@@ -142,7 +153,8 @@ std::string write_aging_outputs(const std::filesystem::path& dir, const AgingCom
       "set output 'capacity.png.tmp'\nset title 'State of health: the estimate beside the cycler'\n"
       "set ylabel 'capacity / first capacity'\n"
       "plot 'aging.csv' using 1:6 skip 1 with points pt 7 ps 0.5 title 'cycler: discharge capacity', "
-      "'' using 1:4 skip 1 with lines lw 2 title 'estimate: capacity_ah (charge counted)'\n"
+      "'' using 1:4 skip 1 with lines lw 2 title 'estimate: capacity_ah', "
+      "'' using 1:13 skip 1 with lines lw 1 dt 2 title 'counted charge'\n"
       "set output 'resistance.png.tmp'\nset title 'Resistance growth since the first compared charge'\n"
       "set ylabel 'growth (ohm)'\n"
       "plot 'aging.csv' using 1:10 skip 1 with points pt 7 ps 0.5 title 'cycler: internal resistance', "

@@ -15,7 +15,7 @@ namespace bms {
 
 struct AgingRow {
   int cycle;
-  double capacity_est_ah, capacity_sd_ah, soh_est, r_growth_est_ohm, r_step_growth_ohm;
+  double capacity_est_ah, capacity_sd_ah, soh_est, counted_ah, soh_counted, r_growth_est_ohm, r_step_growth_ohm;
   double discharge_meas_ah, soh_meas, ir_meas_ohm, ir_growth_meas_ohm;
   bool learned;
 };
@@ -29,7 +29,9 @@ LineFit fit_line(const std::vector<double>& x, const std::vector<double>& y);
 
 struct AgingComparison {
   std::vector<AgingRow> rows;  // one per CC charge (learned or not) whose cycle the cycler reported
-  double soh_mae_pp = std::nan(""), soh_max_abs_pp = std::nan("");
+  double soh_mae_pp = std::nan(""), soh_max_abs_pp = std::nan("");  // the estimate's capacity_ah
+  double soh_counted_mae_pp = std::nan("");                           // the counted charge's
+  std::string capacity_source;  // of the compared charges' capacity_ah: estimator, counted or mixed
   LineFit film_vs_ir, step_vs_ir;  // y = estimate's growth, x = the cycler's IR growth
 };
 

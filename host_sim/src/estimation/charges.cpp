@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "bms/fw/operating_mode.hpp"
+#include "bms/fw/estimation/operating_mode.hpp"
 
 namespace bms {
 
@@ -84,10 +84,13 @@ std::vector<ChargeReport> find_charges(const std::vector<EstimateRow>& rows, con
     c.cycle = rows[i].cycle;
     c.t_start_s = rows[i].t_s;
     c.t_end_s = rows[e].t_s;
-    c.capacity_ah = q.ah;
-    c.capacity_sd_ah = std::hypot(0.5 * q.gap_ah, kSensorGainSd * q.ah);
+    c.counted_ah = q.ah;
+    c.counted_sd_ah = std::hypot(0.5 * q.gap_ah, kSensorGainSd * q.ah);
+    c.capacity_estimated = std::isfinite(rows[e].capacity_est_ah);
+    c.capacity_ah = c.capacity_estimated ? rows[e].capacity_est_ah : c.counted_ah;
+    c.capacity_sd_ah = c.capacity_estimated ? rows[e].capacity_sd_ah : c.counted_sd_ah;
     c.r_film_ohm_m2 = rows[e].r_film_est_ohm_m2;
-    c.r_film_sd_ohm_m2 = std::nan("");
+    c.r_film_sd_ohm_m2 = rows[e].r_film_sd_ohm_m2;
     if (std::isnan(film_ref) && (learned || !learned_only)) film_ref = c.r_film_ohm_m2;
     c.r_growth_ohm = (c.r_film_ohm_m2 - film_ref) / area_m2;
     c.r_step_ohm = q.r_step_ohm;
@@ -107,6 +110,9 @@ nlohmann::json charges_json(const std::vector<ChargeReport>& charges) {
                  {"t_end_s", c.t_end_s},
                  {"capacity_ah", num(c.capacity_ah)},
                  {"capacity_sd_ah", num(c.capacity_sd_ah)},
+                 {"capacity_source", c.capacity_estimated ? "estimator" : "counted"},
+                 {"counted_ah", num(c.counted_ah)},
+                 {"counted_sd_ah", num(c.counted_sd_ah)},
                  {"r_film_ohm_m2", num(c.r_film_ohm_m2)},
                  {"r_film_sd_ohm_m2", num(c.r_film_sd_ohm_m2)},
                  {"r_growth_ohm", num(c.r_growth_ohm)},

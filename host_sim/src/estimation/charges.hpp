@@ -14,10 +14,15 @@ struct ChargeReport {
   int index;   // 1-based over the learned charges
   int cycle;   // the data's cycle at the charge's start
   double t_start_s, t_end_s;  // the CC phase as the firmware's mode detector saw it
+  // The open-circuit capacity and its 1-sigma as the estimator identified them at the CC end
+  // (from the identified lithium inventory); where the estimator identifies none (the paper's
+  // RCSI path, learning off) the counted charge below stands in (capacity_source says which).
+  double capacity_ah, capacity_sd_ah;
+  bool capacity_estimated;
   // Charge counted (trapezoids on the measured current) from the CC start to the end of the
   // charge (current back to rest, or a discharge). sd: half the charge interpolated across
   // logging gaps inside it (the current there is not measured), plus a 0.1 % sensor gain.
-  double capacity_ah, capacity_sd_ah;
+  double counted_ah, counted_sd_ah;
   double r_film_ohm_m2, r_film_sd_ohm_m2;  // at the CC end; sd NaN where the estimator has none
   double r_growth_ohm;  // (film - film at the first learned charge's end) / negative surface area
   // Measured beside the film: the voltage step at the charge's onset over the current step,
@@ -35,7 +40,8 @@ std::vector<ChargeReport> find_charges(const std::vector<EstimateRow>& rows, con
                                        const CellParameters& cell, bool learned_only = true);
 
 // The contract's entry (index, t_start_s, t_end_s, capacity_ah, capacity_sd_ah, r_film_ohm_m2,
-// r_film_sd_ohm_m2, r_growth_ohm) plus cycle and r_step_ohm; NaN as null.
+// r_film_sd_ohm_m2, r_growth_ohm) plus cycle, capacity_source, counted_ah, counted_sd_ah and
+// r_step_ohm; NaN as null.
 nlohmann::json charges_json(const std::vector<ChargeReport>& charges);
 
 }  // namespace bms

@@ -10,12 +10,13 @@
 
 #include <fmt/format.h>
 
-#include "bms/fw/bms_core.hpp"
-#include "bms/fw/make_config.hpp"
-#include "bms/fw/reduced_model_bias.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/config/make_config.hpp"
+#include "bms/fw/model/reduced_model_bias.hpp"
 #include "cell/reduced_cell_record.hpp"
 #include "dfn/dfn_model.hpp"
 #include "estimation/full_dfn_main_model.hpp"
+#include "io/child_process.hpp"
 #include "io/csv_table.hpp"
 #include "io/input_error.hpp"
 
@@ -228,6 +229,7 @@ void run_core(Model& model, const MeasuredSeries& d, const EstimateOptions& o, c
   res.theta_rows.reserve(n);
   long long last_tick = -1;
   for (std::size_t i = 0; i < n; ++i) {
+    if (i % 256 == 0) throw_if_interrupted();  // SIGINT/SIGTERM: stop, nothing written
     if (ticks[i] < 0) {
       ++res.samples_skipped;
       continue;

@@ -10,9 +10,9 @@
 
 #include "io/measured_profile.hpp"
 
-#include "bms/fw/cell_effects.hpp"
-#include "bms/fw/make_config.hpp"
-#include "bms/fw/operating_mode.hpp"
+#include "bms/fw/model/cell_effects.hpp"
+#include "bms/fw/config/make_config.hpp"
+#include "bms/fw/estimation/operating_mode.hpp"
 #include "cell/cell_parameters.hpp"
 #include "sim/cycler.hpp"
 
@@ -71,7 +71,7 @@ double model_tick_s(const EstimateData& d);
 double fixed_tick_s(const EstimateData& d);
 
 // What `bmssim estimate` runs: the main model, an estimator profile of the nominal cell and
-// the typed overrides the user gave (bms/fw/make_config.hpp: one the profile does not use is
+// the typed overrides the user gave (bms/fw/config/make_config.hpp: one the profile does not use is
 // refused, exit 2 naming it).
 struct EstimateOptions {
   std::string model = "reduced";  // reduced | full
@@ -81,7 +81,7 @@ struct EstimateOptions {
   // off the cell's by this percent (how well a BMS must know its cell's inventory).
   fw::Given<double> inventory_error_pct;
   InitialConditions ic;              // of the model (not the truth)
-  // Effects added to the main model (bms/fw/cell_effects.hpp), e.g. the one `bmssim diagnose`
+  // Effects added to the main model (bms/fw/model/cell_effects.hpp), e.g. the one `bmssim diagnose`
   // found; none by default. nominal_capacity_ah is taken from the cell.
   fw::EffectParameters<double> model_effects;
   bool model_effects_on = false;

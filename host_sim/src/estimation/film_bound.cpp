@@ -5,7 +5,7 @@
 
 #include <Eigen/Dense>
 
-#include "bms/fw/reduced_cell.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
 
 namespace bms {
 

@@ -8,7 +8,7 @@
 #include <memory>
 #include <vector>
 
-#include "bms/fw/reduced_cell.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
 #include "dfn/dfn_solver.hpp"
 #include "sim/cycler.hpp"
 

@@ -25,7 +25,7 @@
 #include <string>
 #include <vector>
 
-#include "bms/fw/operating_mode.hpp"
+#include "bms/fw/estimation/operating_mode.hpp"
 
 namespace bms::hil {
 

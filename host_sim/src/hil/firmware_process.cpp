@@ -15,7 +15,7 @@ std::filesystem::path default_firmware_path() {
   if (const char* e = std::getenv("BMS_FIRMWARE")) return e;
   std::error_code ec;
   const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
-  return self.parent_path().parent_path() / "hal" / "bms-firmware";
+  return self.parent_path().parent_path() / "apps" / "bms-firmware";
 }
 
 FirmwareProcess::FirmwareProcess(std::filesystem::path exe, std::vector<std::string> args)

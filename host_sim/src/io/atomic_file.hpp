@@ -7,11 +7,24 @@
 #include <string>
 #include <string_view>
 
+#include "io/input_error.hpp"
+
 namespace bms {
+
+// A file that could not be written for lack of room or on a read-only disk (ENOSPC, EDQUOT,
+// EROFS): a runtime failure (exit 1) whose message says what happened and what to try, e.g.
+// "no space left on device writing out/run/truth.csv: free space or choose --out on another disk"
+// (the file is named where it would have ended up, not in the staging folder).
+class WriteFailure : public RuntimeFailure {
+ public:
+  using RuntimeFailure::RuntimeFailure;
+};
+// Throws WriteFailure for those errno values, RuntimeFailure "FILE: DOING: strerror" otherwise.
+[[noreturn]] void throw_write_failure(const std::filesystem::path& file, int err, const char* doing);
 
 class AtomicFileWriter {
  public:
-  // Throws InputError when FILE.tmp cannot be created.
+  // Throws InputError when FILE.tmp cannot be created (WriteFailure on a full or read-only disk).
   explicit AtomicFileWriter(std::filesystem::path file);
   ~AtomicFileWriter();
   AtomicFileWriter(const AtomicFileWriter&) = delete;

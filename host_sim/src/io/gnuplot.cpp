@@ -16,6 +16,9 @@ int run_gnuplot(const std::filesystem::path& script, const GnuplotOptions& optio
   } catch (const RuntimeFailure&) {
     return kGnuplotMissing;
   }
+  // A plot stopped by SIGINT/SIGTERM (forwarded to gnuplot) stops the command, which removes
+  // its unfinished output: never a folder that looks complete without its plots.
+  throw_if_interrupted();
   // 127: the shell convention for a program the child could not execute.
   return rc == 127 ? kGnuplotMissing : rc;
 }

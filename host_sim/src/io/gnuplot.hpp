@@ -1,6 +1,7 @@
 #pragma once
 // The host tools' one way to draw a plot: gnuplot run on a script through the process runner
-// (io/child_process), so an interrupt reaches it like any other child.
+// (io/child_process), so an interrupt reaches it like any other child, and then throws
+// Interrupted once gnuplot ended.
 #include <filesystem>
 
 namespace bms {

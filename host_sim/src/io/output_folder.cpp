@@ -2,12 +2,15 @@
 
 #include <unistd.h>
 
+#include <cstdlib>
 #include <fstream>
 #include <iomanip>
 #include <map>
+#include <sstream>
 #include <string>
 #include <system_error>
 
+#include "io/atomic_file.hpp"
 #include "io/input_error.hpp"
 #include "io/text_file.hpp"
 
@@ -17,8 +20,25 @@ namespace fs = std::filesystem;
 
 namespace {
 
+long g_owner = 0;  // 0: this process
+
+}  // namespace
+
+void adopt_output_folder_owner() {
+  const char* v = std::getenv(kOutputOwnerVariable);
+  if (v == nullptr) return;
+  char* end = nullptr;
+  const long owner = std::strtol(v, &end, 10);
+  if (end != v && *end == '\0' && owner > 0) g_owner = owner;
+  unsetenv(kOutputOwnerVariable);  // not passed on to this process's own children
+}
+
+long output_folder_owner() { return g_owner > 0 ? g_owner : static_cast<long>(getpid()); }
+
+namespace {
+
 std::string with_suffix(const fs::path& dir, const char* what) {
-  return dir.filename().string() + "." + what + "-" + std::to_string(static_cast<long>(getpid()));
+  return dir.filename().string() + "." + what + "-" + std::to_string(output_folder_owner());
 }
 
 // Written by commit(): the name and size of every file the run wrote, one per line.
@@ -61,11 +81,13 @@ std::string input_inside(const fs::path& dir) {
 
 void write_manifest(const fs::path& staging) {
   std::error_code ec;
-  std::ofstream out(staging / kManifest);
+  std::ostringstream list;
   for (const auto& entry : fs::directory_iterator(staging, ec))
     if (entry.is_regular_file(ec) && entry.path().filename() != kManifest)
-      out << std::quoted(entry.path().filename().string()) << ' ' << entry.file_size(ec) << '\n';
-  if (!out.flush()) throw RuntimeFailure("cannot write " + (staging / kManifest).string() + ": disk full?");
+      list << std::quoted(entry.path().filename().string()) << ' ' << entry.file_size(ec) << '\n';
+  AtomicFileWriter out(staging / kManifest);
+  out.append(list.str());
+  out.commit();
 }
 
 }  // namespace

@@ -8,6 +8,15 @@
 
 namespace bms {
 
+// The number in DIR.partial-N: this process's id, or the one its parent gave in the
+// environment variable below when it runs this process for it (bmssim hil --bus uml runs
+// itself again inside a guest kernel, whose process ids mean nothing outside): the parent,
+// which outlives the guest, then removes that staging folder when the run did not commit it.
+constexpr const char* kOutputOwnerVariable = "BMSSIM_OUTPUT_OWNER";
+// Called once at start: takes the variable (and removes it from the environment).
+void adopt_output_folder_owner();
+long output_folder_owner();
+
 class OutputFolder {
  public:
   // Throws InputError naming `option` when DIR cannot be an output folder: an existing file,

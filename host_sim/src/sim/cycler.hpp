@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "bms/fw/operating_mode.hpp"
+#include "bms/fw/estimation/operating_mode.hpp"
 #include "cell/cell_parameters.hpp"
 #include "dfn/dfn_solver.hpp"
 
@@ -48,7 +48,7 @@ struct SampleRecord {
   double stoich_neg, stoich_pos;  // electrode-average stoichiometries
   double hysteresis_v;  // hysteresis state h (0 without the effect)
   double heat_w;        // heat generated (thermal effect only, else 0)
-  double capacity_ah;   // open-circuit capacity of the solid inventory (bms/fw/open_circuit_capacity.hpp)
+  double capacity_ah;   // open-circuit capacity of the solid inventory (bms/fw/model/open_circuit_capacity.hpp)
 };
 
 struct CycleSummary {

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <vector>
 
-#include "bms/fw/open_circuit_capacity.hpp"
+#include "bms/fw/model/open_circuit_capacity.hpp"
 #include "dfn/dfn_model.hpp"
 #include "sim/cycler.hpp"
 

@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 #include <map>
 #include <optional>
+#include <set>
+#include <utility>
 
 #include "io/csv_table.hpp"
 #include "io/input_error.hpp"
@@ -178,7 +180,8 @@ std::vector<CaseOut> find_cases(const fs::path& out_dir) {
       cases.push_back({case_from_json(read_json(cj), cj.string()), e.path()});
     }
   }
-  if (cases.empty()) throw InputError(out_dir.string() + "/cases: no case outputs (case.json) to collect");
+  if (cases.empty() && !fs::exists(out_dir / "plan.json"))
+    throw InputError(out_dir.string() + "/cases: no case outputs (case.json) to collect");
   std::sort(cases.begin(), cases.end(), [](const CaseOut& a, const CaseOut& b) { return a.spec.name < b.spec.name; });
   return cases;
 }
@@ -607,9 +610,18 @@ Collected collect(const fs::path& out_dir) {
   std::vector<CaseOut> cases = find_cases(out_dir);
   json& S = col.summary;
   S["cases"] = cases.size();
+  // Every step planned (plan.json) or started (case.json) that did not complete, including the
+  // steps of cases an interrupted run never started.
+  std::set<std::pair<std::string, std::string>> steps;
   for (const auto& c : cases)
-    for (const auto& s : c.spec.steps)
-      if (!fs::exists(c.dir / s.name / "summary.json")) col.missing.push_back(c.spec.name + "/" + s.name);
+    for (const auto& s : c.spec.steps) steps.insert({c.spec.name, s.name});
+  const std::vector<CaseSpec> plan = read_plan(out_dir);
+  for (const auto& c : plan)
+    for (const auto& s : c.steps) steps.insert({c.name, s.name});
+  for (const auto& [c, s] : steps)
+    if (!step_done(case_dir(out_dir, c) / s)) col.missing.push_back(c + "/" + s);
+  S["planned_cases"] = plan.size();
+  S["steps"] = steps.size();
   S["missing_steps"] = col.missing;
 
   const auto ref_it = std::find_if(cases.begin(), cases.end(), [](const CaseOut& c) { return c.spec.name == "ref"; });

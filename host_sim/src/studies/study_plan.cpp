@@ -10,7 +10,7 @@ namespace bms::study {
 namespace {
 
 // Estimator settings of each arm: the `bmssim estimate` profile it runs (what a profile is, is
-// written once, in firmware/include/bms/fw/make_config.hpp).
+// written once, in firmware/include/bms/fw/config/make_config.hpp).
 struct Setting {
   const char* name;
   std::vector<std::string> args;

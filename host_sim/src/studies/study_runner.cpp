@@ -56,8 +56,6 @@ std::vector<std::string> step_args(const fs::path& out_dir, const CaseSpec& c, c
   return out;
 }
 
-namespace {
-
 // A step's output is done when its summary.json exists and does not say "complete": false
 // (a simulate that failed keeps its finished cycles under such a summary).
 bool step_done(const fs::path& step_dir) {
@@ -66,6 +64,44 @@ bool step_done(const fs::path& step_dir) {
   const auto j = nlohmann::json::parse(read_text_file(file), nullptr, false);
   return j.is_object() && j.value("complete", true);
 }
+
+namespace {
+
+// Adds the steps of `from` that `into` does not have (by name).
+void merge_steps(CaseSpec& into, const CaseSpec& from) {
+  for (const auto& s : from.steps) {
+    const bool known = std::any_of(into.steps.begin(), into.steps.end(), [&](const Step& x) { return x.name == s.name; });
+    if (!known) into.steps.push_back(s);
+  }
+}
+
+}  // namespace
+
+std::vector<CaseSpec> read_plan(const fs::path& out_dir) {
+  const fs::path file = out_dir / "plan.json";
+  std::vector<CaseSpec> cases;
+  if (!fs::exists(file)) return cases;
+  const auto j = nlohmann::json::parse(read_text_file(file), nullptr, false);
+  if (!j.is_object() || !j.contains("cases") || !j["cases"].is_array())
+    throw InputError(file.string() + ": not a study plan (no \"cases\" list)");
+  for (const auto& c : j["cases"]) cases.push_back(case_from_json(c, file.string()));
+  return cases;
+}
+
+void record_plan(const fs::path& out_dir, const std::vector<CaseSpec>& cases) {
+  std::vector<CaseSpec> plan = read_plan(out_dir);
+  for (const auto& c : cases) {
+    const auto it = std::find_if(plan.begin(), plan.end(), [&](const CaseSpec& p) { return p.name == c.name; });
+    if (it == plan.end()) plan.push_back(c);
+    else merge_steps(*it, c);
+  }
+  nlohmann::json j = {{"cases", nlohmann::json::array()}};
+  for (const auto& c : plan) j["cases"].push_back(case_json(c));
+  fs::create_directories(out_dir);
+  write_file_atomically(out_dir / "plan.json", j.dump(2) + "\n");
+}
+
+namespace {
 
 }  // namespace
 
@@ -82,12 +118,8 @@ int run_case(const fs::path& exe, const fs::path& out_dir, const CaseSpec& c) {
   // any run asked for, so --collect finds all of them.
   CaseSpec merged = c;
   if (fs::exists(dir / "case.json")) {
-    const CaseSpec old = case_from_json(nlohmann::json::parse(read_text_file(dir / "case.json"), nullptr, false),
-                                        (dir / "case.json").string());
-    for (const auto& s : old.steps) {
-      const bool known = std::any_of(merged.steps.begin(), merged.steps.end(), [&](const Step& x) { return x.name == s.name; });
-      if (!known) merged.steps.push_back(s);
-    }
+    merge_steps(merged, case_from_json(nlohmann::json::parse(read_text_file(dir / "case.json"), nullptr, false),
+                                       (dir / "case.json").string()));
   }
   write_file_atomically(dir / "case.json", case_json(merged).dump(2) + "\n");
   nlohmann::json steps = nlohmann::json::array();

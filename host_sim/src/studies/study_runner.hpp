@@ -12,6 +12,13 @@
 namespace bms::study {
 
 std::filesystem::path case_dir(const std::filesystem::path& out_dir, const std::string& name);
+// The step's summary.json exists and does not say "complete": false.
+bool step_done(const std::filesystem::path& step_dir);
+// DIR/plan.json: every case and step a run or --list-cases planned, merged with the plan
+// already there (runs with other --models or --arms may share DIR), so that --collect lists
+// the steps of cases that never started as missing too. read_plan: empty without the file.
+void record_plan(const std::filesystem::path& out_dir, const std::vector<CaseSpec>& cases);
+std::vector<CaseSpec> read_plan(const std::filesystem::path& out_dir);
 // Every step's summary.json exists.
 bool case_complete(const std::filesystem::path& out_dir, const CaseSpec& c);
 // The step's arguments with "{case}" replaced by the case folder.

@@ -4,7 +4,7 @@
 #include <chrono>
 #include <cmath>
 
-#include "bms/fw/paper_cell.hpp"
+#include "bms/fw/model/paper_cell.hpp"
 #include "cell/paper_cell.hpp"
 #include "io/measured_profile.hpp"
 #include "sim/cell_catalog.hpp"

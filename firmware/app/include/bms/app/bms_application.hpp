@@ -9,7 +9,7 @@
 //   5. commit the core's state to non-volatile memory when a CC charge ended or the timer
 //      asks, within the flash write budget (StatePersistence);
 //   6. kick the watchdog.
-// Portable: the Linux binary (hal/linux/app) and the board image run this same class.
+// Portable: the Linux binary (apps/linux) and the board image run this same class.
 // No heap, no exceptions, no RTTI.
 #pragma once
 
@@ -19,9 +19,9 @@
 
 #include "bms/app/state_persistence.hpp"
 #include "bms/app/tick_supervisor.hpp"
-#include "bms/fw/bms_core.hpp"
-#include "bms/fw/can_protocol.hpp"
-#include "bms/fw/paper_cell.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/can/can_protocol.hpp"
+#include "bms/fw/model/paper_cell.hpp"
 #include "bms/hal/can_bus.hpp"
 #include "bms/hal/log_sink.hpp"
 #include "bms/hal/monotonic_clock.hpp"
@@ -276,6 +276,14 @@ class BmsApplication {
     h.li_loss_ah = out.li_loss_ah;
     h.z_v = out.z_v;
     tx_.encode(h, f);
+    send(f);
+    can::Uncertainty u;
+    u.seq = seq_;
+    // The largest raw value means none (NaN): a saturated estimate is sent one step under it.
+    u.r_film_sd_ohm_m2 = can::below_none(out.r_film_sd_ohm_m2, can::sig::kRFilmSd);
+    u.capacity_ah = can::below_none(out.capacity_ah, can::sig::kCapacity);
+    u.capacity_sd_ah = can::below_none(out.capacity_sd_ah, can::sig::kCapacitySd);
+    tx_.encode(u, f);
     send(f);
     tx_.encode(receiver_.rx_stats(), f);
     send(f);

@@ -6,9 +6,9 @@
 
 #include <cstdint>
 
-#include "bms/fw/nvm_budget.hpp"
-#include "bms/fw/nvm_store.hpp"
-#include "bms/fw/state_schema.hpp"
+#include "bms/fw/nvm/nvm_budget.hpp"
+#include "bms/fw/nvm/nvm_store.hpp"
+#include "bms/fw/nvm/state_schema.hpp"
 #include "bms/hal/nvm.hpp"
 
 namespace bms::app {

@@ -6,8 +6,8 @@
 // 0.2-2.5 c_e0.
 #include <cstdint>
 
-#include "bms/fw/cell_table.hpp"
-#include "bms/fw/paper_cell.hpp"
+#include "bms/fw/model/cell_table.hpp"
+#include "bms/fw/model/paper_cell.hpp"
 
 namespace bms::fw::cells {
 

@@ -6,7 +6,7 @@
 // nominal-growth profile. Beside them: the Cramer-Rao bound of the joint unknowns for the same data.
 #include <string>
 
-namespace bms::app {
+namespace bms::study {
 
 struct BlindStudyOptions {
   int seeds = 10;
@@ -21,4 +21,4 @@ struct BlindStudyOptions {
 // and figures/. Returns the number of cases whose truth could not be simulated.
 int run_blind_study(const BlindStudyOptions& o, const std::string& command);
 
-}  // namespace bms::app
+}  // namespace bms::study

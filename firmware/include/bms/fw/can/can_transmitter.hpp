@@ -7,7 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "bms/fw/can_codec.hpp"
+#include "bms/fw/can/can_codec.hpp"
 
 namespace bms::fw::can {
 

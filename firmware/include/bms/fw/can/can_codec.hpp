@@ -16,10 +16,10 @@
 #include <cstring>
 #include <type_traits>
 
-#include "bms/fw/can_crc.hpp"
-#include "bms/fw/can_messages.hpp"
-#include "bms/fw/can_sequence.hpp"
-#include "bms/fw/can_signal_table.hpp"
+#include "bms/fw/can/can_crc.hpp"
+#include "bms/fw/can/can_messages.hpp"
+#include "bms/fw/can/can_sequence.hpp"
+#include "bms/fw/can/can_signal_table.hpp"
 
 namespace bms::fw::can {
 
@@ -77,6 +77,13 @@ inline std::int64_t to_raw(const SignalLayout& s, double physical) {
   if (scaled >= hi) return raw_max(s);
   const double r = scaled >= 0.0 ? std::floor(scaled + 0.5) : std::ceil(scaled - 0.5);
   return static_cast<std::int64_t>(r);
+}
+
+/// For a signal whose largest raw value means "none" (NaN): a real SI value at or beyond the top
+/// of the range becomes the value one step under it, so that it never reads as none.
+inline double below_none(double si, const SignalLayout& s) {
+  const double top_si = (s.max - s.factor) / s.units_per_si;
+  return si > top_si ? top_si : si;
 }
 
 constexpr double from_raw(const SignalLayout& s, std::int64_t raw) {

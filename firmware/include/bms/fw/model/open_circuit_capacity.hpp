@@ -13,7 +13,7 @@
 #include <cmath>
 #include <limits>
 
-#include "bms/fw/physical_constants.hpp"
+#include "bms/fw/model/physical_constants.hpp"
 
 namespace bms::fw {
 

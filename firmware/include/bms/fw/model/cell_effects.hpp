@@ -29,7 +29,7 @@
 #include <type_traits>
 #include <utility>
 
-#include "bms/fw/reduced_cell.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
 
 namespace bms::fw {
 

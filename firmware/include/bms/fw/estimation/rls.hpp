@@ -10,7 +10,7 @@
 //   K     = P phi / (lambda + phi^T P phi)
 //   theta = theta + K e
 //   P     = (P - K phi^T P) / lambda        (both terms divided by lambda)
-// Guards, each reported by a status bit (bms/fw/fw_status.hpp), never silent:
+// Guards, each reported by a status bit (bms/fw/estimation/fw_status.hpp), never silent:
 //   - non-finite phi or target: no update (kRejectedNonFinite);
 //   - non-finite result, non-positive gain denominator or a non-positive diagonal of P:
 //     the update is discarded, the last good theta and P are kept (kThetaRestored);
@@ -27,7 +27,7 @@
 
 #include <Eigen/Core>
 
-#include "bms/fw/fw_status.hpp"
+#include "bms/fw/estimation/fw_status.hpp"
 
 namespace bms::fw {
 

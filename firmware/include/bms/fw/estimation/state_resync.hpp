@@ -18,7 +18,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "bms/fw/resync_window.hpp"
+#include "bms/fw/estimation/resync_window.hpp"
 
 namespace bms::fw {
 

@@ -21,18 +21,18 @@
 #include <cstdint>
 #include <type_traits>
 
-#include "bms/fw/bias_calibration.hpp"
-#include "bms/fw/bms_core.hpp"
-#include "bms/fw/cell_effects.hpp"
-#include "bms/fw/film_growth_identifier.hpp"
-#include "bms/fw/film_level.hpp"
-#include "bms/fw/learning_gate.hpp"
-#include "bms/fw/mode_detector.hpp"
-#include "bms/fw/rcsi_estimator.hpp"
-#include "bms/fw/reduced_cell.hpp"
-#include "bms/fw/resync_window.hpp"
-#include "bms/fw/rls.hpp"
-#include "bms/fw/state_resync.hpp"
+#include "bms/fw/estimation/bias_calibration.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/model/cell_effects.hpp"
+#include "bms/fw/estimation/film_growth_identifier.hpp"
+#include "bms/fw/estimation/film_level.hpp"
+#include "bms/fw/estimation/learning_gate.hpp"
+#include "bms/fw/estimation/mode_detector.hpp"
+#include "bms/fw/estimation/rcsi_estimator.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
+#include "bms/fw/estimation/resync_window.hpp"
+#include "bms/fw/estimation/rls.hpp"
+#include "bms/fw/estimation/state_resync.hpp"
 
 namespace bms::fw::schema {
 

@@ -35,8 +35,8 @@
 
 #include <Eigen/Core>
 
-#include "bms/fw/fw_status.hpp"
-#include "bms/fw/rls.hpp"
+#include "bms/fw/estimation/fw_status.hpp"
+#include "bms/fw/estimation/rls.hpp"
 
 namespace bms::fw {
 

@@ -5,8 +5,8 @@
 // tests/hal/test_dbc.cpp checks it.
 #pragma once
 
-#include "bms/fw/can_codec.hpp"
-#include "bms/fw/can_messages.hpp"
-#include "bms/fw/can_receiver.hpp"
-#include "bms/fw/can_signal_table.hpp"
-#include "bms/fw/can_transmitter.hpp"
+#include "bms/fw/can/can_codec.hpp"
+#include "bms/fw/can/can_messages.hpp"
+#include "bms/fw/can/can_receiver.hpp"
+#include "bms/fw/can/can_signal_table.hpp"
+#include "bms/fw/can/can_transmitter.hpp"

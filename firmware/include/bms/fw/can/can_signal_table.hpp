@@ -101,6 +101,12 @@ inline constexpr SignalLayout kTheta1{"Theta1", 32, 32, ValueType::float32, 1.0,
 inline constexpr SignalLayout kLiLoss{"LiLoss", 24, 24, ValueType::unsigned_int, 1e-4, 0.0, 0.0, 1677.7215, "mAh", Coding::physical, kMahPerAh};
 inline constexpr SignalLayout kZResidual{"ZResidual", 48, 16, ValueType::signed_int, 1.0, 0.0, -32768.0, 32767.0, "uV", Coding::physical, kUvPerV};
 
+// BMS_Uncertainty: the film's 1-sigma in 1e-8 ohm m2 steps, the open-circuit capacity in 1 mAh
+// steps and its 1-sigma in 0.1 mAh steps; none (NaN: the paper's RCSI path) as the largest raw value.
+inline constexpr SignalLayout kRFilmSd{"RFilmSd", 24, 16, ValueType::unsigned_int, 1e-8, 0.0, 0.0, 0.00065535, "ohm.m2", Coding::physical};
+inline constexpr SignalLayout kCapacity{"Capacity", 40, 16, ValueType::unsigned_int, 1.0, 0.0, 0.0, 65535.0, "mAh", Coding::physical, kMahPerAh};
+inline constexpr SignalLayout kCapacitySd{"CapacitySd", 56, 8, ValueType::unsigned_int, 0.1, 0.0, 0.0, 25.5, "mAh", Coding::physical, kMahPerAh};
+
 // BMS_Status
 inline constexpr SignalLayout kStatusBits{"StatusBits", 12, 8, ValueType::unsigned_int, 1.0, 0.0, 0.0, 255.0, ""};
 inline constexpr SignalLayout kFaultBits{"FaultBits", 20, 8, ValueType::unsigned_int, 1.0, 0.0, 0.0, 255.0, ""};
@@ -127,6 +133,8 @@ inline constexpr SignalLayout kEstimate2Signals[] = {sig::kCrc, sig::kCounter, s
 inline constexpr SignalLayout kEstimate3Signals[] = {sig::kCrc, sig::kCounter, sig::kSeq, sig::kTheta1};
 inline constexpr SignalLayout kHealthSignals[] = {sig::kCrc, sig::kCounter, sig::kSeq, sig::kLiLoss,
                                                   sig::kZResidual};
+inline constexpr SignalLayout kUncertaintySignals[] = {sig::kCrc, sig::kCounter, sig::kSeq, sig::kRFilmSd,
+                                                       sig::kCapacity, sig::kCapacitySd};
 inline constexpr SignalLayout kStatusSignals[] = {sig::kCrc, sig::kCounter, sig::kStatusBits, sig::kFaultBits,
                                                   sig::kTickCount};
 inline constexpr SignalLayout kRxStatsSignals[] = {sig::kCrc,         sig::kCounter,     sig::kDropLength,
@@ -142,10 +150,11 @@ enum class Msg : std::uint8_t {
   estimate2,
   estimate3,
   health,
+  uncertainty,
   status,
   rx_stats,
 };
-inline constexpr std::size_t kMessageCount = 9;
+inline constexpr std::size_t kMessageCount = 10;
 
 namespace id {
 inline constexpr std::uint32_t kControl = 0x100;
@@ -155,6 +164,7 @@ inline constexpr std::uint32_t kEstimate1 = 0x200;
 inline constexpr std::uint32_t kEstimate2 = 0x201;
 inline constexpr std::uint32_t kEstimate3 = 0x202;
 inline constexpr std::uint32_t kHealth = 0x203;
+inline constexpr std::uint32_t kUncertainty = 0x204;
 inline constexpr std::uint32_t kStatus = 0x210;
 inline constexpr std::uint32_t kRxStats = 0x211;
 }  // namespace id
@@ -173,6 +183,7 @@ inline constexpr MessageLayout kMessages[kMessageCount] = {
     make_layout("BMS_Estimate2", id::kEstimate2, 8, Node::bms, Node::host, kEstimate2Signals),
     make_layout("BMS_Estimate3", id::kEstimate3, 8, Node::bms, Node::host, kEstimate3Signals),
     make_layout("BMS_Health", id::kHealth, 8, Node::bms, Node::host, kHealthSignals),
+    make_layout("BMS_Uncertainty", id::kUncertainty, 8, Node::bms, Node::host, kUncertaintySignals),
     make_layout("BMS_Status", id::kStatus, 8, Node::bms, Node::host, kStatusSignals),
     make_layout("BMS_RxStats", id::kRxStats, 8, Node::bms, Node::host, kRxStatsSignals),
 };

@@ -17,7 +17,7 @@
 #include <cstdint>
 #include <type_traits>
 
-#include "bms/fw/operating_mode.hpp"
+#include "bms/fw/estimation/operating_mode.hpp"
 
 namespace bms::fw {
 

@@ -37,10 +37,10 @@
 #include <type_traits>
 #include <utility>
 
-#include "bms/fw/dual.hpp"
-#include "bms/fw/open_circuit_capacity.hpp"
-#include "bms/fw/paper_cell.hpp"
-#include "bms/fw/physical_constants.hpp"
+#include "bms/fw/model/dual.hpp"
+#include "bms/fw/model/open_circuit_capacity.hpp"
+#include "bms/fw/model/paper_cell.hpp"
+#include "bms/fw/model/physical_constants.hpp"
 
 namespace bms::fw {
 
@@ -92,7 +92,7 @@ struct PaperCellTemperatureBase {
   static constexpr double kTemperatureK = paper::kTemperature_k;
 };
 
-// The paper cell as the reduced model sees it. Numbers come from bms/fw/paper_cell.hpp (one
+// The paper cell as the reduced model sees it. Numbers come from bms/fw/model/paper_cell.hpp (one
 // source of truth with the host simulator).
 struct PaperCellTraits {
   static constexpr double kAreaM2 = paper::kElectrodeArea_m2;
@@ -370,7 +370,7 @@ class ReducedCell {
     return mean_stoich_neg() * Scalar(solid_capacity_neg_mol()) + mean_stoich_pos() * Scalar(solid_capacity_pos_mol());
   }
   // Open-circuit capacity [Ah] of a cell with this model's electrodes and OCPs holding
-  // `inventory_mol` of cyclable lithium (bms/fw/open_circuit_capacity.hpp; reference temperature).
+  // `inventory_mol` of cyclable lithium (bms/fw/model/open_circuit_capacity.hpp; reference temperature).
   static Scalar open_circuit_capacity_ah(Scalar inventory_mol) {
     return fw::open_circuit_capacity_ah(
         inventory_mol, Scalar(solid_capacity_neg_mol()), Scalar(solid_capacity_pos_mol()), Scalar(Cell::kLowerVoltageV),

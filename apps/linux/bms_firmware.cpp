@@ -1,6 +1,6 @@
 // bms-firmware: the BMS firmware as a Linux process behind the HAL (SocketCAN, timerfd, a
 // file as non-volatile memory). The Linux entry point: it parses the flags, opens the drivers,
-// builds the configuration (bms/fw/make_config.hpp) and runs the application
+// builds the configuration (bms/fw/config/make_config.hpp) and runs the application
 // (firmware/app: bms::app::BmsApplication), the same class the board image runs.
 //
 //   bms-firmware --can vcan0 --lockstep|--realtime [--nvm FILE] [--h H] [--h-from-model]
@@ -12,7 +12,7 @@
 // state is saved to the NVM file (within the write budget) and the process exits 0. The
 // state is also committed at the end of every constant-current charge (the estimate just
 // learned) and every S seconds of ticks, each within the flash write budget
-// (firmware/include/bms/fw/nvm_budget.hpp: by default 10 000 cycles over 10 years, one
+// (firmware/include/bms/fw/nvm/nvm_budget.hpp: by default 10 000 cycles over 10 years, one
 // commit per 4.4 h on average, 4 back to back).
 // A failing bus (interface down) is not fatal: the error is logged and counted, and the
 // firmware keeps waiting for frames, as a BMS on a vehicle bus must.
@@ -27,9 +27,9 @@
 #include <cstring>
 #include <string>
 
-#include "bms/fw/bms_core.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
 #include "bms/app/bms_application.hpp"
-#include "bms/fw/make_config.hpp"
+#include "bms/fw/config/make_config.hpp"
 #include "bms/hal/linux/file_nvm.hpp"
 #include "bms/hal/linux/linux_clock.hpp"
 #include "bms/hal/linux/process_watchdog.hpp"
@@ -55,7 +55,7 @@ void usage(FILE* to) {
                "  --lockstep           ticks triggered by the host's HOST_Measurement frames (deterministic)\n"
                "  --realtime           ticks from a 0.2 s timer\n"
                "  --nvm FILE           keep the estimator state in FILE (two slots, CRC); restored at start\n"
-               "  --settings P         estimator profile (bms/fw/make_config.hpp): best (default; the nominal cell\n"
+               "  --settings P         estimator profile (bms/fw/config/make_config.hpp): best (default; the nominal cell\n"
                "                       only: film, growth gain and lithium inventory identified together), paper\n"
                "                       (the paper's RCSI) or nominal-growth (RCSI with H from the model, state\n"
                "                       re-synchronisation, 600 s warm-up, bias calibration at the nominal initial\n"

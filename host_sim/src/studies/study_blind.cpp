@@ -1,4 +1,4 @@
-#include "study_blind.hpp"
+#include "studies/study_blind.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -24,11 +24,11 @@
 #include "io/input_error.hpp"
 #include "io/text_file.hpp"
 #include "sim/cell_catalog.hpp"
+#include "sim/simulation_plan.hpp"
 #include "sim/truth_output.hpp"
-#include "simulate_options.hpp"
 #include "studies/study_report.hpp"
 
-namespace bms::app {
+namespace bms::study {
 
 namespace {
 
@@ -464,4 +464,4 @@ int run_blind_study(const BlindStudyOptions& o, const std::string& command) {
   return static_cast<int>(failures.size());
 }
 
-}  // namespace bms::app
+}  // namespace bms::study

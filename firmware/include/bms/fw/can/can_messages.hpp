@@ -10,8 +10,8 @@
 
 #include <cstdint>
 
-#include "bms/fw/can_signal_table.hpp"
-#include "bms/fw/operating_mode.hpp"
+#include "bms/fw/can/can_signal_table.hpp"
+#include "bms/fw/estimation/operating_mode.hpp"
 
 namespace bms::fw::can {
 
@@ -83,6 +83,13 @@ struct Health {
   std::uint16_t seq = 0;
   double li_loss_ah = 0.0;  ///< on the bus in mAh
   double z_v = 0.0;         ///< y_hat - y; on the bus in uV
+};
+
+struct Uncertainty {
+  std::uint16_t seq = 0;
+  double r_film_sd_ohm_m2 = 0.0;  ///< the estimator's 1-sigma of the film (NaN: none)
+  double capacity_ah = 0.0;       ///< open-circuit capacity; on the bus in mAh (NaN: none)
+  double capacity_sd_ah = 0.0;    ///< its 1-sigma; on the bus in mAh (NaN: none)
 };
 
 struct BmsStatus {
@@ -169,6 +176,15 @@ struct MessageTraits<Health> {
   template <class C, class F>
   static void fields(C& m, F&& f) {
     f(m.seq), f(m.li_loss_ah), f(m.z_v);
+  }
+};
+
+template <>
+struct MessageTraits<Uncertainty> {
+  static constexpr Msg kMsg = Msg::uncertainty;
+  template <class C, class F>
+  static void fields(C& m, F&& f) {
+    f(m.seq), f(m.r_film_sd_ohm_m2), f(m.capacity_ah), f(m.capacity_sd_ah);
   }
 };
 

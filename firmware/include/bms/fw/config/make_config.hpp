@@ -22,9 +22,9 @@
 #include <cstdint>
 #include <cstring>
 
-#include "bms/fw/bms_core.hpp"
-#include "bms/fw/reduced_cell.hpp"
-#include "bms/fw/reduced_model_bias.hpp"
+#include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
+#include "bms/fw/model/reduced_model_bias.hpp"
 
 namespace bms::fw {
 

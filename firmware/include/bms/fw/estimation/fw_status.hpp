@@ -5,7 +5,7 @@
 // Bit ranges (allocate further modules in blocks of 8; never renumber a published bit, since
 // status words are logged and stored in non-volatile memory):
 //   bits  0.. 7  state estimation: RCSI estimator and its RLS core (this file, below)
-//   bits  8..15  the tick (bms/fw/bms_core.hpp): input validation and the main-system model
+//   bits  8..15  the tick (bms/fw/estimation/bms_core.hpp): input validation and the main-system model
 //   bits 16..23  the operating envelope: measured temperature, model validity (below)
 //   bits 24..31  reserved for other firmware modules (not allocated yet)
 #include <cstdint>

@@ -9,11 +9,11 @@
 //   y0_hat model's side-reaction current density J_s [A/m3], fed to the subsystem model
 // The estimator is generic over the main-system model: it only sees u_hat, z and y0_hat.
 //
-// Subsystem model: strictly proper ARX of order Nc (bms/fw/rls_arx.hpp)
+// Subsystem model: strictly proper ARX of order Nc (bms/fw/estimation/rls_arx.hpp)
 //   u_hat(k) = theta^T phi(k-1),  phi(k-1) = [u_hat(k-1..k-Nc), y0_hat(k-1..k-Nc)].
-// Retrospective step (bms/fw/rcsi_retrospective.hpp), scalar H at delay D:
+// Retrospective step (bms/fw/estimation/rcsi_retrospective.hpp), scalar H at delay D:
 //   u*(k-D) = u_hat(k-D) - z(k)/H  (eta = 0),  regularised form for eta > 0.
-// RLS (bms/fw/rls.hpp): fits theta^T phi(k-D-1) ~ u*(k-D), where phi(k-D-1) is exactly the
+// RLS (bms/fw/estimation/rls.hpp): fits theta^T phi(k-D-1) ~ u*(k-D), where phi(k-D-1) is exactly the
 // regressor that produced u_hat(k-D).
 //
 // ---- Call order within one tick k: BmsCore::tick's steps 5, 6, 8 and 9 (the off-by-one in D is
@@ -51,10 +51,10 @@
 
 #include <Eigen/Core>
 
-#include "bms/fw/fw_status.hpp"
-#include "bms/fw/rcsi_retrospective.hpp"
-#include "bms/fw/rls.hpp"
-#include "bms/fw/rls_arx.hpp"
+#include "bms/fw/estimation/fw_status.hpp"
+#include "bms/fw/estimation/rcsi_retrospective.hpp"
+#include "bms/fw/estimation/rls.hpp"
+#include "bms/fw/estimation/rls_arx.hpp"
 
 namespace bms::fw {
 

@@ -8,8 +8,8 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "bms/fw/can_codec.hpp"
-#include "bms/fw/can_sequence.hpp"
+#include "bms/fw/can/can_codec.hpp"
+#include "bms/fw/can/can_sequence.hpp"
 
 namespace bms::fw::can {
 
@@ -60,6 +60,7 @@ struct RxMessage {
   Estimate2 estimate2;
   Estimate3 estimate3;
   Health health;
+  Uncertainty uncertainty;
   BmsStatus status;
   BmsRxStats rx_stats;
 };
@@ -74,6 +75,7 @@ inline void unpack_message(const std::uint8_t* data, RxMessage& out) {
     case Msg::estimate2: unpack(data, out.estimate2); break;
     case Msg::estimate3: unpack(data, out.estimate3); break;
     case Msg::health: unpack(data, out.health); break;
+    case Msg::uncertainty: unpack(data, out.uncertainty); break;
     case Msg::status: unpack(data, out.status); break;
     case Msg::rx_stats: unpack(data, out.rx_stats); break;
   }

@@ -9,7 +9,7 @@
 // (learning_gate.hpp), StateResync (state_resync.hpp), BiasCalibration (bias_calibration.hpp),
 // FilmLevel (film_level.hpp), and the `best` profile's FilmGrowthIdentifier.
 // The model answers within the same tick to the u_hat it was given (the film drop is
-// algebraic), so the default delay is D = 0 (see bms/fw/rcsi_estimator.hpp).
+// algebraic), so the default delay is D = 0 (see bms/fw/estimation/rcsi_estimator.hpp).
 //
 // MainModel is any type with the ReducedCell interface (init is the caller's business):
 //   ModelTickResult<Scalar> step_current(Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s);
@@ -22,17 +22,17 @@
 #include <cstdint>
 #include <limits>
 
-#include "bms/fw/bias_calibration.hpp"
-#include "bms/fw/film_growth_identifier.hpp"
-#include "bms/fw/film_level.hpp"
-#include "bms/fw/fw_status.hpp"
-#include "bms/fw/learning_gate.hpp"
-#include "bms/fw/mode_detector.hpp"
-#include "bms/fw/operating_mode.hpp"
-#include "bms/fw/rcsi_estimator.hpp"
-#include "bms/fw/reduced_cell.hpp"
-#include "bms/fw/resync_window.hpp"
-#include "bms/fw/state_resync.hpp"
+#include "bms/fw/estimation/bias_calibration.hpp"
+#include "bms/fw/estimation/film_growth_identifier.hpp"
+#include "bms/fw/estimation/film_level.hpp"
+#include "bms/fw/estimation/fw_status.hpp"
+#include "bms/fw/estimation/learning_gate.hpp"
+#include "bms/fw/estimation/mode_detector.hpp"
+#include "bms/fw/estimation/operating_mode.hpp"
+#include "bms/fw/estimation/rcsi_estimator.hpp"
+#include "bms/fw/model/reduced_cell.hpp"
+#include "bms/fw/estimation/resync_window.hpp"
+#include "bms/fw/estimation/state_resync.hpp"
 
 namespace bms::fw {
 
@@ -190,7 +190,7 @@ class BmsCore {
   };
 
   // The profiles (paper, best, nominal-growth) are built from the nominal cell in one place,
-  // bms/fw/make_config.hpp; a default Config is the paper's RCSI.
+  // bms/fw/config/make_config.hpp; a default Config is the paper's RCSI.
   static typename Estimator::Config default_estimator() {
     typename Estimator::Config c;
     c.markov_v_per_ohm_m2 = Scalar(kPaperMarkovVPerOhmM2);

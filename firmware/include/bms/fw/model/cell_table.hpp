@@ -6,7 +6,7 @@
 // expression or table and states its largest error over the cell's operating range.
 // Templated on the number type: double, float and the dual numbers of the CV step.
 // Firmware rules: fixed size, no heap, no exceptions.
-#include "bms/fw/dual.hpp"
+#include "bms/fw/model/dual.hpp"
 
 namespace bms::fw {
 
