@@ -249,7 +249,8 @@ class Problem {
 
   // Model voltage per piece (NaN on rows whose role is not wanted or the model did not reach);
   // false when the candidate has no electrode balance or the solver fails.
-  bool run(const Eigen::VectorXd& z, const DfnMesh& mesh, char want_mask, std::vector<std::vector<double>>& v) const {
+  bool run(const Eigen::VectorXd& z, const DfnMesh& mesh, char want_mask, std::vector<std::vector<double>>& v,
+           std::vector<std::string>* early = nullptr) const {
     Balance b;
     const nlohmann::json j = bpx(z, b);
     if (!b.ok) return false;
@@ -277,6 +278,10 @@ class Problem {
       set_initial_state(r, cell, "auto");
       try {
         const ModelRun m = run_model(setup, r, Hypothesis{});
+        if (early && m.samples_covered < n)
+          early->push_back(fmt::format("the model stopped at row {} of {} in {} ({}): the rest of it is scored with "
+                                       "the last residual",
+                                       m.samples_covered, n, r.source, m.note));
         const auto res = residual_mv(m.voltage_v, r);  // carries the last reached sample on
         for (std::size_t k = 0; k < n; ++k) v[p][k] = r.voltage_v[k] + 1e-3 * res[k];
       } catch (const RuntimeFailure&) {
@@ -552,7 +557,8 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
   log("scoring on the final mesh");
   auto score = [&](const Eigen::VectorXd& zz, std::vector<std::vector<double>>& v, double& train, double& held,
                    double* held_max) {
-    if (!problem.run(zz, settings.final_mesh, kRoleTrain | kRoleHeldOut, v))
+    std::vector<std::string> early;
+    if (!problem.run(zz, settings.final_mesh, kRoleTrain | kRoleHeldOut, v, &early))
       throw RuntimeFailure("the fitted cell's model fails on the final mesh; try a finer --search-points");
     double st = 0, sh = 0, mh = 0;
     std::size_t nt = 0, nh = 0;
@@ -564,7 +570,11 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
       }
     train = nt ? std::sqrt(st / static_cast<double>(nt)) : std::nan("");
     held = nh ? std::sqrt(sh / static_cast<double>(nh)) : std::nan("");
-    if (held_max) *held_max = nh ? mh : std::nan("");
+    if (held_max) {
+      *held_max = nh ? mh : std::nan("");
+      for (const auto& e : early) out.notes.push_back("fitted cell: " + e);
+      if (!early.empty()) log(fmt::format("warning: the fitted model stopped early in {} piece(s) (summary.json notes)", early.size()));
+    }
     out.heldout_samples = nh;
   };
   score(z, out.model_v, out.rmse_train_mv, out.rmse_heldout_mv, &out.max_abs_heldout_mv);
