@@ -39,10 +39,6 @@ constexpr double kResyncGapS = 3600.0;
 // integrates the cycler's charge counting over many cycles and drifts with its gain mismatch
 // (CS2_35 counts about 2 % more charge in than out: the cell's side reactions and the sensor).
 constexpr double kResyncRestS = 1200.0;
-// A charge whose last sample is this close to the upper voltage ended full.
-constexpr double kFullChargeV = 0.02;
-// ... and its last current at most this share of the largest (the CV phase's end current).
-constexpr double kFullChargeEndShare = 0.1;
 // The fitted cell's voltage window: the template's unless the data go beyond it by more than this.
 constexpr double kWindowMarginV = 5e-3;
 
@@ -120,24 +116,18 @@ struct Group {
 };
 
 // Rows of one group into pieces (split after long rests), with roles from `role_of`.
-void add_pieces(const Group& g, const std::vector<char>& role, double v_max, std::vector<diagnosis::FitPiece>& pieces,
+void add_pieces(const Group& g, const std::vector<char>& role, std::vector<diagnosis::FitPiece>& pieces,
                 std::vector<std::string>& piece_labels) {
   const EstimateData& d = g.data;
   std::vector<std::size_t> starts{0};
-  double rest_since_s = d.t_s.front(), imax = 0.0;
-  for (double i : d.current_a) imax = std::max(imax, std::abs(i));
+  double rest_since_s = d.t_s.front();
   for (std::size_t k = 1; k < d.t_s.size(); ++k) {
     const bool rest = std::abs(d.current_a[k]) < kRestCurrentA, was_rest = std::abs(d.current_a[k - 1]) < kRestCurrentA;
     if (!was_rest) rest_since_s = d.t_s[k];
     // The last sample of a long rest (or the first after a long logging gap at rest) starts a piece.
     const bool rest_ends = rest && was_rest && (k + 1 == d.t_s.size() || std::abs(d.current_a[k + 1]) >= kRestCurrentA);
-    // A charge that ended at the upper voltage (CV to its end current): the cell is full, as a
-    // BMS resets its state of charge at the end of a full charge.
-    // (a CC charge that only reached the voltage, its current still high, is not full: a CV follows)
-    const bool charged_full = rest && d.current_a[k - 1] < -kRestCurrentA && d.voltage_v[k - 1] >= v_max - kFullChargeV &&
-                              -d.current_a[k - 1] <= kFullChargeEndShare * imax;
     const bool resync = (rest && was_rest && d.t_s[k] - d.t_s[k - 1] > kResyncGapS) ||
-                        (rest_ends && d.t_s[k] - rest_since_s >= kResyncRestS) || charged_full;
+                        (rest_ends && d.t_s[k] - rest_since_s >= kResyncRestS);
     if (resync && k - starts.back() >= diagnosis::kMinSamples) starts.push_back(k);
   }
   if (starts.size() > 1 && d.t_s.size() - starts.back() < diagnosis::kMinSamples) starts.pop_back();
@@ -329,7 +319,7 @@ int run_fit(const FitOptions& o) {
   }
   std::vector<diagnosis::FitPiece> pieces;
   std::vector<std::string> labels;
-  for (std::size_t g = 0; g < groups.size(); ++g) add_pieces(groups[g], roles[g], settings.v_max, pieces, labels);
+  for (std::size_t g = 0; g < groups.size(); ++g) add_pieces(groups[g], roles[g], pieces, labels);
   settings.search_mesh = {o.search_points, o.search_points, o.search_points, o.search_radial};
   settings.final_mesh = {o.points, o.points, o.points, o.radial};
   settings.rtol = o.rtol;
