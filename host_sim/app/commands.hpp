@@ -16,5 +16,6 @@ Runner add_study(CLI::App& app);
 Runner add_baseline(CLI::App& app);
 Runner add_diagnose(CLI::App& app);
 Runner add_cell_config(CLI::App& app);
+Runner add_fit(CLI::App& app);
 
 }  // namespace bms::app

@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
   add(bms::app::add_baseline);
   add(bms::app::add_diagnose);
   add(bms::app::add_cell_config);
+  add(bms::app::add_fit);
   bms::install_interrupt_handlers();
   bms::adopt_output_folder_owner();
   try {

@@ -1,0 +1,467 @@
+// bmssim fit: a cell's parameters from its cycler data (contract: fit). The template's BPX file
+// is the start; diagnosis/cell_fit moves what the data identify and keeps the rest.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "diagnosis/cell_fit.hpp"
+#include "estimation/cycler_input.hpp"
+#include "io/atomic_file.hpp"
+#include "io/gnuplot.hpp"
+#include "io/input_error.hpp"
+#include "io/measured_profile.hpp"
+#include "io/output_folder.hpp"
+#include "sim/cell_catalog.hpp"
+
+namespace bms::app {
+
+namespace {
+
+// Below this (A) a sample is at rest (the re-synchronisation after a long rest).
+constexpr double kRestCurrentA = 0.01;
+// A logging gap longer than this, at rest on both sides, restarts the model from the rest voltage
+// (as a BMS re-synchronises at power-up): the data cannot say what happened in between.
+constexpr double kResyncGapS = 3600.0;
+// A rest this long ends near equilibrium: the model restarts from its last voltage, as a BMS
+// resets its state of charge from the open-circuit voltage after a rest. Without it the model
+// integrates the cycler's charge counting over many cycles and drifts with its gain mismatch
+// (CS2_35 counts about 2 % more charge in than out: the cell's side reactions and the sensor).
+constexpr double kResyncRestS = 1200.0;
+// The fitted cell's voltage window: the template's unless the data go beyond it by more than this.
+constexpr double kWindowMarginV = 5e-3;
+
+struct FitOptions {
+  std::vector<std::string> data;
+  std::string templ;
+  std::string out;
+  std::string train_cycles, heldout_cycles;
+  std::string current_sign = "by-layout";
+  std::string parameters = "all";
+  int points = 20, radial = 20, search_points = 8, search_radial = 8;
+  double rtol = 1e-6;
+  int max_iterations = 12;
+  bool quiet = false;
+};
+
+// "1-5" or "1-5,8,10-12" -> cycle numbers; exit 2 naming the option.
+std::set<int> parse_cycles(const std::string& text, const char* option) {
+  std::set<int> out;
+  std::stringstream ss(text);
+  std::string part;
+  while (std::getline(ss, part, ',')) {
+    int a = 0, b = 0;
+    char dash = 0, extra = 0;
+    std::istringstream p(part);
+    if ((p >> a) && !(p >> dash)) {
+      b = a;
+    } else {
+      std::istringstream q(part);
+      if (!(q >> a >> dash >> b) || dash != '-' || (q >> extra))
+        throw InputError(fmt::format("{} '{}': expected cycles as A-B or A-B,C (e.g. 1-5)", option, text));
+    }
+    if (a < 0 || b < a || b - a > 1000000)
+      throw InputError(fmt::format("{} '{}': a range A-B needs 0 <= A <= B", option, text));
+    for (int c = a; c <= b; ++c) out.insert(c);
+  }
+  if (out.empty()) throw InputError(fmt::format("{}: empty list", option));
+  return out;
+}
+
+// The template's BPX JSON and what to call it.
+nlohmann::json template_json(const std::string& t, std::string& source) {
+  std::filesystem::path file;
+  if (t == "lco" || t == "nmc") {
+    file = cell_template_file(t);
+  } else if (t == "lfp") {
+    // The About:Energy LFP 18650 BPX file in ../shared (read there, never copied into the repository).
+    file = shared_dir() / "data/aboutenergy-lfp18650/lfp_18650_cell_BPX.json";
+    if (!std::filesystem::exists(file))
+      throw InputError("--template lfp: " + file.string() + " not found (set BMS_SHARED_DIR to the shared/ folder)");
+  } else if (t == "paper") {
+    throw InputError("--template paper: the built-in paper cell has no BPX file to write a fitted cell from; use "
+                     "lco, nmc, lfp or a FILE.bpx.json");
+  } else {
+    file = t;
+    if (!std::filesystem::is_regular_file(file))
+      throw InputError("--template '" + t + "': neither lco, nmc, lfp, paper nor an existing BPX file");
+  }
+  source = file.string();
+  std::ifstream in(file);
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError("--template " + file.string() + ": not JSON (" + e.what() + ")");
+  }
+  if (!j.is_object() || !j.contains("Parameterisation"))
+    throw InputError("--template " + file.string() + ": missing field 'Parameterisation'");
+  return j;
+}
+
+struct Group {
+  EstimateData data;
+  std::string label;
+};
+
+// Rows of one group into pieces (split after long rests), with roles from `role_of`.
+void add_pieces(const Group& g, const std::vector<char>& role, std::vector<diagnosis::FitPiece>& pieces,
+                std::vector<std::string>& piece_labels) {
+  const EstimateData& d = g.data;
+  std::vector<std::size_t> starts{0};
+  double rest_since_s = d.t_s.front();
+  for (std::size_t k = 1; k < d.t_s.size(); ++k) {
+    const bool rest = std::abs(d.current_a[k]) < kRestCurrentA, was_rest = std::abs(d.current_a[k - 1]) < kRestCurrentA;
+    if (!was_rest) rest_since_s = d.t_s[k];
+    // The last sample of a long rest (or the first after a long logging gap at rest) starts a piece.
+    const bool rest_ends = rest && was_rest && (k + 1 == d.t_s.size() || std::abs(d.current_a[k + 1]) >= kRestCurrentA);
+    const bool resync = (rest && was_rest && d.t_s[k] - d.t_s[k - 1] > kResyncGapS) ||
+                        (rest_ends && d.t_s[k] - rest_since_s >= kResyncRestS);
+    if (resync && k - starts.back() >= diagnosis::kMinSamples) starts.push_back(k);
+  }
+  if (starts.size() > 1 && d.t_s.size() - starts.back() < diagnosis::kMinSamples) starts.pop_back();
+  starts.push_back(d.t_s.size());
+  for (std::size_t s = 0; s + 1 < starts.size(); ++s) {
+    const std::size_t a = starts[s], b = starts[s + 1];
+    bool used = false;
+    for (std::size_t k = a; k < b; ++k) used = used || role[k] != 0;
+    if (!used) continue;
+    auto slice = [&](const std::vector<double>& v) {
+      return v.empty() ? std::vector<double>{} : std::vector<double>(v.begin() + static_cast<long>(a), v.begin() + static_cast<long>(b));
+    };
+    diagnosis::FitPiece p;
+    const std::string name = fmt::format("{} (rows {}-{})", g.label, a + 1, b);
+    p.record = diagnosis::make_record(name, slice(d.t_s), slice(d.current_a), slice(d.voltage_v), slice(d.temperature_k));
+    p.cycle.assign(d.cycle.begin() + static_cast<long>(a), d.cycle.begin() + static_cast<long>(b));
+    p.role.assign(role.begin() + static_cast<long>(a), role.begin() + static_cast<long>(b));
+    pieces.push_back(std::move(p));
+    piece_labels.push_back(name);
+  }
+}
+
+std::string command_line(const FitOptions& o) {
+  std::string s = "bmssim fit";
+  for (const auto& d : o.data) s += " --data " + d;
+  s += " --template " + o.templ;
+  if (!o.train_cycles.empty()) s += " --train-cycles " + o.train_cycles;
+  if (!o.heldout_cycles.empty()) s += " --heldout-cycles " + o.heldout_cycles;
+  if (o.parameters != "all") s += " --parameters " + o.parameters;
+  if (o.current_sign != "by-layout") s += " --current-sign " + o.current_sign;
+  if (o.points != 20 || o.radial != 20) s += fmt::format(" --points {} --radial {}", o.points, o.radial);
+  if (o.search_points != 8 || o.search_radial != 8)
+    s += fmt::format(" --search-points {} --search-radial {}", o.search_points, o.search_radial);
+  if (o.rtol != 1e-6) s += fmt::format(" --rtol {}", o.rtol);
+  if (o.max_iterations != 12) s += fmt::format(" --max-iterations {}", o.max_iterations);
+  return s + " --out " + o.out;
+}
+
+std::vector<std::string> plot(const std::filesystem::path& dir, std::string& problem) {
+  const std::vector<std::string> names = {"voltage_train.png", "voltage_heldout.png", "residual.png"};
+  std::string gp =
+      "# Made by bmssim fit; run in this folder: gnuplot plots.gp\n"
+      "set datafile separator ','\nset terminal pngcairo size 1400,800 noenhanced\nset grid\n"
+      "set key outside bottom center horizontal\n";
+  // fit.csv: 1 piece, 2 t_s, 3 t_h (record hours), 4 cycle, 5 role, 6 current_a, 7 voltage_meas_v,
+  // 8 voltage_template_v, 9 voltage_fitted_v, 10 residual_template_mv, 11 residual_fitted_mv
+  const char* roles[] = {"train", "held out"};
+  for (int r = 0; r < 2; ++r)
+    gp += fmt::format(
+        "set output '{0}.tmp'\nset title 'Measured and model voltage, {1} cycles (model = DFN on the measured current)'\n"
+        "set xlabel 'time (h, gaps removed)'; set ylabel 'voltage (V)'\n"
+        "plot 'fit.csv' skip 1 using 3:($5=={2}?$7:1/0) with lines lw 2 lc rgb 'black' title 'measured', "
+        "'' skip 1 using 3:($5=={2}?$8:1/0) with lines lc rgb '#999999' title 'template', "
+        "'' skip 1 using 3:($5=={2}?$9:1/0) with lines lc rgb 'red' title 'fitted'\n",
+        names[static_cast<std::size_t>(r)], roles[r], r + 1);
+  gp += fmt::format(
+      "set output '{0}.tmp'\nset title 'Residual (model - measured), training then held-out rows'\n"
+      "set xlabel 'time (h, gaps removed)'; set ylabel 'residual (mV)'\n"
+      "plot 'fit.csv' skip 1 using 3:($5==1?$11:1/0) with points pt 7 ps 0.3 lc rgb 'blue' title 'fitted, training', "
+      "'' skip 1 using 3:($5==2?$11:1/0) with points pt 7 ps 0.3 lc rgb 'red' title 'fitted, held out', "
+      "'' skip 1 using 3:10 with points pt 7 ps 0.2 lc rgb '#aaaaaa' title 'template'\n",
+      names[2]);
+  AtomicFileWriter script(dir / "plots.gp");
+  script.append(gp);
+  script.commit();
+  GnuplotOptions g;
+  g.working_dir = dir;
+  const int rc = run_gnuplot("plots.gp", g);
+  std::vector<std::string> out;
+  for (const auto& n : names) {
+    std::error_code ec;
+    if (rc == 0) {
+      std::filesystem::rename(dir / (n + ".tmp"), dir / n, ec);
+      if (!ec) out.push_back(n);
+    } else {
+      std::filesystem::remove(dir / (n + ".tmp"), ec);
+    }
+  }
+  if (rc != 0)
+    problem = rc == kGnuplotMissing ? "gnuplot is not installed (Debian package gnuplot-nox)"
+                                    : fmt::format("gnuplot failed (exit status {})", rc);
+  return out;
+}
+
+nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+int run_fit(const FitOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto log = [q = o.quiet](const std::string& s) {
+    if (!q) std::fprintf(stderr, "fit: %s\n", s.c_str());
+  };
+  // Everything that can be refused is checked before the first model run.
+  if (!(o.rtol > 0.0 && o.rtol < 1e-2)) throw InputError("--rtol: must be in (0, 0.01)");
+  std::string template_source;
+  nlohmann::json tmpl = template_json(o.templ, template_source);
+  const CellParameters template_cell = load_cell(o.templ == "lfp" ? template_source : o.templ);
+  diagnosis::CellFitSettings settings;
+  if (o.parameters != "all") {
+    const auto known = diagnosis::fit_parameter_names();
+    std::stringstream ss(o.parameters);
+    std::string n;
+    while (std::getline(ss, n, ','))
+      if (std::find(known.begin(), known.end(), n) == known.end())
+        throw InputError(fmt::format("--parameters: unknown name '{}'; use all or a comma-separated list of {}", n,
+                                     fmt::join(known, ", ")));
+      else
+        settings.only.push_back(n);
+  }
+  const CurrentSign sign = current_sign_option(o.current_sign);
+  for (const auto& d : o.data)
+    if (!std::filesystem::exists(d)) throw InputError("--data " + d + ": no such file or folder");
+  OutputFolder folder(o.out);
+  const bool by_cycles = !o.train_cycles.empty() || o.data.size() == 1;
+  if (!o.heldout_cycles.empty() && !by_cycles)
+    throw InputError("--heldout-cycles: only with --train-cycles (several --data without it: the first is fitted, "
+                     "the others held out)");
+  std::vector<Group> groups;
+  if (by_cycles) {
+    groups.push_back({read_estimate_input(o.data, sign).data, fmt::format("{}", fmt::join(o.data, ", "))});
+  } else {
+    for (const auto& d : o.data) groups.push_back({read_estimate_input({d}, sign).data, d});
+  }
+  for (const auto& g : groups) {
+    double imax = 0;
+    for (double i : g.data.current_a) imax = std::max(imax, std::abs(i));
+    if (!(imax > kRestCurrentA))
+      throw InputError(fmt::format("--data {}: no current flows in the record (|I| <= {} A throughout): nothing to "
+                                   "fit; give cycler data with charges and discharges",
+                                   g.label, kRestCurrentA));
+  }
+  // Roles: by cycles (one record), or the first --data fitted and the others held out.
+  std::vector<std::vector<char>> roles;
+  std::string split_note;
+  if (by_cycles) {
+    const auto& cyc = groups[0].data.cycle;
+    std::set<int> all(cyc.begin(), cyc.end()), train, held;
+    if (!o.train_cycles.empty()) {
+      train = parse_cycles(o.train_cycles, "--train-cycles");
+    } else {
+      std::size_t n = 0;
+      for (int c : all)
+        if (n++ < (all.size() + 1) / 2) train.insert(c);
+    }
+    if (!o.heldout_cycles.empty()) {
+      held = parse_cycles(o.heldout_cycles, "--heldout-cycles");
+    } else {
+      for (int c : all)
+        if (!train.count(c)) held.insert(c);
+    }
+    std::vector<char> role(cyc.size(), 0);
+    std::size_t nt = 0;
+    for (std::size_t k = 0; k < cyc.size(); ++k) {
+      if (train.count(cyc[k])) role[k] = diagnosis::kRoleTrain, ++nt;
+      else if (held.count(cyc[k])) role[k] = diagnosis::kRoleHeldOut;
+    }
+    if (nt < diagnosis::kMinSamples)
+      throw InputError(fmt::format("--train-cycles: {} training samples in cycles {} of the data (cycles {}..{}); "
+                                   "need at least {}",
+                                   nt, o.train_cycles.empty() ? "(default)" : o.train_cycles, *all.begin(),
+                                   *all.rbegin(), diagnosis::kMinSamples));
+    split_note = fmt::format("cycles {} fitted, cycles {} held out", fmt::join(train, ","),
+                             held.empty() ? std::string("(none)") : fmt::format("{}", fmt::join(held, ",")));
+    roles.push_back(std::move(role));
+  } else {
+    for (std::size_t g = 0; g < groups.size(); ++g)
+      roles.emplace_back(groups[g].data.t_s.size(), g == 0 ? diagnosis::kRoleTrain : diagnosis::kRoleHeldOut);
+    split_note = fmt::format("{} fitted, the other --data held out", groups[0].label);
+  }
+  // The fitted cell's voltage window: the template's, widened to the training data's.
+  double vmin = HUGE_VAL, vmax = -HUGE_VAL;
+  for (std::size_t g = 0; g < groups.size(); ++g)
+    for (std::size_t k = 0; k < roles[g].size(); ++k)
+      if (roles[g][k] == diagnosis::kRoleTrain)
+        vmin = std::min(vmin, groups[g].data.voltage_v[k]), vmax = std::max(vmax, groups[g].data.voltage_v[k]);
+  settings.v_max = vmax > template_cell.upper_voltage_v + kWindowMarginV ? std::round(vmax * 100) / 100
+                                                                          : template_cell.upper_voltage_v;
+  settings.v_min = vmin < template_cell.lower_voltage_v - kWindowMarginV ? std::round(vmin * 100) / 100
+                                                                          : template_cell.lower_voltage_v;
+  // The largest charge one discharge of the training rows delivered (current > 0 throughout).
+  for (std::size_t g = 0; g < groups.size(); ++g) {
+    const auto& d = groups[g].data;
+    double q = 0;
+    for (std::size_t k = 1; k < d.t_s.size(); ++k) {
+      const bool on = roles[g][k] == diagnosis::kRoleTrain && d.current_a[k] > kRestCurrentA &&
+                      d.current_a[k - 1] > kRestCurrentA;
+      q = on ? q + 0.5 * (d.current_a[k] + d.current_a[k - 1]) * (d.t_s[k] - d.t_s[k - 1]) / 3600.0 : 0.0;
+      settings.measured_capacity_ah = std::max(settings.measured_capacity_ah, q);
+    }
+  }
+  std::vector<diagnosis::FitPiece> pieces;
+  std::vector<std::string> labels;
+  for (std::size_t g = 0; g < groups.size(); ++g) add_pieces(groups[g], roles[g], pieces, labels);
+  settings.search_mesh = {o.search_points, o.search_points, o.search_points, o.search_radial};
+  settings.final_mesh = {o.points, o.points, o.points, o.radial};
+  settings.rtol = o.rtol;
+  settings.max_iterations = o.max_iterations;
+  log(fmt::format("template {} ({}); {}; {} piece(s); voltage window {:.3f}-{:.3f} V", o.templ, template_source,
+                  split_note, pieces.size(), settings.v_min, settings.v_max));
+
+  const diagnosis::CellFitResult fit = diagnosis::fit_cell(tmpl, o.templ, pieces, settings, log);
+
+  // The fitted cell, with a header that says where it came from.
+  nlohmann::json cell = nlohmann::json::parse(fit.bpx_text);
+  std::string fitted_list;
+  for (const auto& p : fit.parameters)
+    if (p.fitted) fitted_list += (fitted_list.empty() ? "" : ", ") + p.name;
+  cell["Header"]["Title"] = fmt::format("Fitted by bmssim fit from template '{}'", o.templ);
+  cell["Header"]["Description"] = fmt::format(
+      "Fitted to measured cycler data by `{}` ({}). Fitted: {}; voltage window and stoichiometry windows from the "
+      "electrode balance at the data's window; every other value is the template's ({}). Template description: {}",
+      command_line(o), split_note, fitted_list.empty() ? "nothing" : fitted_list, template_source,
+      tmpl.value("/Header/Description"_json_pointer, std::string("(none)")));
+  const std::string cell_text = cell.dump(1) + "\n";
+  {
+    AtomicFileWriter w(folder.staging() / "cell.bpx.json");
+    w.append(cell_text);
+    w.commit();
+  }
+  {
+    AtomicFileWriter w(folder.staging() / "fit.csv");
+    w.append("piece,t_s,t_h,cycle,role,current_a,voltage_meas_v,voltage_template_v,voltage_fitted_v,"
+             "residual_template_mv,residual_fitted_mv\n");
+    double t_h = 0;
+    for (std::size_t p = 0; p < pieces.size(); ++p) {
+      const auto& r = pieces[p].record;
+      for (std::size_t k = 0; k < r.t_s.size(); ++k) {
+        if (k > 0) t_h += std::min(r.t_s[k] - r.t_s[k - 1], 600.0) / 3600.0;
+        if (!pieces[p].role[k]) continue;
+        const double vf = fit.model_v[p][k], vt = fit.template_v[p][k];
+        w.append(fmt::format("{},{:.3f},{:.5f},{},{},{:.6g},{:.6f},{:.6f},{:.6f},{:.4f},{:.4f}\n", p, r.t_s[k], t_h,
+                             pieces[p].cycle[k], static_cast<int>(pieces[p].role[k]), r.current_a[k], r.voltage_v[k],
+                             vt, vf, 1e3 * (vt - r.voltage_v[k]), 1e3 * (vf - r.voltage_v[k])));
+      }
+    }
+    w.commit();
+  }
+  std::string plot_problem;
+  const auto pngs = plot(folder.staging(), plot_problem);
+  if (!plot_problem.empty()) std::fprintf(stderr, "fit: warning: no plots: %s\n", plot_problem.c_str());
+
+  nlohmann::json params = nlohmann::json::object();
+  for (const auto& p : fit.parameters) {
+    nlohmann::json e = {{"value", p.value}, {"sd", num(p.sd)}, {"template", num(p.template_value)},
+                        {"fitted", p.fitted}, {"unit", p.unit}, {"meaning", p.meaning}};
+    if (!p.note.empty()) e["note"] = p.note;
+    params[p.name] = e;
+  }
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  nlohmann::json summary = {
+      {"command", command_line(o)},
+      {"template", o.templ},
+      {"template_file", template_source},
+      {"split", split_note},
+      {"rmse_train_mv", num(fit.rmse_train_mv)},
+      {"rmse_heldout_mv", num(fit.rmse_heldout_mv)},
+      {"max_abs_heldout_mv", num(fit.max_abs_heldout_mv)},
+      {"rmse_template_train_mv", num(fit.rmse_template_train_mv)},
+      {"rmse_template_heldout_mv", num(fit.rmse_template_heldout_mv)},
+      {"train_samples", fit.train_samples},
+      {"heldout_samples", fit.heldout_samples},
+      {"residual_sd_mv", fit.residual_sd_mv},
+      {"parameters", params},
+      {"derived", fit.derived},
+      {"pieces", labels},
+      {"model_runs", fit.evaluations},
+      {"iterations", fit.iterations},
+      {"search_mesh", {o.search_points, o.search_radial}},
+      {"final_mesh", {o.points, o.points}},
+      {"rtol", o.rtol},
+      {"sd_method",
+       "J^T J inverse times the residual variance at the optimum (J by forward differences on the search mesh); "
+       "the residual is treated as independent noise, so with model error the sd is a lower bound"},
+      {"notes", fit.notes},
+      {"plots", pngs},
+      {"wall_s", wall_s}};
+  {
+    AtomicFileWriter w(folder.staging() / "summary.json");
+    w.append(summary.dump(2) + "\n");
+    w.commit();
+  }
+  folder.commit();
+  std::fprintf(stderr, "fit: RMSE train %.2f mV (template %.2f), held out %.2f mV (template %.2f); %d runs, %.1f s -> %s\n",
+               fit.rmse_train_mv, fit.rmse_template_train_mv, fit.rmse_heldout_mv, fit.rmse_template_heldout_mv,
+               fit.evaluations, wall_s, o.out.c_str());
+  return 0;
+}
+
+}  // namespace
+
+Runner add_fit(CLI::App& app) {
+  auto* sub = app.add_subcommand(
+      "fit",
+      "Fit a cell's parameters to its cycler data, starting from a template: the electrode balance (capacity and "
+      "stoichiometry windows), series resistance, solid diffusivities, kinetics and electrolyte conductivity, each "
+      "only where the data identify it (with its standard error); the rest keep the template's values. Writes "
+      "cell.bpx.json (for any --cell), summary.json, fit.csv and plots");
+  auto o = std::make_shared<FitOptions>();
+  sub->add_option("--data", o->data,
+                  "Measured data: a cycler export (Arbin, Maccor, Neware, BioLogic, NASA), a folder of one cell's "
+                  "exports, truth.csv or any CSV with time, current and voltage columns. Repeatable: with "
+                  "--train-cycles (or one --data) the files are one record split by cycles; otherwise the first is "
+                  "fitted and the others held out")
+      ->required();
+  sub->add_option("--template", o->templ,
+                  "lco | nmc | lfp (the About:Energy LFP cell read from ../shared) | FILE.bpx.json (paper has no BPX "
+                  "file to write from and is refused)")
+      ->required();
+  sub->add_option("--out", o->out, "Output folder (cell.bpx.json, summary.json, fit.csv, PNG plots)")->required();
+  sub->add_option("--train-cycles", o->train_cycles,
+                  "Cycles fitted, e.g. 1-5 (default: the first half of the record's cycles, rounded up)");
+  sub->add_option("--heldout-cycles", o->heldout_cycles,
+                  "Cycles scored, e.g. 6-20 (default: every cycle not fitted)");
+  sub->add_option("--parameters", o->parameters,
+                  "all, or a comma-separated list of the parameters that may be fitted (names as in summary.json)")
+      ->capture_default_str();
+  sub->add_option("--current-sign", o->current_sign,
+                  "discharge-positive | charge-positive (default: by the file's layout)")
+      ->capture_default_str();
+  sub->add_option("--points", o->points, "Scoring mesh: finite volumes per region")->capture_default_str()->check(CLI::Range(2, 400));
+  sub->add_option("--radial", o->radial, "Scoring mesh: finite volumes per particle")->capture_default_str()->check(CLI::Range(3, 400));
+  sub->add_option("--search-points", o->search_points, "Fit mesh: finite volumes per region")
+      ->capture_default_str()->check(CLI::Range(2, 400));
+  sub->add_option("--search-radial", o->search_radial, "Fit mesh: finite volumes per particle")
+      ->capture_default_str()->check(CLI::Range(3, 400));
+  sub->add_option("--rtol", o->rtol, "IDA relative tolerance")->capture_default_str();
+  sub->add_option("--max-iterations", o->max_iterations, "Levenberg-Marquardt iterations per round")
+      ->capture_default_str()->check(CLI::Range(1, 200));
+  sub->add_flag("--quiet", o->quiet, "No progress output");
+  sub->footer(
+      "Exit codes: 0 fitted cell written, 1 runtime failure, 2 bad input.\n"
+      "Example: bmssim fit --data ../shared/data/calce-cs2-35 --template lco --train-cycles 1-5 "
+      "--heldout-cycles 6-20 --out out/fit\n"
+      "         bmssim simulate --cell out/fit/cell.bpx.json --cycles 1 --out out/fit-sim");
+  return [o]() { return run_fit(*o); };
+}
+
+}  // namespace bms::app

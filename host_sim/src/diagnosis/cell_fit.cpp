@@ -1,0 +1,585 @@
+#include "diagnosis/cell_fit.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "diagnosis/diagnose.hpp"
+#include "diagnosis/model_run.hpp"
+#include "io/bpx_reader.hpp"
+#include "io/input_error.hpp"
+
+namespace bms::diagnosis {
+
+namespace {
+
+constexpr double kStoichEdge = 1e-3;
+
+// One parameter fit may move. Log knobs: z = ln(value / template value); the x100 knob: z = value.
+enum class Knob {
+  electrode_area,
+  positive_capacity,
+  negative_stoich_full,
+  series_film,
+  diffusivity_negative,
+  diffusivity_positive,
+  rate_negative,
+  rate_positive,
+  conductivity,
+};
+constexpr int kKnobs = 9;
+
+struct KnobInfo {
+  const char* name;
+  const char* unit;
+  const char* meaning;
+  bool log;
+  double lo, hi;  // bounds on z (log knobs: relative to the template)
+  double step;    // finite-difference step in z
+  double max_move;  // largest change of z per iteration
+};
+
+const KnobInfo& info(Knob k) {
+  static const KnobInfo table[kKnobs] = {
+      {"electrode_area_m2", "m2", "Cell.Electrode area: both electrodes' capacity (and every resistance per area)",
+       true, std::log(0.3), std::log(4.0), 0.01, 0.3},
+      {"positive_max_concentration_mol_m3", "mol/m3",
+       "Positive electrode.Maximum concentration: the positive electrode's capacity against the negative's", true,
+       std::log(0.5), std::log(2.0), 0.01, 0.3},
+      {"negative_stoichiometry_full", "-",
+       "Negative electrode.Maximum stoichiometry: the negative electrode's state at the upper voltage (with the "
+       "positive's there, the cell's lithium inventory)",
+       false, 0.3, 0.999, 0.002, 0.05},
+      {"initial_sei_resistance_ohm_m2", "ohm m2",
+       "User-defined.Initial SEI resistance: a series resistance on the negative particles' surface (the film the "
+       "estimator learns)",
+       true, std::log(1e-3), std::log(1e3), 0.05, 1.5},
+      {"negative_diffusivity_m2_s", "m2/s", "Negative electrode.Diffusivity (solid)", true, std::log(1e-3),
+       std::log(1e3), 0.08, 1.5},
+      {"positive_diffusivity_m2_s", "m2/s", "Positive electrode.Diffusivity (solid)", true, std::log(1e-3),
+       std::log(1e3), 0.08, 1.5},
+      {"negative_rate_constant_mol_m2_s", "mol/m2/s", "Negative electrode.Reaction rate constant (kinetics)", true,
+       std::log(1e-3), std::log(1e3), 0.08, 1.5},
+      {"positive_rate_constant_mol_m2_s", "mol/m2/s", "Positive electrode.Reaction rate constant (kinetics)", true,
+       std::log(1e-3), std::log(1e3), 0.08, 1.5},
+      {"electrolyte_conductivity_scale", "-", "Electrolyte.Conductivity: factor on kappa(c_e)", true, std::log(0.05),
+       std::log(20.0), 0.08, 1.5},
+  };
+  return table[static_cast<int>(k)];
+}
+
+// A number, an expression or a table ({"x":..,"y":..}) times f.
+void scale_json_value(nlohmann::json& v, double f, const std::string& where) {
+  if (v.is_number()) {
+    v = v.get<double>() * f;
+  } else if (v.is_string()) {
+    v = fmt::format("{:.12g} * ({})", f, v.get<std::string>());
+  } else if (v.is_object() && v.contains("y") && v["y"].is_array()) {
+    for (auto& y : v["y"]) y = y.get<double>() * f;
+  } else {
+    throw InputError("template: field '" + where + "' is neither a number, an expression nor a table");
+  }
+}
+
+double number_of(const nlohmann::json& v, const std::string& where) {
+  if (v.is_number()) return v.get<double>();
+  if (v.is_string()) {
+    char* end = nullptr;
+    const std::string s = v.get<std::string>();
+    const double d = std::strtod(s.c_str(), &end);
+    if (!s.empty() && *end == '\0') return d;
+  }
+  throw InputError("template: field '" + where + "' must be a number");
+}
+
+nlohmann::json& field(nlohmann::json& bpx, const char* section, const char* key) {
+  auto& p = bpx.at("Parameterisation");
+  if (!p.contains(section)) p[section] = nlohmann::json::object();
+  return p[section][key];
+}
+
+double electrode_capacity_ah(const CellParameters& cell, const ElectrodeParameters& e) {
+  return kFaradayC_mol * cell.electrode_area_m2 * e.thickness_m * e.solid_fraction * e.max_concentration_mol_m3 /
+         3600.0;
+}
+
+// f(a) < 0 < f(b): the root's bracket end where f > 0 (the balance's f > 0 is inside the window,
+// so the cell's full and empty states never lie a rounding error outside it).
+double bisect(const std::function<double(double)>& f, double a, double b) {
+  for (int it = 0; it < 200 && b - a > 1e-13; ++it) {
+    const double m = 0.5 * (a + b);
+    (f(m) < 0 ? a : b) = m;
+  }
+  return b;
+}
+
+struct Balance {
+  bool ok = false;
+  double x0 = 0, x100 = 0, y0 = 0, y100 = 0, capacity_ah = 0;
+};
+
+// The electrode balance at the voltage window for electrode capacities qn, qp (Ah) and the
+// negative stoichiometry x100 at v_max.
+Balance balance(const CellParameters& c, double qn, double qp, double x100, double v_min, double v_max) {
+  Balance b;
+  auto un = [&](double x) { return c.negative.ocp_v->value(x); };
+  auto up = [&](double y) { return c.positive.ocp_v->value(y); };
+  const double target = v_max + un(x100);
+  auto fy = [&](double y) { return target - up(y); };  // up falls with y
+  const double ylo = kStoichEdge, yhi = 1.0 - kStoichEdge;
+  if (!(fy(ylo) < 0 && fy(yhi) > 0)) return b;
+  b.y100 = bisect(fy, ylo, yhi);
+  b.x100 = x100;
+  const double n = x100 * qn + b.y100 * qp;
+  auto fx = [&](double x) { return up((n - x * qn) / qp) - un(x) - v_min; };  // rises with x
+  const double xlo = std::max(kStoichEdge, (n - yhi * qp) / qn);
+  if (!(xlo < x100) || !(fx(xlo) < 0)) return b;
+  b.x0 = bisect(fx, xlo, x100);
+  b.y0 = (n - b.x0 * qn) / qp;
+  b.capacity_ah = (x100 - b.x0) * qn;
+  b.ok = std::isfinite(b.capacity_ah) && b.capacity_ah > 0;
+  return b;
+}
+
+class Problem {
+ public:
+  Problem(const nlohmann::json& tmpl, const std::string& name, const std::vector<FitPiece>& pieces,
+          const CellFitSettings& s)
+      : tmpl_(tmpl), name_(name), pieces_(pieces), s_(s) {
+    base_ = read_bpx_text(tmpl_.dump(), name + " (template)");
+    qn0_ = electrode_capacity_ah(base_, base_.negative);
+    qp0_ = electrode_capacity_ah(base_, base_.positive);
+    // The template's lithium inventory, at the fitted cell's upper voltage.
+    const double n0 = base_.negative.stoich_max * qn0_ + base_.positive.stoich_min * qp0_;
+    auto f = [&](double x) {
+      return base_.positive.ocp_v->value((n0 - x * qn0_) / qp0_) - base_.negative.ocp_v->value(x) - s_.v_max;
+    };
+    const double lo = std::max(kStoichEdge, (n0 - (1 - kStoichEdge) * qp0_) / qn0_);
+    const double hi = std::min(1 - kStoichEdge, (n0 - kStoichEdge * qp0_) / qn0_);
+    if (std::abs(s_.v_max - base_.upper_voltage_v) < 1e-9) {
+      x100_0_ = base_.negative.stoich_max;
+    } else if (f(lo) < 0 && f(hi) > 0) {
+      x100_0_ = bisect(f, lo, hi);
+    } else {
+      // The template's lithium cannot reach the data's upper voltage: start from its negative
+      // electrode's full state instead (the positive's state there follows from the voltage).
+      x100_0_ = base_.negative.stoich_max;
+      notes_.push_back(fmt::format("the template's lithium inventory does not reach {:.3f} V: the start keeps its "
+                                   "negative electrode's full stoichiometry {:.5f} and takes the positive's from the "
+                                   "voltage",
+                                   s_.v_max, x100_0_));
+    }
+    Balance check = balance(base_, qn0_, qp0_, x100_0_, s_.v_min, s_.v_max);
+    if (!check.ok)
+      throw InputError(fmt::format("--template {}: its open-circuit curves have no state at the data's voltage "
+                                   "window {:.3f}-{:.3f} V; give --template a cell for this chemistry",
+                                   name, s_.v_min, s_.v_max));
+    template_values_ = {
+        number_of(field(tmpl_, "Cell", "Electrode area [m2]"), "Cell.Electrode area [m2]"),
+        number_of(field(tmpl_, "Positive electrode", "Maximum concentration [mol.m-3]"),
+                  "Positive electrode.Maximum concentration [mol.m-3]"),
+        x100_0_,
+        base_.side.initial_film_resistance_ohm_m2,
+        base_.negative.solid_diffusivity_m2_s,
+        base_.positive.solid_diffusivity_m2_s,
+        number_or_nan("Negative electrode", "Reaction rate constant [mol.m-2.s-1]"),
+        number_or_nan("Positive electrode", "Reaction rate constant [mol.m-2.s-1]"),
+        1.0};
+    if (!base_.side.enabled) notes_.push_back("the template has no side reaction: the series film is not fitted");
+  }
+
+  // The template (its parameters in the data's voltage window).
+  Eigen::VectorXd z0() const {
+    Eigen::VectorXd z = Eigen::VectorXd::Zero(kKnobs);
+    z[static_cast<int>(Knob::negative_stoich_full)] = x100_0_;
+    return z;
+  }
+  // Where the search starts: the template with its area scaled to the measured capacity.
+  Eigen::VectorXd start() const {
+    Eigen::VectorXd z = z0();
+    if (s_.measured_capacity_ah > 0) {
+      Balance b = balance(base_, qn0_, qp0_, x100_0_, s_.v_min, s_.v_max);
+      const KnobInfo& a = info(Knob::electrode_area);
+      z[static_cast<int>(Knob::electrode_area)] = std::clamp(std::log(s_.measured_capacity_ah / b.capacity_ah), a.lo, a.hi);
+    }
+    return z;
+  }
+  double template_value(int k) const { return template_values_[static_cast<std::size_t>(k)]; }
+  double value(int k, double z) const { return info(static_cast<Knob>(k)).log ? template_value(k) * std::exp(z) : z; }
+  const std::vector<std::string>& notes() const { return notes_; }
+  const CellParameters& base() const { return base_; }
+  bool has_film() const { return base_.side.enabled; }
+
+  // The candidate cell as BPX JSON; ok = false when the electrode balance has no solution.
+  nlohmann::json bpx(const Eigen::VectorXd& z, Balance& b) const {
+    nlohmann::json j = tmpl_;
+    auto f = [&](Knob k) { return std::exp(z[static_cast<int>(k)]); };
+    scale_json_value(field(j, "Cell", "Electrode area [m2]"), f(Knob::electrode_area), "Cell.Electrode area [m2]");
+    scale_json_value(field(j, "Positive electrode", "Maximum concentration [mol.m-3]"), f(Knob::positive_capacity),
+                     "Positive electrode.Maximum concentration [mol.m-3]");
+    scale_json_value(field(j, "Negative electrode", "Diffusivity [m2.s-1]"), f(Knob::diffusivity_negative),
+                     "Negative electrode.Diffusivity [m2.s-1]");
+    scale_json_value(field(j, "Positive electrode", "Diffusivity [m2.s-1]"), f(Knob::diffusivity_positive),
+                     "Positive electrode.Diffusivity [m2.s-1]");
+    scale_json_value(field(j, "Negative electrode", "Reaction rate constant [mol.m-2.s-1]"), f(Knob::rate_negative),
+                     "Negative electrode.Reaction rate constant");
+    scale_json_value(field(j, "Positive electrode", "Reaction rate constant [mol.m-2.s-1]"), f(Knob::rate_positive),
+                     "Positive electrode.Reaction rate constant");
+    scale_json_value(field(j, "Electrolyte", "Conductivity [S.m-1]"), f(Knob::conductivity),
+                     "Electrolyte.Conductivity [S.m-1]");
+    if (has_film())
+      field(j, "User-defined", "Initial SEI resistance [Ohm.m2]") =
+          base_.side.initial_film_resistance_ohm_m2 * f(Knob::series_film);
+    const double qn = qn0_ * f(Knob::electrode_area);
+    const double qp = qp0_ * f(Knob::electrode_area) * f(Knob::positive_capacity);
+    b = balance(base_, qn, qp, z[static_cast<int>(Knob::negative_stoich_full)], s_.v_min, s_.v_max);
+    if (!b.ok) return j;
+    field(j, "Negative electrode", "Minimum stoichiometry") = b.x0;
+    field(j, "Negative electrode", "Maximum stoichiometry") = b.x100;
+    field(j, "Positive electrode", "Minimum stoichiometry") = b.y100;
+    field(j, "Positive electrode", "Maximum stoichiometry") = b.y0;
+    field(j, "Cell", "Nominal cell capacity [A.h]") = b.capacity_ah;
+    field(j, "Cell", "Lower voltage cut-off [V]") = s_.v_min;
+    field(j, "Cell", "Upper voltage cut-off [V]") = s_.v_max;
+    return j;
+  }
+
+  // Model voltage per piece (NaN on rows whose role is not wanted or the model did not reach);
+  // false when the candidate has no electrode balance or the solver fails.
+  bool run(const Eigen::VectorXd& z, const DfnMesh& mesh, char want_mask, std::vector<std::vector<double>>& v,
+           std::vector<std::string>* early = nullptr) const {
+    Balance b;
+    const nlohmann::json j = bpx(z, b);
+    if (!b.ok) return false;
+    CellParameters cell;
+    try {
+      cell = read_bpx_text(j.dump(), "fitted cell");
+    } catch (const InputError&) {
+      return false;
+    }
+    ModelSetup setup{cell, mesh, s_.rtol, 0.0};
+    v.assign(pieces_.size(), {});
+    for (std::size_t p = 0; p < pieces_.size(); ++p) {
+      const FitPiece& piece = pieces_[p];
+      std::size_t last = 0;
+      bool any = false;
+      for (std::size_t k = 0; k < piece.role.size(); ++k)
+        if (piece.role[k] & want_mask) last = k, any = true;
+      v[p].assign(piece.role.size(), std::numeric_limits<double>::quiet_NaN());
+      if (!any) continue;
+      Record r = piece.record;
+      const std::size_t n = last + 1;
+      r.t_s.resize(n), r.current_a.resize(n), r.voltage_v.resize(n), r.mode.resize(n);
+      if (!r.temperature_k.empty()) r.temperature_k.resize(n);
+      r.initial_depth_ah = std::numeric_limits<double>::quiet_NaN();
+      set_initial_state(r, cell, "auto");
+      try {
+        const ModelRun m = run_model(setup, r, Hypothesis{});
+        if (early && m.samples_covered < n)
+          early->push_back(fmt::format("the model stopped at row {} of {} in {} ({}): the rest of it is scored with "
+                                       "the last residual",
+                                       m.samples_covered, n, r.source, m.note));
+        const auto res = residual_mv(m.voltage_v, r);  // carries the last reached sample on
+        for (std::size_t k = 0; k < n; ++k) v[p][k] = r.voltage_v[k] + 1e-3 * res[k];
+      } catch (const RuntimeFailure&) {
+        return false;
+      }
+    }
+    return true;
+  }
+
+  // Residual (mV) over the wanted rows; empty when the run failed.
+  std::vector<double> residual(const Eigen::VectorXd& z, const DfnMesh& mesh, char want) const {
+    std::vector<std::vector<double>> v;
+    if (!run(z, mesh, want, v)) return {};
+    std::vector<double> r;
+    for (std::size_t p = 0; p < pieces_.size(); ++p)
+      for (std::size_t k = 0; k < v[p].size(); ++k)
+        if (pieces_[p].role[k] == want) r.push_back(1e3 * (v[p][k] - pieces_[p].record.voltage_v[k]));
+    return r;
+  }
+
+ private:
+  double number_or_nan(const char* section, const char* key) const {
+    const auto& p = tmpl_.at("Parameterisation").at(section);
+    if (p.contains(key) && p[key].is_number()) return p[key].get<double>();
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+
+  nlohmann::json tmpl_;
+  std::string name_;
+  const std::vector<FitPiece>& pieces_;
+  CellFitSettings s_;
+  CellParameters base_;
+  double qn0_ = 0, qp0_ = 0, x100_0_ = 0;
+  std::vector<double> template_values_;
+  std::vector<std::string> notes_;
+};
+
+double sum_sq(const std::vector<double>& r) {
+  double s = 0;
+  for (double x : r) s += x * x;
+  return r.empty() ? HUGE_VAL : s;
+}
+
+Eigen::VectorXd clamp_z(Eigen::VectorXd z, const std::vector<int>& active) {
+  for (int k : active) z[k] = std::clamp(z[k], info(static_cast<Knob>(k)).lo, info(static_cast<Knob>(k)).hi);
+  return z;
+}
+
+struct Search {
+  const Problem& problem;
+  const CellFitSettings& s;
+  const std::function<void(const std::string&)>& log;
+  int evaluations = 0;
+
+  std::vector<double> eval(const Eigen::VectorXd& z) {
+    ++evaluations;
+    return problem.residual(z, s.search_mesh, kRoleTrain);
+  }
+
+  // Forward-difference Jacobian (mV per unit z) of the columns `cols`; r0 the residual at z.
+  Eigen::MatrixXd jacobian(const Eigen::VectorXd& z, const std::vector<double>& r0, const std::vector<int>& cols) {
+    Eigen::MatrixXd J(static_cast<long>(r0.size()), static_cast<long>(cols.size()));
+    for (std::size_t c = 0; c < cols.size(); ++c) {
+      const int k = cols[c];
+      Eigen::VectorXd zp = z;
+      double h = info(static_cast<Knob>(k)).step;
+      if (zp[k] + h > info(static_cast<Knob>(k)).hi) h = -h;
+      zp[k] += h;
+      std::vector<double> r = eval(zp);
+      if (r.size() != r0.size()) {  // a failed run one way: try the other
+        h = -h;
+        zp[k] = z[k] + h;
+        r = eval(zp);
+      }
+      for (std::size_t i = 0; i < r0.size(); ++i)
+        J(static_cast<long>(i), static_cast<long>(c)) = r.size() == r0.size() ? (r[i] - r0[i]) / h : 0.0;
+    }
+    return J;
+  }
+
+  // Levenberg-Marquardt on the active knobs from z; returns the cost at the end.
+  double minimise(Eigen::VectorXd& z, std::vector<double>& r, const std::vector<int>& active, int* iterations) {
+    double cost = sum_sq(r), lambda = 1e-2;
+    for (int it = 0; it < s.max_iterations && !active.empty(); ++it) {
+      const Eigen::MatrixXd J = jacobian(z, r, active);
+      const Eigen::MatrixXd H = J.transpose() * J;
+      Eigen::VectorXd g(static_cast<long>(r.size()));
+      for (std::size_t i = 0; i < r.size(); ++i) g[static_cast<long>(i)] = r[i];
+      const Eigen::VectorXd grad = J.transpose() * g;
+      bool accepted = false;
+      double gain = 0;
+      for (int tries = 0; tries < 6 && !accepted; ++tries) {
+        Eigen::MatrixXd A = H;
+        for (long d = 0; d < A.rows(); ++d) A(d, d) += lambda * std::max(H(d, d), 1e-12);
+        Eigen::VectorXd step = A.ldlt().solve(-grad);
+        for (std::size_t c = 0; c < active.size(); ++c) {
+          const double m = info(static_cast<Knob>(active[c])).max_move;
+          step[static_cast<long>(c)] = std::clamp(step[static_cast<long>(c)], -m, m);
+        }
+        Eigen::VectorXd zn = z;
+        for (std::size_t c = 0; c < active.size(); ++c) zn[active[c]] += step[static_cast<long>(c)];
+        zn = clamp_z(zn, active);
+        std::vector<double> rn = eval(zn);
+        const double cn = sum_sq(rn);
+        if (cn < cost) {
+          gain = (cost - cn) / cost;
+          z = zn, r = std::move(rn), cost = cn, accepted = true;
+          lambda = std::max(lambda / 3.0, 1e-7);
+        } else {
+          lambda *= 5.0;
+        }
+      }
+      if (iterations) ++*iterations;
+      log(fmt::format("iteration {}: training RMSE {:.3f} mV ({} runs so far)", it + 1,
+                      std::sqrt(cost / static_cast<double>(r.size())), evaluations));
+      if (!accepted || gain < 1e-4) break;
+    }
+    return cost;
+  }
+};
+
+// Largest |cos| between column c and the span of the columns `others` (normalised columns).
+double collinearity(const Eigen::MatrixXd& Jn, int c, const std::vector<int>& others) {
+  if (others.empty()) return 0.0;
+  Eigen::MatrixXd B(Jn.rows(), static_cast<long>(others.size()));
+  for (std::size_t i = 0; i < others.size(); ++i) B.col(static_cast<long>(i)) = Jn.col(others[i]);
+  const Eigen::VectorXd y = Jn.col(c);
+  const Eigen::VectorXd coef = B.colPivHouseholderQr().solve(y);
+  const double resid = (y - B * coef).squaredNorm() / std::max(y.squaredNorm(), 1e-300);
+  return std::sqrt(std::clamp(1.0 - resid, 0.0, 1.0));
+}
+
+}  // namespace
+
+std::vector<std::string> fit_parameter_names() {
+  std::vector<std::string> n;
+  for (int k = 0; k < kKnobs; ++k) n.emplace_back(info(static_cast<Knob>(k)).name);
+  return n;
+}
+
+CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& template_name,
+                       const std::vector<FitPiece>& pieces, const CellFitSettings& settings,
+                       const std::function<void(const std::string&)>& log) {
+  Problem problem(template_bpx, template_name, pieces, settings);
+  CellFitResult out;
+  out.notes = problem.notes();
+  Search search{problem, settings, log};
+  Eigen::VectorXd z = problem.start();
+  if (settings.measured_capacity_ah > 0)
+    log(fmt::format("start: electrode area x {:.4f} (the largest measured discharge, {:.4f} Ah, in the window)",
+                    std::exp(z[0]), settings.measured_capacity_ah));
+  std::vector<double> r = search.eval(z);
+  if (r.empty())
+    throw RuntimeFailure("the template's model fails on the training data (solver or electrode balance); try "
+                         "another --template or check the record's voltage window");
+  out.train_samples = r.size();
+  log(fmt::format("start: training RMSE {:.3f} mV over {} samples (search mesh)",
+                  std::sqrt(sum_sq(r) / static_cast<double>(r.size())), r.size()));
+
+  // Candidates: every knob (or those asked for) the template has a value for.
+  std::vector<int> candidates;
+  std::vector<std::string> why(kKnobs);
+  for (int k = 0; k < kKnobs; ++k) {
+    const std::string name = info(static_cast<Knob>(k)).name;
+    if (!settings.only.empty() && std::find(settings.only.begin(), settings.only.end(), name) == settings.only.end()) {
+      why[static_cast<std::size_t>(k)] = "not asked for (--parameters)";
+      continue;
+    }
+    if (!std::isfinite(problem.template_value(k)) || (k == static_cast<int>(Knob::series_film) && !problem.has_film())) {
+      why[static_cast<std::size_t>(k)] = "the template has no numeric value for it";
+      continue;
+    }
+    candidates.push_back(k);
+  }
+  // Identifiability at the template: sensitivity and collinearity of the Jacobian's columns.
+  const Eigen::MatrixXd J0 = search.jacobian(z, r, candidates);
+  std::vector<std::pair<double, int>> by_norm;
+  for (std::size_t c = 0; c < candidates.size(); ++c)
+    by_norm.emplace_back(J0.col(static_cast<long>(c)).norm() / std::sqrt(static_cast<double>(J0.rows())),
+                         static_cast<int>(c));
+  // Priority, not sensitivity, orders the collinearity test: the electrode balance, then the
+  // series resistance, then diffusion, kinetics and the electrolyte (a kinetic overpotential at
+  // one current level looks like a series resistance; the simpler explanation is kept).
+  Eigen::MatrixXd Jn = J0;
+  for (long c = 0; c < Jn.cols(); ++c) Jn.col(c) /= std::max(Jn.col(c).norm(), 1e-300);
+  std::vector<int> chosen_cols, active;
+  for (const auto& [rms_mv, c] : by_norm) {
+    const int k = candidates[static_cast<std::size_t>(c)];
+    const double scale = info(static_cast<Knob>(k)).log ? 1.0 : 0.01;  // per factor e; x100 per 0.01
+    if (rms_mv * scale < settings.min_sensitivity_mv) {
+      why[static_cast<std::size_t>(k)] =
+          fmt::format("the voltage hardly depends on it here ({:.3g} mV RMS for {})", rms_mv * scale,
+                      info(static_cast<Knob>(k)).log ? "a factor e" : "0.01");
+      continue;
+    }
+    const double col = collinearity(Jn, c, chosen_cols);
+    if (col > settings.max_collinearity) {
+      why[static_cast<std::size_t>(k)] =
+          fmt::format("its Jacobian column is nearly collinear with those of the parameters fitted before it (balance, series resistance, diffusion, kinetics, electrolyte in that order) (|cos| {:.4f})", col);
+      continue;
+    }
+    chosen_cols.push_back(c);
+    active.push_back(k);
+  }
+  log(fmt::format("fitting {} of {} parameters", active.size(), candidates.size()));
+
+  Eigen::MatrixXd cov;
+  double s2 = 0;
+  for (int round = 0; round < kKnobs; ++round) {
+    search.minimise(z, r, active, &out.iterations);
+    if (active.empty()) break;
+    const Eigen::MatrixXd J = search.jacobian(z, r, active);
+    const double dof = std::max(1.0, static_cast<double>(r.size()) - static_cast<double>(active.size()));
+    s2 = sum_sq(r) / dof;
+    const Eigen::MatrixXd H = J.transpose() * J;
+    cov = s2 * H.completeOrthogonalDecomposition().pseudoInverse();
+    // The parameter with the largest relative sd above the bar leaves, and the rest is refitted.
+    int worst = -1;
+    double worst_rel = settings.max_relative_sd;
+    for (std::size_t c = 0; c < active.size(); ++c) {
+      const int k = active[c];
+      const double sd_z = std::sqrt(std::max(0.0, cov(static_cast<long>(c), static_cast<long>(c))));
+      const double rel = info(static_cast<Knob>(k)).log ? sd_z : sd_z / std::max(z[k], 1e-9);
+      if (!(rel <= worst_rel)) worst = static_cast<int>(c), worst_rel = std::isfinite(rel) ? rel : HUGE_VAL;
+    }
+    if (worst < 0) break;
+    const int k = active[static_cast<std::size_t>(worst)];
+    why[static_cast<std::size_t>(k)] =
+        fmt::format("relative standard error {:.3g} at the optimum (over {:g}): not identifiable from these data",
+                    worst_rel, settings.max_relative_sd);
+    log(fmt::format("{} not identifiable (relative sd {:.3g}); refitting without it", info(static_cast<Knob>(k)).name,
+                    worst_rel));
+    active.erase(active.begin() + worst);
+    z[k] = problem.z0()[k];  // the template's value
+    r = search.eval(z);
+    if (r.empty()) throw RuntimeFailure("the model failed after a parameter was reset to its template value");
+  }
+  out.residual_sd_mv = std::sqrt(s2);
+  out.evaluations = search.evaluations;
+
+  for (int k = 0; k < kKnobs; ++k) {
+    FitParameter p;
+    const KnobInfo& ki = info(static_cast<Knob>(k));
+    p.name = ki.name, p.unit = ki.unit, p.meaning = ki.meaning;
+    p.template_value = problem.template_value(k);
+    p.value = problem.value(k, z[k]);
+    const auto it = std::find(active.begin(), active.end(), k);
+    if (it != active.end()) {
+      const long c = it - active.begin();
+      const double sd_z = std::sqrt(std::max(0.0, cov(c, c)));
+      p.fitted = true;
+      p.sd = ki.log ? p.value * sd_z : sd_z;  // delta method for the log knobs
+      if (z[k] <= ki.lo + 1e-9 || z[k] >= ki.hi - 1e-9) p.note = "at the search bound: the sd is not meaningful";
+    } else {
+      p.value = p.template_value;
+      p.note = why[static_cast<std::size_t>(k)];
+    }
+    out.parameters.push_back(p);
+  }
+
+  // Final: the fitted cell as written, scored on the final mesh (train and held out).
+  Balance b;
+  const nlohmann::json fitted = problem.bpx(z, b);
+  out.bpx_text = fitted.dump(1) + "\n";
+  out.cell = read_bpx_text(out.bpx_text, "fitted cell");
+  out.derived = {{"voltage_window_v", {settings.v_min, settings.v_max}},
+                 {"negative_stoichiometry_window", {b.x0, b.x100}},
+                 {"positive_stoichiometry_window", {b.y100, b.y0}},
+                 {"capacity_ah", b.capacity_ah}};
+  Balance b0;
+  problem.bpx(problem.z0(), b0);
+  out.derived["template_capacity_ah_in_this_window"] = b0.capacity_ah;
+  log("scoring on the final mesh");
+  auto score = [&](const Eigen::VectorXd& zz, std::vector<std::vector<double>>& v, double& train, double& held,
+                   double* held_max) {
+    std::vector<std::string> early;
+    if (!problem.run(zz, settings.final_mesh, kRoleTrain | kRoleHeldOut, v, &early))
+      throw RuntimeFailure("the fitted cell's model fails on the final mesh; try a finer --search-points");
+    double st = 0, sh = 0, mh = 0;
+    std::size_t nt = 0, nh = 0;
+    for (std::size_t p = 0; p < pieces.size(); ++p)
+      for (std::size_t k = 0; k < v[p].size(); ++k) {
+        const double e = 1e3 * (v[p][k] - pieces[p].record.voltage_v[k]);
+        if (pieces[p].role[k] == kRoleTrain) st += e * e, ++nt;
+        if (pieces[p].role[k] == kRoleHeldOut) sh += e * e, ++nh, mh = std::max(mh, std::abs(e));
+      }
+    train = nt ? std::sqrt(st / static_cast<double>(nt)) : std::nan("");
+    held = nh ? std::sqrt(sh / static_cast<double>(nh)) : std::nan("");
+    if (held_max) {
+      *held_max = nh ? mh : std::nan("");
+      for (const auto& e : early) out.notes.push_back("fitted cell: " + e);
+      if (!early.empty()) log(fmt::format("warning: the fitted model stopped early in {} piece(s) (summary.json notes)", early.size()));
+    }
+    out.heldout_samples = nh;
+  };
+  score(z, out.model_v, out.rmse_train_mv, out.rmse_heldout_mv, &out.max_abs_heldout_mv);
+  score(problem.z0(), out.template_v, out.rmse_template_train_mv, out.rmse_template_heldout_mv, nullptr);
+  return out;
+}
+
+}  // namespace bms::diagnosis

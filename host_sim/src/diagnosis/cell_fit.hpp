@@ -1,0 +1,83 @@
+#pragma once
+// `bmssim fit`: a cell's parameters from its cycler data, starting from a template BPX file.
+// The truth DFN (run_model) is run on the measured current; a Levenberg-Marquardt search on
+// the training rows moves the parameters the data can identify (electrode balance: electrode
+// area, positive capacity and the negative electrode's stoichiometry at the upper voltage;
+// series resistance as the initial SEI film; solid diffusivities; reaction rate constants;
+// electrolyte conductivity), each candidate cell written as BPX and read back by the same
+// reader every --cell uses, so the fitted cell is exactly the one written. Standard errors:
+// (J^T J)^-1 s^2 at the optimum (J by finite differences, s^2 the residual variance). A
+// parameter the data cannot tell (a Jacobian column too small, nearly collinear with the
+// others, or a relative sd too large) is not fitted and keeps the template's value.
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "cell/cell_parameters.hpp"
+#include "dfn/dfn_model.hpp"
+#include "diagnosis/records.hpp"
+
+namespace bms::diagnosis {
+
+// Rows of the data the model runs through from one initial state (a rest voltage or the
+// cell's full state): a record, or a part of one after a long rest (re-synchronised there).
+struct FitPiece {
+  Record record;
+  std::vector<int> cycle;  // per row
+  std::vector<char> role;  // per row: 0 not used, 1 training, 2 held out
+};
+inline constexpr char kRoleTrain = 1;
+inline constexpr char kRoleHeldOut = 2;
+
+struct CellFitSettings {
+  DfnMesh search_mesh{8, 8, 8, 8};   // the fit's runs
+  DfnMesh final_mesh{20, 20, 20, 20};  // scoring (the --cell default mesh)
+  double rtol = 1e-6;
+  int max_iterations = 12;
+  double v_min = std::numeric_limits<double>::quiet_NaN();  // the fitted cell's window
+  double v_max = std::numeric_limits<double>::quiet_NaN();
+  double max_relative_sd = 0.5;     // above: not identifiable
+  double max_collinearity = 0.99;   // |cos| of a column to the span of the others
+  double min_sensitivity_mv = 0.2;  // RMS voltage change for a change of 1 in the parameter's unit of search
+  std::vector<std::string> only;    // non-empty: fit only these names
+  // > 0: the largest charge (Ah) one discharge of the training rows delivered; the search starts
+  // from the electrode area that gives the template's window this capacity.
+  double measured_capacity_ah = 0.0;
+};
+
+struct FitParameter {
+  std::string name, unit, meaning;
+  double template_value = 0.0, value = 0.0;
+  double sd = std::numeric_limits<double>::quiet_NaN();  // NaN: not fitted
+  bool fitted = false;
+  std::string note;  // why not fitted
+};
+
+struct CellFitResult {
+  std::string bpx_text;  // the fitted cell
+  CellParameters cell;
+  std::vector<FitParameter> parameters;
+  nlohmann::json derived;  // voltage window, stoichiometry window, capacity
+  double rmse_template_train_mv = 0.0, rmse_train_mv = 0.0;
+  double rmse_template_heldout_mv = std::numeric_limits<double>::quiet_NaN();
+  double rmse_heldout_mv = std::numeric_limits<double>::quiet_NaN();
+  double max_abs_heldout_mv = std::numeric_limits<double>::quiet_NaN();
+  std::size_t train_samples = 0, heldout_samples = 0;
+  std::vector<std::vector<double>> model_v, template_v;  // per piece, per row (final mesh); NaN where unused
+  int evaluations = 0, iterations = 0;
+  double residual_sd_mv = 0.0;
+  std::vector<std::string> notes;
+};
+
+// template_bpx: the template's BPX JSON (its numbers, expressions or tables are scaled where fitted).
+CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& template_name,
+                       const std::vector<FitPiece>& pieces, const CellFitSettings& settings,
+                       const std::function<void(const std::string&)>& log);
+
+// Names of every parameter fit may move, in order.
+std::vector<std::string> fit_parameter_names();
+
+}  // namespace bms::diagnosis
