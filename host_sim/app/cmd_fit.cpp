@@ -214,36 +214,22 @@ std::vector<std::string> plot(const std::filesystem::path& dir, std::string& pro
 
 nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
-int run_fit(const FitOptions& o) {
-  const auto t0 = std::chrono::steady_clock::now();
-  auto log = [q = o.quiet](const std::string& s) {
-    if (!q) std::fprintf(stderr, "fit: %s\n", s.c_str());
-  };
-  // Everything that can be refused is checked before the first model run.
-  if (!(o.rtol > 0.0 && o.rtol < 1e-2)) throw InputError("--rtol: must be in (0, 0.01)");
-  std::string template_source;
-  nlohmann::json tmpl = template_json(o.templ, template_source);
-  const CellParameters template_cell = load_cell(o.templ == "lfp" ? template_source : o.templ);
-  diagnosis::CellFitSettings settings;
-  if (o.parameters != "all") {
-    const auto known = diagnosis::fit_parameter_names();
-    std::stringstream ss(o.parameters);
-    std::string n;
-    while (std::getline(ss, n, ','))
-      if (std::find(known.begin(), known.end(), n) == known.end())
-        throw InputError(fmt::format("--parameters: unknown name '{}'; use all or a comma-separated list of {}", n,
-                                     fmt::join(known, ", ")));
-      else
-        settings.only.push_back(n);
-  }
-  const CurrentSign sign = current_sign_option(o.current_sign);
-  for (const auto& d : o.data)
-    if (!std::filesystem::exists(d)) throw InputError("--data " + d + ": no such file or folder");
-  OutputFolder folder(o.out);
-  const bool by_cycles = !o.train_cycles.empty() || o.data.size() == 1;
-  if (!o.heldout_cycles.empty() && !by_cycles)
-    throw InputError("--heldout-cycles: only with --train-cycles (several --data without it: the first is fitted, "
-                     "the others held out)");
+// --parameters: "all", or names fit_parameter_names() knows.
+void parse_parameter_list(const std::string& list, diagnosis::CellFitSettings& settings) {
+  if (list == "all") return;
+  const auto known = diagnosis::fit_parameter_names();
+  std::stringstream ss(list);
+  std::string n;
+  while (std::getline(ss, n, ','))
+    if (std::find(known.begin(), known.end(), n) == known.end())
+      throw InputError(fmt::format("--parameters: unknown name '{}'; use all or a comma-separated list of {}", n,
+                                   fmt::join(known, ", ")));
+    else
+      settings.only.push_back(n);
+}
+
+// The records: one group (split by cycles) or one per --data; each must carry current.
+std::vector<Group> read_groups(const FitOptions& o, CurrentSign sign, bool by_cycles) {
   std::vector<Group> groups;
   if (by_cycles) {
     groups.push_back({read_estimate_input(o.data, sign).data, fmt::format("{}", fmt::join(o.data, ", "))});
@@ -258,45 +244,47 @@ int run_fit(const FitOptions& o) {
                                    "fit; give cycler data with charges and discharges",
                                    g.label, kRestCurrentA));
   }
-  // Roles: by cycles (one record), or the first --data fitted and the others held out.
-  std::vector<std::vector<char>> roles;
-  std::string split_note;
-  if (by_cycles) {
-    const auto& cyc = groups[0].data.cycle;
-    std::set<int> all(cyc.begin(), cyc.end()), train, held;
-    if (!o.train_cycles.empty()) {
-      train = parse_cycles(o.train_cycles, "--train-cycles");
-    } else {
-      std::size_t n = 0;
-      for (int c : all)
-        if (n++ < (all.size() + 1) / 2) train.insert(c);
-    }
-    if (!o.heldout_cycles.empty()) {
-      held = parse_cycles(o.heldout_cycles, "--heldout-cycles");
-    } else {
-      for (int c : all)
-        if (!train.count(c)) held.insert(c);
-    }
-    std::vector<char> role(cyc.size(), 0);
-    std::size_t nt = 0;
-    for (std::size_t k = 0; k < cyc.size(); ++k) {
-      if (train.count(cyc[k])) role[k] = diagnosis::kRoleTrain, ++nt;
-      else if (held.count(cyc[k])) role[k] = diagnosis::kRoleHeldOut;
-    }
-    if (nt < diagnosis::kMinSamples)
-      throw InputError(fmt::format("--train-cycles: {} training samples in cycles {} of the data (cycles {}..{}); "
-                                   "need at least {}",
-                                   nt, o.train_cycles.empty() ? "(default)" : o.train_cycles, *all.begin(),
-                                   *all.rbegin(), diagnosis::kMinSamples));
-    split_note = fmt::format("cycles {} fitted, cycles {} held out", fmt::join(train, ","),
-                             held.empty() ? std::string("(none)") : fmt::format("{}", fmt::join(held, ",")));
-    roles.push_back(std::move(role));
+  return groups;
+}
+
+// Roles by cycles of the one record: the training and held-out cycles (default: the first half
+// fitted, the rest held out).
+std::vector<char> roles_by_cycles(const FitOptions& o, const Group& group, std::string& split_note) {
+  const auto& cyc = group.data.cycle;
+  std::set<int> all(cyc.begin(), cyc.end()), train, held;
+  if (!o.train_cycles.empty()) {
+    train = parse_cycles(o.train_cycles, "--train-cycles");
   } else {
-    for (std::size_t g = 0; g < groups.size(); ++g)
-      roles.emplace_back(groups[g].data.t_s.size(), g == 0 ? diagnosis::kRoleTrain : diagnosis::kRoleHeldOut);
-    split_note = fmt::format("{} fitted, the other --data held out", groups[0].label);
+    std::size_t n = 0;
+    for (int c : all)
+      if (n++ < (all.size() + 1) / 2) train.insert(c);
   }
-  // The fitted cell's voltage window: the template's, widened to the training data's.
+  if (!o.heldout_cycles.empty()) {
+    held = parse_cycles(o.heldout_cycles, "--heldout-cycles");
+  } else {
+    for (int c : all)
+      if (!train.count(c)) held.insert(c);
+  }
+  std::vector<char> role(cyc.size(), 0);
+  std::size_t nt = 0;
+  for (std::size_t k = 0; k < cyc.size(); ++k) {
+    if (train.count(cyc[k])) role[k] = diagnosis::kRoleTrain, ++nt;
+    else if (held.count(cyc[k])) role[k] = diagnosis::kRoleHeldOut;
+  }
+  if (nt < diagnosis::kMinSamples)
+    throw InputError(fmt::format("--train-cycles: {} training samples in cycles {} of the data (cycles {}..{}); "
+                                 "need at least {}",
+                                 nt, o.train_cycles.empty() ? "(default)" : o.train_cycles, *all.begin(),
+                                 *all.rbegin(), diagnosis::kMinSamples));
+  split_note = fmt::format("cycles {} fitted, cycles {} held out", fmt::join(train, ","),
+                           held.empty() ? std::string("(none)") : fmt::format("{}", fmt::join(held, ",")));
+  return role;
+}
+
+// The fitted cell's voltage window (the template's, widened to the training data's) and the
+// largest charge one discharge of the training rows delivered (current > 0 throughout).
+void window_and_capacity(const std::vector<Group>& groups, const std::vector<std::vector<char>>& roles,
+                         const CellParameters& template_cell, diagnosis::CellFitSettings& settings) {
   double vmin = HUGE_VAL, vmax = -HUGE_VAL;
   for (std::size_t g = 0; g < groups.size(); ++g)
     for (std::size_t k = 0; k < roles[g].size(); ++k)
@@ -306,7 +294,6 @@ int run_fit(const FitOptions& o) {
                                                                           : template_cell.upper_voltage_v;
   settings.v_min = vmin < template_cell.lower_voltage_v - kWindowMarginV ? std::round(vmin * 100) / 100
                                                                           : template_cell.lower_voltage_v;
-  // The largest charge one discharge of the training rows delivered (current > 0 throughout).
   for (std::size_t g = 0; g < groups.size(); ++g) {
     const auto& d = groups[g].data;
     double q = 0;
@@ -317,19 +304,12 @@ int run_fit(const FitOptions& o) {
       settings.measured_capacity_ah = std::max(settings.measured_capacity_ah, q);
     }
   }
-  std::vector<diagnosis::FitPiece> pieces;
-  std::vector<std::string> labels;
-  for (std::size_t g = 0; g < groups.size(); ++g) add_pieces(groups[g], roles[g], pieces, labels);
-  settings.search_mesh = {o.search_points, o.search_points, o.search_points, o.search_radial};
-  settings.final_mesh = {o.points, o.points, o.points, o.radial};
-  settings.rtol = o.rtol;
-  settings.max_iterations = o.max_iterations;
-  log(fmt::format("template {} ({}); {}; {} piece(s); voltage window {:.3f}-{:.3f} V", o.templ, template_source,
-                  split_note, pieces.size(), settings.v_min, settings.v_max));
+}
 
-  const diagnosis::CellFitResult fit = diagnosis::fit_cell(tmpl, o.templ, pieces, settings, log);
-
-  // The fitted cell, with a header that says where it came from.
+// The fitted cell, with a header that says where it came from.
+void write_cell(const OutputFolder& folder, const FitOptions& o, const nlohmann::json& tmpl,
+                const std::string& template_source, const std::string& split_note,
+                const diagnosis::CellFitResult& fit) {
   nlohmann::json cell = nlohmann::json::parse(fit.bpx_text);
   std::string fitted_list;
   for (const auto& p : fit.parameters)
@@ -340,34 +320,32 @@ int run_fit(const FitOptions& o) {
       "electrode balance at the data's window; every other value is the template's ({}). Template description: {}",
       command_line(o), split_note, fitted_list.empty() ? "nothing" : fitted_list, template_source,
       tmpl.value("/Header/Description"_json_pointer, std::string("(none)")));
-  const std::string cell_text = cell.dump(1) + "\n";
-  {
-    AtomicFileWriter w(folder.staging() / "cell.bpx.json");
-    w.append(cell_text);
-    w.commit();
-  }
-  {
-    AtomicFileWriter w(folder.staging() / "fit.csv");
-    w.append("piece,t_s,t_h,cycle,role,current_a,voltage_meas_v,voltage_template_v,voltage_fitted_v,"
-             "residual_template_mv,residual_fitted_mv\n");
-    double t_h = 0;
-    for (std::size_t p = 0; p < pieces.size(); ++p) {
-      const auto& r = pieces[p].record;
-      for (std::size_t k = 0; k < r.t_s.size(); ++k) {
-        if (k > 0) t_h += std::min(r.t_s[k] - r.t_s[k - 1], 600.0) / 3600.0;
-        if (!pieces[p].role[k]) continue;
-        const double vf = fit.model_v[p][k], vt = fit.template_v[p][k];
-        w.append(fmt::format("{},{:.3f},{:.5f},{},{},{:.6g},{:.6f},{:.6f},{:.6f},{:.4f},{:.4f}\n", p, r.t_s[k], t_h,
-                             pieces[p].cycle[k], static_cast<int>(pieces[p].role[k]), r.current_a[k], r.voltage_v[k],
-                             vt, vf, 1e3 * (vt - r.voltage_v[k]), 1e3 * (vf - r.voltage_v[k])));
-      }
-    }
-    w.commit();
-  }
-  std::string plot_problem;
-  const auto pngs = plot(folder.staging(), plot_problem);
-  if (!plot_problem.empty()) std::fprintf(stderr, "fit: warning: no plots: %s\n", plot_problem.c_str());
+  AtomicFileWriter w(folder.staging() / "cell.bpx.json");
+  w.append(cell.dump(1) + "\n");
+  w.commit();
+}
 
+void write_fit_csv(const OutputFolder& folder, const std::vector<diagnosis::FitPiece>& pieces,
+                   const diagnosis::CellFitResult& fit) {
+  AtomicFileWriter w(folder.staging() / "fit.csv");
+  w.append("piece,t_s,t_h,cycle,role,current_a,voltage_meas_v,voltage_template_v,voltage_fitted_v,"
+           "residual_template_mv,residual_fitted_mv\n");
+  double t_h = 0;
+  for (std::size_t p = 0; p < pieces.size(); ++p) {
+    const auto& r = pieces[p].record;
+    for (std::size_t k = 0; k < r.t_s.size(); ++k) {
+      if (k > 0) t_h += std::min(r.t_s[k] - r.t_s[k - 1], 600.0) / 3600.0;
+      if (!pieces[p].role[k]) continue;
+      const double vf = fit.model_v[p][k], vt = fit.template_v[p][k];
+      w.append(fmt::format("{},{:.3f},{:.5f},{},{},{:.6g},{:.6f},{:.6f},{:.6f},{:.4f},{:.4f}\n", p, r.t_s[k], t_h,
+                           pieces[p].cycle[k], static_cast<int>(pieces[p].role[k]), r.current_a[k], r.voltage_v[k],
+                           vt, vf, 1e3 * (vt - r.voltage_v[k]), 1e3 * (vf - r.voltage_v[k])));
+    }
+  }
+  w.commit();
+}
+
+nlohmann::json parameters_json(const diagnosis::CellFitResult& fit) {
   nlohmann::json params = nlohmann::json::object();
   for (const auto& p : fit.parameters) {
     nlohmann::json e = {{"value", p.value}, {"sd", num(p.sd)}, {"template", num(p.template_value)},
@@ -375,8 +353,13 @@ int run_fit(const FitOptions& o) {
     if (!p.note.empty()) e["note"] = p.note;
     params[p.name] = e;
   }
-  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  nlohmann::json summary = {
+  return params;
+}
+
+nlohmann::json summary_json(const FitOptions& o, const std::string& template_source, const std::string& split_note,
+                            const diagnosis::CellFitResult& fit, const std::vector<std::string>& labels,
+                            const std::vector<std::string>& pngs, double wall_s) {
+  return {
       {"command", command_line(o)},
       {"template", o.templ},
       {"template_file", template_source},
@@ -389,7 +372,7 @@ int run_fit(const FitOptions& o) {
       {"train_samples", fit.train_samples},
       {"heldout_samples", fit.heldout_samples},
       {"residual_sd_mv", fit.residual_sd_mv},
-      {"parameters", params},
+      {"parameters", parameters_json(fit)},
       {"derived", fit.derived},
       {"pieces", labels},
       {"model_runs", fit.evaluations},
@@ -403,9 +386,60 @@ int run_fit(const FitOptions& o) {
       {"notes", fit.notes},
       {"plots", pngs},
       {"wall_s", wall_s}};
+}
+
+int run_fit(const FitOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto log = [q = o.quiet](const std::string& s) {
+    if (!q) std::fprintf(stderr, "fit: %s\n", s.c_str());
+  };
+  // Everything that can be refused is checked before the first model run.
+  if (!(o.rtol > 0.0 && o.rtol < 1e-2)) throw InputError("--rtol: must be in (0, 0.01)");
+  std::string template_source;
+  nlohmann::json tmpl = template_json(o.templ, template_source);
+  const CellParameters template_cell = load_cell(o.templ == "lfp" ? template_source : o.templ);
+  diagnosis::CellFitSettings settings;
+  parse_parameter_list(o.parameters, settings);
+  const CurrentSign sign = current_sign_option(o.current_sign);
+  for (const auto& d : o.data)
+    if (!std::filesystem::exists(d)) throw InputError("--data " + d + ": no such file or folder");
+  OutputFolder folder(o.out);
+  const bool by_cycles = !o.train_cycles.empty() || o.data.size() == 1;
+  if (!o.heldout_cycles.empty() && !by_cycles)
+    throw InputError("--heldout-cycles: only with --train-cycles (several --data without it: the first is fitted, "
+                     "the others held out)");
+  const std::vector<Group> groups = read_groups(o, sign, by_cycles);
+  // Roles: by cycles (one record), or the first --data fitted and the others held out.
+  std::vector<std::vector<char>> roles;
+  std::string split_note;
+  if (by_cycles) {
+    roles.push_back(roles_by_cycles(o, groups[0], split_note));
+  } else {
+    for (std::size_t g = 0; g < groups.size(); ++g)
+      roles.emplace_back(groups[g].data.t_s.size(), g == 0 ? diagnosis::kRoleTrain : diagnosis::kRoleHeldOut);
+    split_note = fmt::format("{} fitted, the other --data held out", groups[0].label);
+  }
+  window_and_capacity(groups, roles, template_cell, settings);
+  std::vector<diagnosis::FitPiece> pieces;
+  std::vector<std::string> labels;
+  for (std::size_t g = 0; g < groups.size(); ++g) add_pieces(groups[g], roles[g], pieces, labels);
+  settings.search_mesh = {o.search_points, o.search_points, o.search_points, o.search_radial};
+  settings.final_mesh = {o.points, o.points, o.points, o.radial};
+  settings.rtol = o.rtol;
+  settings.max_iterations = o.max_iterations;
+  log(fmt::format("template {} ({}); {}; {} piece(s); voltage window {:.3f}-{:.3f} V", o.templ, template_source,
+                  split_note, pieces.size(), settings.v_min, settings.v_max));
+
+  const diagnosis::CellFitResult fit = diagnosis::fit_cell(tmpl, o.templ, pieces, settings, log);
+  write_cell(folder, o, tmpl, template_source, split_note, fit);
+  write_fit_csv(folder, pieces, fit);
+  std::string plot_problem;
+  const auto pngs = plot(folder.staging(), plot_problem);
+  if (!plot_problem.empty()) std::fprintf(stderr, "fit: warning: no plots: %s\n", plot_problem.c_str());
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   {
     AtomicFileWriter w(folder.staging() / "summary.json");
-    w.append(summary.dump(2) + "\n");
+    w.append(summary_json(o, template_source, split_note, fit, labels, pngs, wall_s).dump(2) + "\n");
     w.commit();
   }
   folder.commit();

@@ -414,36 +414,9 @@ double collinearity(const Eigen::MatrixXd& Jn, int c, const std::vector<int>& ot
   return std::sqrt(std::clamp(1.0 - resid, 0.0, 1.0));
 }
 
-}  // namespace
-
-std::vector<std::string> fit_parameter_names() {
-  std::vector<std::string> n;
-  for (int k = 0; k < kKnobs; ++k) n.emplace_back(info(static_cast<Knob>(k)).name);
-  return n;
-}
-
-CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& template_name,
-                       const std::vector<FitPiece>& pieces, const CellFitSettings& settings,
-                       const std::function<void(const std::string&)>& log) {
-  Problem problem(template_bpx, template_name, pieces, settings);
-  CellFitResult out;
-  out.notes = problem.notes();
-  Search search{problem, settings, log};
-  Eigen::VectorXd z = problem.start();
-  if (settings.measured_capacity_ah > 0)
-    log(fmt::format("start: electrode area x {:.4f} (the largest measured discharge, {:.4f} Ah, in the window)",
-                    std::exp(z[0]), settings.measured_capacity_ah));
-  std::vector<double> r = search.eval(z);
-  if (r.empty())
-    throw RuntimeFailure("the template's model fails on the training data (solver or electrode balance); try "
-                         "another --template or check the record's voltage window");
-  out.train_samples = r.size();
-  log(fmt::format("start: training RMSE {:.3f} mV over {} samples (search mesh)",
-                  std::sqrt(sum_sq(r) / static_cast<double>(r.size())), r.size()));
-
-  // Candidates: every knob (or those asked for) the template has a value for.
+// Candidates: every knob (or those asked for) the template has a value for; `why` says why not.
+std::vector<int> candidate_knobs(const Problem& problem, const CellFitSettings& settings, std::vector<std::string>& why) {
   std::vector<int> candidates;
-  std::vector<std::string> why(kKnobs);
   for (int k = 0; k < kKnobs; ++k) {
     const std::string name = info(static_cast<Knob>(k)).name;
     if (!settings.only.empty() && std::find(settings.only.begin(), settings.only.end(), name) == settings.only.end()) {
@@ -456,7 +429,13 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
     }
     candidates.push_back(k);
   }
-  // Identifiability at the template: sensitivity and collinearity of the Jacobian's columns.
+  return candidates;
+}
+
+// Identifiability at the template: sensitivity and collinearity of the Jacobian's columns.
+std::vector<int> identifiable_knobs(Search& search, const Eigen::VectorXd& z, const std::vector<double>& r,
+                                    const std::vector<int>& candidates, const CellFitSettings& settings,
+                                    std::vector<std::string>& why) {
   const Eigen::MatrixXd J0 = search.jacobian(z, r, candidates);
   std::vector<std::pair<double, int>> by_norm;
   for (std::size_t c = 0; c < candidates.size(); ++c)
@@ -486,8 +465,16 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
     chosen_cols.push_back(c);
     active.push_back(k);
   }
-  log(fmt::format("fitting {} of {} parameters", active.size(), candidates.size()));
 
+  return active;
+}
+
+// Fits the active knobs; the one with the largest relative sd above the bar leaves and the rest
+// is refitted, until every sd is under it. Returns the covariance of the active knobs' z.
+Eigen::MatrixXd fit_and_prune(Search& search, const Problem& problem, const CellFitSettings& settings,
+                              const std::function<void(const std::string&)>& log, Eigen::VectorXd& z,
+                              std::vector<double>& r, std::vector<int>& active, std::vector<std::string>& why,
+                              CellFitResult& out) {
   Eigen::MatrixXd cov;
   double s2 = 0;
   for (int round = 0; round < kKnobs; ++round) {
@@ -520,8 +507,13 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
     if (r.empty()) throw RuntimeFailure("the model failed after a parameter was reset to its template value");
   }
   out.residual_sd_mv = std::sqrt(s2);
-  out.evaluations = search.evaluations;
+  return cov;
+}
 
+std::vector<FitParameter> parameters_of(const Problem& problem, const Eigen::VectorXd& z,
+                                        const std::vector<int>& active, const Eigen::MatrixXd& cov,
+                                        const std::vector<std::string>& why) {
+  std::vector<FitParameter> out;
   for (int k = 0; k < kKnobs; ++k) {
     FitParameter p;
     const KnobInfo& ki = info(static_cast<Knob>(k));
@@ -539,21 +531,15 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
       p.value = p.template_value;
       p.note = why[static_cast<std::size_t>(k)];
     }
-    out.parameters.push_back(p);
+    out.push_back(p);
   }
 
-  // Final: the fitted cell as written, scored on the final mesh (train and held out).
-  Balance b;
-  const nlohmann::json fitted = problem.bpx(z, b);
-  out.bpx_text = fitted.dump(1) + "\n";
-  out.cell = read_bpx_text(out.bpx_text, "fitted cell");
-  out.derived = {{"voltage_window_v", {settings.v_min, settings.v_max}},
-                 {"negative_stoichiometry_window", {b.x0, b.x100}},
-                 {"positive_stoichiometry_window", {b.y100, b.y0}},
-                 {"capacity_ah", b.capacity_ah}};
-  Balance b0;
-  problem.bpx(problem.z0(), b0);
-  out.derived["template_capacity_ah_in_this_window"] = b0.capacity_ah;
+  return out;
+}
+
+// The fitted cell (z) and the template (z0) scored on the final mesh, train and held out.
+void score_final(const Problem& problem, const std::vector<FitPiece>& pieces, const CellFitSettings& settings,
+                 const std::function<void(const std::string&)>& log, const Eigen::VectorXd& z, CellFitResult& out) {
   log("scoring on the final mesh");
   auto score = [&](const Eigen::VectorXd& zz, std::vector<std::vector<double>>& v, double& train, double& held,
                    double* held_max) {
@@ -579,6 +565,55 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
   };
   score(z, out.model_v, out.rmse_train_mv, out.rmse_heldout_mv, &out.max_abs_heldout_mv);
   score(problem.z0(), out.template_v, out.rmse_template_train_mv, out.rmse_template_heldout_mv, nullptr);
+}
+
+}  // namespace
+
+std::vector<std::string> fit_parameter_names() {
+  std::vector<std::string> n;
+  for (int k = 0; k < kKnobs; ++k) n.emplace_back(info(static_cast<Knob>(k)).name);
+  return n;
+}
+
+CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& template_name,
+                       const std::vector<FitPiece>& pieces, const CellFitSettings& settings,
+                       const std::function<void(const std::string&)>& log) {
+  Problem problem(template_bpx, template_name, pieces, settings);
+  CellFitResult out;
+  out.notes = problem.notes();
+  Search search{problem, settings, log};
+  Eigen::VectorXd z = problem.start();
+  if (settings.measured_capacity_ah > 0)
+    log(fmt::format("start: electrode area x {:.4f} (the largest measured discharge, {:.4f} Ah, in the window)",
+                    std::exp(z[0]), settings.measured_capacity_ah));
+  std::vector<double> r = search.eval(z);
+  if (r.empty())
+    throw RuntimeFailure("the template's model fails on the training data (solver or electrode balance); try "
+                         "another --template or check the record's voltage window");
+  out.train_samples = r.size();
+  log(fmt::format("start: training RMSE {:.3f} mV over {} samples (search mesh)",
+                  std::sqrt(sum_sq(r) / static_cast<double>(r.size())), r.size()));
+
+  std::vector<std::string> why(kKnobs);
+  const std::vector<int> candidates = candidate_knobs(problem, settings, why);
+  std::vector<int> active = identifiable_knobs(search, z, r, candidates, settings, why);
+  log(fmt::format("fitting {} of {} parameters", active.size(), candidates.size()));
+  const Eigen::MatrixXd cov = fit_and_prune(search, problem, settings, log, z, r, active, why, out);
+  out.evaluations = search.evaluations;
+  out.parameters = parameters_of(problem, z, active, cov, why);
+  // Final: the fitted cell as written, scored on the final mesh (train and held out).
+  Balance b;
+  const nlohmann::json fitted = problem.bpx(z, b);
+  out.bpx_text = fitted.dump(1) + "\n";
+  out.cell = read_bpx_text(out.bpx_text, "fitted cell");
+  out.derived = {{"voltage_window_v", {settings.v_min, settings.v_max}},
+                 {"negative_stoichiometry_window", {b.x0, b.x100}},
+                 {"positive_stoichiometry_window", {b.y100, b.y0}},
+                 {"capacity_ah", b.capacity_ah}};
+  Balance b0;
+  problem.bpx(problem.z0(), b0);
+  out.derived["template_capacity_ah_in_this_window"] = b0.capacity_ah;
+  score_final(problem, pieces, settings, log, z, out);
   return out;
 }
 
