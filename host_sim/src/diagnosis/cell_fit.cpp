@@ -31,6 +31,41 @@ enum class Knob {
   conductivity,
 };
 constexpr int kKnobs = 9;
+// Bounded sizes throughout: the host links the firmware's EIGEN_NO_MALLOC, so no Eigen object
+// here may allocate. z holds every knob; the Jacobian is columns of std::vector (one a knob).
+using ZVec = Eigen::Matrix<double, kKnobs, 1>;
+using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kKnobs, kKnobs>;
+using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kKnobs, 1>;
+using Columns = std::vector<std::vector<double>>;
+
+double dot(const std::vector<double>& a, const std::vector<double>& b) {
+  double d = 0.0;
+  for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) d += a[i] * b[i];
+  return d;
+}
+
+// J^T J of the columns.
+SmallMatrix gram(const Columns& J) {
+  const auto n = static_cast<Eigen::Index>(J.size());
+  SmallMatrix g(n, n);
+  for (Eigen::Index a = 0; a < n; ++a)
+    for (Eigen::Index b = 0; b <= a; ++b)
+      g(a, b) = g(b, a) = dot(J[static_cast<std::size_t>(a)], J[static_cast<std::size_t>(b)]);
+  return g;
+}
+
+// The pseudo-inverse of a symmetric positive semi-definite matrix (eigenvalues under 1e-12 of the
+// largest taken as zero).
+SmallMatrix pseudo_inverse(const SmallMatrix& h) {
+  const Eigen::SelfAdjointEigenSolver<SmallMatrix> eig(h);
+  const auto& lambda = eig.eigenvalues();
+  const Eigen::Index n = h.rows();
+  const double tol = 1e-12 * std::max(n > 0 ? lambda.cwiseAbs().maxCoeff() : 0.0, 1e-300);
+  SmallMatrix inv = SmallMatrix::Zero(n, n);
+  for (Eigen::Index k = 0; k < n; ++k)
+    if (lambda(k) > tol) inv(k, k) = 1.0 / lambda(k);
+  return eig.eigenvectors() * inv * eig.eigenvectors().transpose();
+}
 
 struct KnobInfo {
   const char* name;
@@ -192,14 +227,14 @@ class Problem {
   }
 
   // The template (its parameters in the data's voltage window).
-  Eigen::VectorXd z0() const {
-    Eigen::VectorXd z = Eigen::VectorXd::Zero(kKnobs);
+  ZVec z0() const {
+    ZVec z = ZVec::Zero();
     z[static_cast<int>(Knob::negative_stoich_full)] = x100_0_;
     return z;
   }
   // Where the search starts: the template with its area scaled to the measured capacity.
-  Eigen::VectorXd start() const {
-    Eigen::VectorXd z = z0();
+  ZVec start() const {
+    ZVec z = z0();
     if (s_.measured_capacity_ah > 0) {
       Balance b = balance(base_, qn0_, qp0_, x100_0_, s_.v_min, s_.v_max);
       const KnobInfo& a = info(Knob::electrode_area);
@@ -214,7 +249,7 @@ class Problem {
   bool has_film() const { return base_.side.enabled; }
 
   // The candidate cell as BPX JSON; ok = false when the electrode balance has no solution.
-  nlohmann::json bpx(const Eigen::VectorXd& z, Balance& b) const {
+  nlohmann::json bpx(const ZVec& z, Balance& b) const {
     nlohmann::json j = tmpl_;
     auto f = [&](Knob k) { return std::exp(z[static_cast<int>(k)]); };
     scale_json_value(field(j, "Cell", "Electrode area [m2]"), f(Knob::electrode_area), "Cell.Electrode area [m2]");
@@ -249,7 +284,7 @@ class Problem {
 
   // Model voltage per piece (NaN on rows whose role is not wanted or the model did not reach);
   // false when the candidate has no electrode balance or the solver fails.
-  bool run(const Eigen::VectorXd& z, const DfnMesh& mesh, char want_mask, std::vector<std::vector<double>>& v,
+  bool run(const ZVec& z, const DfnMesh& mesh, char want_mask, std::vector<std::vector<double>>& v,
            std::vector<std::string>* early = nullptr) const {
     Balance b;
     const nlohmann::json j = bpx(z, b);
@@ -292,7 +327,7 @@ class Problem {
   }
 
   // Residual (mV) over the wanted rows; empty when the run failed.
-  std::vector<double> residual(const Eigen::VectorXd& z, const DfnMesh& mesh, char want) const {
+  std::vector<double> residual(const ZVec& z, const DfnMesh& mesh, char want) const {
     std::vector<std::vector<double>> v;
     if (!run(z, mesh, want, v)) return {};
     std::vector<double> r;
@@ -325,7 +360,7 @@ double sum_sq(const std::vector<double>& r) {
   return r.empty() ? HUGE_VAL : s;
 }
 
-Eigen::VectorXd clamp_z(Eigen::VectorXd z, const std::vector<int>& active) {
+ZVec clamp_z(ZVec z, const std::vector<int>& active) {
   for (int k : active) z[k] = std::clamp(z[k], info(static_cast<Knob>(k)).lo, info(static_cast<Knob>(k)).hi);
   return z;
 }
@@ -336,17 +371,17 @@ struct Search {
   const std::function<void(const std::string&)>& log;
   int evaluations = 0;
 
-  std::vector<double> eval(const Eigen::VectorXd& z) {
+  std::vector<double> eval(const ZVec& z) {
     ++evaluations;
     return problem.residual(z, s.search_mesh, kRoleTrain);
   }
 
   // Forward-difference Jacobian (mV per unit z) of the columns `cols`; r0 the residual at z.
-  Eigen::MatrixXd jacobian(const Eigen::VectorXd& z, const std::vector<double>& r0, const std::vector<int>& cols) {
-    Eigen::MatrixXd J(static_cast<long>(r0.size()), static_cast<long>(cols.size()));
+  Columns jacobian(const ZVec& z, const std::vector<double>& r0, const std::vector<int>& cols) {
+    Columns J(cols.size(), std::vector<double>(r0.size(), 0.0));
     for (std::size_t c = 0; c < cols.size(); ++c) {
       const int k = cols[c];
-      Eigen::VectorXd zp = z;
+      ZVec zp = z;
       double h = info(static_cast<Knob>(k)).step;
       if (zp[k] + h > info(static_cast<Knob>(k)).hi) h = -h;
       zp[k] += h;
@@ -357,31 +392,30 @@ struct Search {
         r = eval(zp);
       }
       for (std::size_t i = 0; i < r0.size(); ++i)
-        J(static_cast<long>(i), static_cast<long>(c)) = r.size() == r0.size() ? (r[i] - r0[i]) / h : 0.0;
+        J[c][i] = r.size() == r0.size() ? (r[i] - r0[i]) / h : 0.0;
     }
     return J;
   }
 
   // Levenberg-Marquardt on the active knobs from z; returns the cost at the end.
-  double minimise(Eigen::VectorXd& z, std::vector<double>& r, const std::vector<int>& active, int* iterations) {
+  double minimise(ZVec& z, std::vector<double>& r, const std::vector<int>& active, int* iterations) {
     double cost = sum_sq(r), lambda = 1e-2;
     for (int it = 0; it < s.max_iterations && !active.empty(); ++it) {
-      const Eigen::MatrixXd J = jacobian(z, r, active);
-      const Eigen::MatrixXd H = J.transpose() * J;
-      Eigen::VectorXd g(static_cast<long>(r.size()));
-      for (std::size_t i = 0; i < r.size(); ++i) g[static_cast<long>(i)] = r[i];
-      const Eigen::VectorXd grad = J.transpose() * g;
+      const Columns J = jacobian(z, r, active);
+      const SmallMatrix H = gram(J);
+      SmallVector grad(static_cast<Eigen::Index>(J.size()));
+      for (std::size_t c = 0; c < J.size(); ++c) grad[static_cast<Eigen::Index>(c)] = dot(J[c], r);
       bool accepted = false;
       double gain = 0;
       for (int tries = 0; tries < 6 && !accepted; ++tries) {
-        Eigen::MatrixXd A = H;
+        SmallMatrix A = H;
         for (long d = 0; d < A.rows(); ++d) A(d, d) += lambda * std::max(H(d, d), 1e-12);
-        Eigen::VectorXd step = A.ldlt().solve(-grad);
+        SmallVector step = A.ldlt().solve(-grad);
         for (std::size_t c = 0; c < active.size(); ++c) {
           const double m = info(static_cast<Knob>(active[c])).max_move;
           step[static_cast<long>(c)] = std::clamp(step[static_cast<long>(c)], -m, m);
         }
-        Eigen::VectorXd zn = z;
+        ZVec zn = z;
         for (std::size_t c = 0; c < active.size(); ++c) zn[active[c]] += step[static_cast<long>(c)];
         zn = clamp_z(zn, active);
         std::vector<double> rn = eval(zn);
@@ -403,15 +437,18 @@ struct Search {
   }
 };
 
-// Largest |cos| between column c and the span of the columns `others` (normalised columns).
-double collinearity(const Eigen::MatrixXd& Jn, int c, const std::vector<int>& others) {
+// Largest |cos| between column c and the span of the columns `others` (normalised columns): the
+// norm of c's projection on that span, from the small normal equations.
+double collinearity(const Columns& Jn, int c, const std::vector<int>& others) {
   if (others.empty()) return 0.0;
-  Eigen::MatrixXd B(Jn.rows(), static_cast<long>(others.size()));
-  for (std::size_t i = 0; i < others.size(); ++i) B.col(static_cast<long>(i)) = Jn.col(others[i]);
-  const Eigen::VectorXd y = Jn.col(c);
-  const Eigen::VectorXd coef = B.colPivHouseholderQr().solve(y);
-  const double resid = (y - B * coef).squaredNorm() / std::max(y.squaredNorm(), 1e-300);
-  return std::sqrt(std::clamp(1.0 - resid, 0.0, 1.0));
+  Columns B;
+  for (int o : others) B.push_back(Jn[static_cast<std::size_t>(o)]);
+  const std::vector<double>& y = Jn[static_cast<std::size_t>(c)];
+  SmallVector by(static_cast<Eigen::Index>(B.size()));
+  for (std::size_t i = 0; i < B.size(); ++i) by[static_cast<Eigen::Index>(i)] = dot(B[i], y);
+  const SmallVector coef = pseudo_inverse(gram(B)) * by;
+  const double projected = by.dot(coef) / std::max(dot(y, y), 1e-300);
+  return std::sqrt(std::clamp(projected, 0.0, 1.0));
 }
 
 // Candidates: every knob (or those asked for) the template has a value for; `why` says why not.
@@ -433,19 +470,22 @@ std::vector<int> candidate_knobs(const Problem& problem, const CellFitSettings& 
 }
 
 // Identifiability at the template: sensitivity and collinearity of the Jacobian's columns.
-std::vector<int> identifiable_knobs(Search& search, const Eigen::VectorXd& z, const std::vector<double>& r,
+std::vector<int> identifiable_knobs(Search& search, const ZVec& z, const std::vector<double>& r,
                                     const std::vector<int>& candidates, const CellFitSettings& settings,
                                     std::vector<std::string>& why) {
-  const Eigen::MatrixXd J0 = search.jacobian(z, r, candidates);
+  const Columns J0 = search.jacobian(z, r, candidates);
   std::vector<std::pair<double, int>> by_norm;
   for (std::size_t c = 0; c < candidates.size(); ++c)
-    by_norm.emplace_back(J0.col(static_cast<long>(c)).norm() / std::sqrt(static_cast<double>(J0.rows())),
+    by_norm.emplace_back(std::sqrt(dot(J0[c], J0[c]) / static_cast<double>(std::max<std::size_t>(r.size(), 1))),
                          static_cast<int>(c));
   // Priority, not sensitivity, orders the collinearity test: the electrode balance, then the
   // series resistance, then diffusion, kinetics and the electrolyte (a kinetic overpotential at
   // one current level looks like a series resistance; the simpler explanation is kept).
-  Eigen::MatrixXd Jn = J0;
-  for (long c = 0; c < Jn.cols(); ++c) Jn.col(c) /= std::max(Jn.col(c).norm(), 1e-300);
+  Columns Jn = J0;
+  for (auto& col : Jn) {
+    const double n = std::max(std::sqrt(dot(col, col)), 1e-300);
+    for (double& v : col) v /= n;
+  }
   std::vector<int> chosen_cols, active;
   for (const auto& [rms_mv, c] : by_norm) {
     const int k = candidates[static_cast<std::size_t>(c)];
@@ -471,20 +511,19 @@ std::vector<int> identifiable_knobs(Search& search, const Eigen::VectorXd& z, co
 
 // Fits the active knobs; the one with the largest relative sd above the bar leaves and the rest
 // is refitted, until every sd is under it. Returns the covariance of the active knobs' z.
-Eigen::MatrixXd fit_and_prune(Search& search, const Problem& problem, const CellFitSettings& settings,
-                              const std::function<void(const std::string&)>& log, Eigen::VectorXd& z,
+SmallMatrix fit_and_prune(Search& search, const Problem& problem, const CellFitSettings& settings,
+                              const std::function<void(const std::string&)>& log, ZVec& z,
                               std::vector<double>& r, std::vector<int>& active, std::vector<std::string>& why,
                               CellFitResult& out) {
-  Eigen::MatrixXd cov;
+  SmallMatrix cov;
   double s2 = 0;
   for (int round = 0; round < kKnobs; ++round) {
     search.minimise(z, r, active, &out.iterations);
     if (active.empty()) break;
-    const Eigen::MatrixXd J = search.jacobian(z, r, active);
+    const Columns J = search.jacobian(z, r, active);
     const double dof = std::max(1.0, static_cast<double>(r.size()) - static_cast<double>(active.size()));
     s2 = sum_sq(r) / dof;
-    const Eigen::MatrixXd H = J.transpose() * J;
-    cov = s2 * H.completeOrthogonalDecomposition().pseudoInverse();
+    cov = s2 * pseudo_inverse(gram(J));
     // The parameter with the largest relative sd above the bar leaves, and the rest is refitted.
     int worst = -1;
     double worst_rel = settings.max_relative_sd;
@@ -510,8 +549,8 @@ Eigen::MatrixXd fit_and_prune(Search& search, const Problem& problem, const Cell
   return cov;
 }
 
-std::vector<FitParameter> parameters_of(const Problem& problem, const Eigen::VectorXd& z,
-                                        const std::vector<int>& active, const Eigen::MatrixXd& cov,
+std::vector<FitParameter> parameters_of(const Problem& problem, const ZVec& z,
+                                        const std::vector<int>& active, const SmallMatrix& cov,
                                         const std::vector<std::string>& why) {
   std::vector<FitParameter> out;
   for (int k = 0; k < kKnobs; ++k) {
@@ -539,9 +578,9 @@ std::vector<FitParameter> parameters_of(const Problem& problem, const Eigen::Vec
 
 // The fitted cell (z) and the template (z0) scored on the final mesh, train and held out.
 void score_final(const Problem& problem, const std::vector<FitPiece>& pieces, const CellFitSettings& settings,
-                 const std::function<void(const std::string&)>& log, const Eigen::VectorXd& z, CellFitResult& out) {
+                 const std::function<void(const std::string&)>& log, const ZVec& z, CellFitResult& out) {
   log("scoring on the final mesh");
-  auto score = [&](const Eigen::VectorXd& zz, std::vector<std::vector<double>>& v, double& train, double& held,
+  auto score = [&](const ZVec& zz, std::vector<std::vector<double>>& v, double& train, double& held,
                    double* held_max) {
     std::vector<std::string> early;
     if (!problem.run(zz, settings.final_mesh, kRoleTrain | kRoleHeldOut, v, &early))
@@ -582,7 +621,7 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
   CellFitResult out;
   out.notes = problem.notes();
   Search search{problem, settings, log};
-  Eigen::VectorXd z = problem.start();
+  ZVec z = problem.start();
   if (settings.measured_capacity_ah > 0)
     log(fmt::format("start: electrode area x {:.4f} (the largest measured discharge, {:.4f} Ah, in the window)",
                     std::exp(z[0]), settings.measured_capacity_ah));
@@ -598,7 +637,7 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
   const std::vector<int> candidates = candidate_knobs(problem, settings, why);
   std::vector<int> active = identifiable_knobs(search, z, r, candidates, settings, why);
   log(fmt::format("fitting {} of {} parameters", active.size(), candidates.size()));
-  const Eigen::MatrixXd cov = fit_and_prune(search, problem, settings, log, z, r, active, why, out);
+  const SmallMatrix cov = fit_and_prune(search, problem, settings, log, z, r, active, why, out);
   out.evaluations = search.evaluations;
   out.parameters = parameters_of(problem, z, active, cov, why);
   // Final: the fitted cell as written, scored on the final mesh (train and held out).
