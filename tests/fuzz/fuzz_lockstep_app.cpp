@@ -148,10 +148,10 @@ hal::CanFrame make_frame(const std::uint8_t* r, bool fix_crc) {
   return f;
 }
 
-// The frames the application sent for its last tick: six, BMS_Status last; returns the Seq of
-// BMS_Estimate1.
+// The frames the application sent for its last tick: seven (BMS_Estimate1-3, BMS_Health,
+// BMS_Uncertainty, BMS_RxStats), BMS_Status last; returns the Seq of BMS_Estimate1.
 std::uint16_t check_answer(const QueueBus& bus, std::size_t from) {
-  if (bus.sent.size() - from != 6u || bus.sent.back().id != can::id::kStatus) fail();
+  if (bus.sent.size() - from != 7u || bus.sent.back().id != can::id::kStatus) fail();
   can::Estimate1 e1;
   if (!can::decode(bus.sent[from], e1)) fail();
   return e1.seq;
