@@ -3,6 +3,7 @@
 // for ReducedCell, PaperCellTraits' fields plus the design-time bias and the record's CRC-32)
 // and DIR/summary.json (table errors, bias, what the reduced model leaves out).
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -23,7 +24,7 @@ namespace {
 struct CellConfigCli {
   std::string cell = "aboutenergy";
   std::string out;
-  double bias_ohm = -1.0;
+  double bias_ohm = std::nan("");  // NaN: computed from the nominal DFN
   bool quiet = false;
 };
 
@@ -48,7 +49,7 @@ int run_cell_config(const CellConfigCli& c) {
   const ReducedCellRecord record = make_reduced_cell_record(cell);
   OutputFolder folder(c.out);
   DesignBias bias;
-  if (c.bias_ohm >= 0.0) {
+  if (std::isfinite(c.bias_ohm)) {
     bias.bias_ohm = c.bias_ohm;
   } else {
     if (!c.quiet) std::fprintf(stderr, "cell-config: design-time bias of '%s' (nominal DFN, 3 cycles)...\n", cell.name.c_str());
@@ -64,7 +65,7 @@ int run_cell_config(const CellConfigCli& c) {
       {"traits", "bms::fw::cells::" + type},
       {"record_crc32", fmt::format("0x{:08X}", record_crc32(record))},
       {"model_bias_ohm", bias.bias_ohm},
-      {"model_bias_from", c.bias_ohm >= 0.0 ? "--model-bias-ohm" : "nominal DFN, 3 CCCV cycles at 1C (CV to C/10), 40/40 volumes, rtol 1e-9"},
+      {"model_bias_from", std::isfinite(c.bias_ohm) ? "--model-bias-ohm" : "nominal DFN, 3 CCCV cycles at 1C (CV to C/10), 40/40 volumes, rtol 1e-9"},
       {"model_bias_ticks", bias.ticks},
       {"ocp_table_nodes", kOcpTableNodes},
       {"electrolyte_table_nodes", kElectrolyteTableNodes},
@@ -96,7 +97,7 @@ Runner add_cell_config(CLI::App& app) {
   sub->add_option("--cell", c->cell, "paper | aboutenergy | lco | nmc | FILE.bpx.json")->capture_default_str();
   sub->add_option("--out", c->out, "Output folder (<name>_cell.hpp, summary.json)")->required();
   sub->add_option("--model-bias-ohm", c->bias_ohm,
-                  "Use this design-time bias instead of computing it from the nominal cell's DFN (ohm)");
+                  "Use this design-time bias (ohm, any sign) instead of computing it from the nominal cell's DFN");
   sub->add_flag("--quiet", c->quiet, "No progress output");
   return [c]() { return run_cell_config(*c); };
 }

@@ -152,7 +152,13 @@ class Crc32 {
   std::uint32_t crc_ = 0xFFFFFFFFu;
 };
 
-std::string num(double v) { return fmt::format("{:.17g}", v); }
+// Round-trip precision, and always a floating literal (a whole number gets ".0": an integer
+// literal of 17 digits would be a narrowing conversion to double).
+std::string num(double v) {
+  std::string s = fmt::format("{:.17g}", v);
+  if (s.find_first_of(".eEn") == std::string::npos) s += ".0";
+  return s;
+}
 
 std::string electrode_text(const fw::paper::Electrode& e) {
   return fmt::format("{{{}, {}, {}, {}, {}, {}, {}, {}, {}}}", num(e.thickness_m), num(e.particle_radius_m),

@@ -17,22 +17,22 @@ struct LcoCellTraits {
   static constexpr double kAreaM2 = 0.028358999999999999;
   static constexpr double kTemperatureK = 298.14999999999998;
   static constexpr double kTransference = 0.40000000000000002;
-  static constexpr double kElectrolyteInitMolM3 = 1000;
+  static constexpr double kElectrolyteInitMolM3 = 1000.0;
   static constexpr double kSeparatorThicknessM = 2.5000000000000001e-05;
-  static constexpr double kSeparatorPorosity = 1;
+  static constexpr double kSeparatorPorosity = 1.0;
   static constexpr double kBruggeman = 0.0;  // unused: the regions' transport efficiencies below
   static constexpr double kTransportEfficiencyNeg = 0.16431699999999999;
-  static constexpr double kTransportEfficiencySep = 1;
+  static constexpr double kTransportEfficiencySep = 1.0;
   static constexpr double kTransportEfficiencyPos = 0.16431699999999999;
-  static constexpr paper::Electrode kNeg{0.0001, 1.0000000000000001e-05, 0.59999999999999998, 0.29999999999999999, 3.8999999999999998e-14, 24983.261993843698, 100, 2.0000003007417081e-05, 0.94932000000000005};
-  static constexpr paper::Electrode kPos{0.0001, 1.0000000000000001e-05, 0.50000000000000011, 0.29999999999999999, 1e-13, 51217.925730927498, 10, 5.9999985638794308e-07, 0.51259999999999994};
+  static constexpr paper::Electrode kNeg{0.0001, 1.0000000000000001e-05, 0.59999999999999998, 0.29999999999999999, 3.8999999999999998e-14, 24983.261993843698, 100.0, 2.0000003007417081e-05, 0.94932000000000005};
+  static constexpr paper::Electrode kPos{0.0001, 1.0000000000000001e-05, 0.50000000000000011, 0.29999999999999999, 1e-13, 51217.925730927498, 10.0, 5.9999985638794308e-07, 0.51259999999999994};
   static constexpr double kSideRefPotentialV = 0.40000000000000002;
   static constexpr double kSideExchangeAM2 = 4.0000000000000002e-09;
   static constexpr double kSideAlpha = 0.5;
   static constexpr double kInitialFilmOhmM2 = 0.0033909999999999999;
-  static constexpr double kFilmMolarMassKgMol = 73000;
-  static constexpr double kFilmDensityKgM3 = 2100;
-  static constexpr double kFilmConductivitySM = 1;
+  static constexpr double kFilmMolarMassKgMol = 73000.0;
+  static constexpr double kFilmDensityKgM3 = 2100.0;
+  static constexpr double kFilmConductivitySM = 1.0;
   static constexpr double kUpperVoltageV = 4.0999999999999996;
   static constexpr double kLowerVoltageV = 3.105;
   static constexpr double kNominalCapacityAh = 0.873;
@@ -1068,7 +1068,7 @@ struct LcoCellTraits {
       -65.29285470434813, -62.930601463430982, -60.603184965620358, -58.31493175447492,
       -56.069675355707723, -53.870772251479274, -51.721120768795352, -49.623182317377839,
       -47.579004447560479}};
-  static constexpr HermiteTable<65> kDiffusivity{20, 4000,
+  static constexpr HermiteTable<65> kDiffusivity{20.0, 4000.0,
      {5.2710292810083363e-10, 5.0622131949179153e-10, 4.8616695268858106e-10, 4.6690705583831809e-10,
       4.4841015537156376e-10, 4.3064602456977564e-10, 4.1358563417030193e-10, 3.9720110492819808e-10,
       3.8146566205734571e-10, 3.6635359147642345e-10, 3.5184019778822881e-10, 3.3790176392368339e-10,
@@ -1103,7 +1103,7 @@ struct LcoCellTraits {
       -3.5622872690954259e-14, -3.4211643791615009e-14, -3.2856321865966737e-14, -3.1554692114051222e-14,
       -3.0304627477001067e-14, -2.9104085161105402e-14, -2.7951103299577651e-14, -2.684379774656993e-14,
       -2.5780358998195285e-14}};
-  static constexpr HermiteTable<65> kConductivity{20, 4000,
+  static constexpr HermiteTable<65> kConductivity{20.0, 4000.0,
      {0.1288824432, 0.24106658145946655, 0.34541030809604495, 0.44213786232200319,
       0.5314734833496092, 0.61364141039113151, 0.68886588265883775, 0.75737113936499623,
       0.81938141972187506, 0.87512096294174191, 0.92481400823686499, 0.96868479481951297,

@@ -17,25 +17,25 @@ struct NmcCellTraits {
   static constexpr double kAreaM2 = 0.1027;
   static constexpr double kTemperatureK = 298.14999999999998;
   static constexpr double kTransference = 0.25940000000000002;
-  static constexpr double kElectrolyteInitMolM3 = 1000;
+  static constexpr double kElectrolyteInitMolM3 = 1000.0;
   static constexpr double kSeparatorThicknessM = 1.2e-05;
   static constexpr double kSeparatorPorosity = 0.46999999999999997;
   static constexpr double kBruggeman = 0.0;  // unused: the regions' transport efficiencies below
   static constexpr double kTransportEfficiencyNeg = 0.125;
   static constexpr double kTransportEfficiencySep = 0.322216;
   static constexpr double kTransportEfficiencyPos = 0.19389500000000001;
-  static constexpr paper::Electrode kNeg{8.5199999999999997e-05, 5.8599999999999998e-06, 0.74999991333333327, 0.25, 3.2999999999999998e-14, 33133, 215, 6.4799999523647843e-07, 0.90139999999999998};
-  static constexpr paper::Electrode kPos{7.5599999999999994e-05, 5.22e-06, 0.6649999860000001, 0.33500000000000002, 4.0000000000000003e-15, 63104, 0.17999999999999999, 3.4200000861646276e-06, 0.2661};
+  static constexpr paper::Electrode kNeg{8.5199999999999997e-05, 5.8599999999999998e-06, 0.74999991333333327, 0.25, 3.2999999999999998e-14, 33133.0, 215.0, 6.4799999523647843e-07, 0.90139999999999998};
+  static constexpr paper::Electrode kPos{7.5599999999999994e-05, 5.22e-06, 0.6649999860000001, 0.33500000000000002, 4.0000000000000003e-15, 63104.0, 0.17999999999999999, 3.4200000861646276e-06, 0.2661};
   static constexpr double kSideRefPotentialV = 0.40000000000000002;
   static constexpr double kSideExchangeAM2 = 4.0000000000000002e-09;
   static constexpr double kSideAlpha = 0.5;
   static constexpr double kInitialFilmOhmM2 = 0.0033909999999999999;
-  static constexpr double kFilmMolarMassKgMol = 73000;
-  static constexpr double kFilmDensityKgM3 = 2100;
-  static constexpr double kFilmConductivitySM = 1;
+  static constexpr double kFilmMolarMassKgMol = 73000.0;
+  static constexpr double kFilmDensityKgM3 = 2100.0;
+  static constexpr double kFilmConductivitySM = 1.0;
   static constexpr double kUpperVoltageV = 4.2000000000000002;
   static constexpr double kLowerVoltageV = 2.5;
-  static constexpr double kNominalCapacityAh = 5;
+  static constexpr double kNominalCapacityAh = 5.0;
   static constexpr double kModelBiasOhm = 0.0017644784731379185;
   static constexpr std::uint32_t kRecordCrc32 = 0xDB486195u;
   static constexpr HermiteTable<1025> kOcpNeg{0.002, 0.98891700000000005,
@@ -1068,7 +1068,7 @@ struct NmcCellTraits {
       -0.80900904203894652, -0.80900882179279543, -0.80900860693413268, -0.80900839733077679,
       -0.80900819285368752, -0.80900799337701323, -0.80900779877798756, -0.80900760893697832,
       -0.80900742373710832}};
-  static constexpr HermiteTable<65> kDiffusivity{20, 4000,
+  static constexpr HermiteTable<65> kDiffusivity{20.0, 4000.0,
      {4.7829117600000002e-10, 4.5414914080664066e-10, 4.3068728372656252e-10, 4.0790560475976566e-10,
       3.8580410390625003e-10, 3.6438278116601567e-10, 3.4364163653906254e-10, 3.2358067002539064e-10,
       3.0419988162500006e-10, 2.8549927133789066e-10, 2.6747883916406254e-10, 2.5013858510351569e-10,
@@ -1103,7 +1103,7 @@ struct NmcCellTraits {
       2.1881969999999995e-13, 2.2975723749999989e-13, 2.4069477500000004e-13, 2.5163231249999998e-13,
       2.6256985000000003e-13, 2.7350738749999997e-13, 2.8444492500000001e-13, 2.9538246250000006e-13,
       3.0632e-13}};
-  static constexpr HermiteTable<65> kConductivity{20, 4000,
+  static constexpr HermiteTable<65> kConductivity{20.0, 4000.0,
      {0.059481685516887067, 0.21453404773481849, 0.34332173660436149, 0.4531486426027127,
       0.54748569925063895, 0.6285405895178322, 0.69790804554168895, 0.75682915982237753,
       0.80631876933559155, 0.84723650564389952, 0.88033002259490511, 0.90626302624832267,

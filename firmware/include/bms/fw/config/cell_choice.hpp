@@ -141,8 +141,9 @@ using LcoCell = GeneratedCell<cells::LcoCellTraits, LcoName>;
 using NmcCell = GeneratedCell<cells::NmcCellTraits, NmcName>;
 using AboutenergyCell = GeneratedCell<cells::AboutenergyCellTraits, AboutenergyName>;
 
+// BMS_CELL_ID comes from the build (CMake BMS_CELL); the preprocessor must see it to pick a cell.
 #ifndef BMS_CELL_ID
-#define BMS_CELL_ID 0
+#define BMS_CELL_ID 0  // NOLINT(cppcoreguidelines-macro-usage): set by the build system, tested by #if
 #endif
 #if BMS_CELL_ID == 0
 using SelectedCell = PaperCell;

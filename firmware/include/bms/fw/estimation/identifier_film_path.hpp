@@ -136,8 +136,11 @@ class IdentifierFilmPath {
   // is an integrator too: M1 = 1).
   template <class Output>
   void write_outputs(Output& o, Scalar film_sd_ohm_m2) const {
-    constexpr int kTheta = static_cast<int>(sizeof(o.theta) / sizeof(o.theta[0]));
-    for (int i = 0; i < kTheta; ++i) o.theta[i] = i == 0 ? Scalar(1) : Scalar(0);
+    bool first = true;
+    for (auto& th : o.theta) {
+      th = first ? Scalar(1) : Scalar(0);
+      first = false;
+    }
     o.film_initial_ohm_m2 = identifier_.initial_film_ohm_m2();
     o.growth_gain = identifier_.gain();
     o.inventory_deviation = identifier_.inventory_deviation();
