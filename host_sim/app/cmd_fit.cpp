@@ -195,21 +195,7 @@ std::vector<std::string> plot(const std::filesystem::path& dir, std::string& pro
   script.commit();
   GnuplotOptions g;
   g.working_dir = dir;
-  const int rc = run_gnuplot("plots.gp", g);
-  std::vector<std::string> out;
-  for (const auto& n : names) {
-    std::error_code ec;
-    if (rc == 0) {
-      std::filesystem::rename(dir / (n + ".tmp"), dir / n, ec);
-      if (!ec) out.push_back(n);
-    } else {
-      std::filesystem::remove(dir / (n + ".tmp"), ec);
-    }
-  }
-  if (rc != 0)
-    problem = rc == kGnuplotMissing ? "gnuplot is not installed (Debian package gnuplot-nox)"
-                                    : fmt::format("gnuplot failed (exit status {})", rc);
-  return out;
+  return commit_plots(dir, names, run_gnuplot("plots.gp", g), problem);
 }
 
 nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }

@@ -165,17 +165,9 @@ std::string write_aging_outputs(const std::filesystem::path& dir, const AgingCom
   script.commit();
   GnuplotOptions g;
   g.working_dir = dir;
-  const int rc = run_gnuplot("plots.gp", g);
-  const char* names[] = {"capacity.png", "resistance.png"};
-  for (const char* n : names) {
-    std::error_code ec;
-    if (rc == 0) std::filesystem::rename(dir / (std::string(n) + ".tmp"), dir / n, ec);
-    else std::filesystem::remove(dir / (std::string(n) + ".tmp"), ec);
-    if (rc == 0 && ec) return fmt::format("{}: {}", n, ec.message());
-  }
-  if (rc == kGnuplotMissing) return "gnuplot is not installed (Debian package gnuplot-nox): no plots";
-  if (rc != 0) return fmt::format("gnuplot failed (exit status {}): no plots", rc);
-  return {};
+  std::string problem;
+  commit_plots(dir, {"capacity.png", "resistance.png"}, run_gnuplot("plots.gp", g), problem);
+  return problem.empty() ? problem : problem + ": no plots";
 }
 
 }  // namespace bms

@@ -3,6 +3,8 @@
 // (io/child_process), so an interrupt reaches it like any other child, and then throws
 // Interrupted once gnuplot ended.
 #include <filesystem>
+#include <string>
+#include <vector>
 
 namespace bms {
 
@@ -15,5 +17,10 @@ struct GnuplotOptions {
 // (not installed: Debian package gnuplot-nox).
 constexpr int kGnuplotMissing = -1;
 int run_gnuplot(const std::filesystem::path& script, const GnuplotOptions& options = {});
+// After a script that wrote each of `names` as NAME.tmp in `dir` exited with `rc`: renames them
+// into place (rc 0) or removes them. Returns the names now in place; `problem` says what went
+// wrong (gnuplot missing or failed, a rename failed), empty when nothing did.
+std::vector<std::string> commit_plots(const std::filesystem::path& dir, const std::vector<std::string>& names, int rc,
+                                      std::string& problem);
 
 }  // namespace bms
