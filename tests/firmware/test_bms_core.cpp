@@ -154,6 +154,38 @@ TEST(BmsCore, CatchUpOverALongGapInBoundedSteps) {
               frozen_back.z_v * 1e3);
 }
 
+// A record that stops under current and resumes after a long pause (a stopped test, the BMS
+// off): beyond power_cycle_after_ticks the model rests over the gap, as the cell did, and
+// re-synchronises at the first sample; the lost-frame catch-up would interpolate the last
+// current over the whole pause.
+TEST(BmsCore, APowerCycleGapIsARestAndAResync) {
+  auto run = [](std::uint32_t power_cycle_after_ticks) {
+    Core::Config cfg;
+    cfg.power_cycle_after_ticks = power_cycle_after_ticks;
+    cfg.resync_at_start = true;
+    Model design;
+    design.init_default();
+    cfg.nominal_inventory_mol = Model::inventory_of(design.mean_stoich_neg(), design.mean_stoich_pos());
+    GapRig rig(cfg);
+    for (int i = 0; i < 20; ++i) rig.sample(true);
+    const std::uint32_t resyncs_before = rig.core.resync_count();
+    for (int i = 0; i < 3000; ++i) rig.truth.step_current(0.0, rig.film, 0.2);  // the cell rests
+    rig.core.ticks_missed(3000u);
+    const auto r = rig.truth.step_current(0.0, rig.film, 0.2);
+    rig.core.tick({r.voltage_v, 0.0, true});
+    return std::make_pair(rig.lag(), rig.core.resync_count() - resyncs_before);
+  };
+  const auto [lag_power_cycle, resyncs] = run(1000u);
+  const auto [lag_interpolated, resyncs_off] = run(0u);
+  EXPECT_LT(lag_power_cycle, 1e-6);
+  EXPECT_GT(lag_interpolated, 100.0 * lag_power_cycle + 1e-4);  // half the gap at ~1.25 A
+  EXPECT_EQ(resyncs_off, 0u);
+  EXPECT_EQ(resyncs, 1u);
+  std::printf("3000-tick pause after a 2.5 A discharge: stoichiometry lag %.2e as a power cycle, %.2e "
+              "interpolated; %u re-synchronisation(s)\n",
+              lag_power_cycle, lag_interpolated, resyncs);
+}
+
 TEST(BmsCore, RcsiLearnsOnlyInConstantCurrentChargeAndTracksTheFilm) {
   Rig rig;
   int active_outside = 0, active_inside = 0;

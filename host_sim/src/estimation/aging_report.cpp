@@ -58,17 +58,19 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
   const ChargeReport* ref = nullptr;
   const CyclerCycleStat* ref_meas = nullptr;
   double ref_ir = std::nan("");
-  double ref_step = std::nan("");
+  double ref_step = std::nan(""), ref_dstep = std::nan("");
   for (const ChargeReport& c : charges) {
     const auto it = by_cycle.find(c.cycle);
     if (it == by_cycle.end() || !(it->second->discharge_ah >= kPartialCycleShare * max_dis)) continue;
     const CyclerCycleStat& m = *it->second;
     if (ref == nullptr) {
+      if (!std::isfinite(c.capacity_ah)) continue;  // the reference needs a whole charge
       ref = &c;
       ref_meas = &m;
     }
     if (std::isnan(ref_ir) && std::isfinite(m.internal_resistance_ohm)) ref_ir = m.internal_resistance_ohm;
     if (std::isnan(ref_step) && std::isfinite(c.r_step_ohm)) ref_step = c.r_step_ohm;
+    if (std::isnan(ref_dstep) && std::isfinite(c.r_discharge_step_ohm)) ref_dstep = c.r_discharge_step_ohm;
     AgingRow r{};
     r.cycle = c.cycle;
     r.capacity_est_ah = c.capacity_ah;
@@ -76,10 +78,12 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     r.soh_est = c.capacity_ah / ref->capacity_ah;
     r.counted_ah = c.counted_ah;
     r.soh_counted = c.counted_ah / ref->counted_ah;
+    r.counted_complete = c.counted_complete;
     const std::string source = c.capacity_estimated ? "estimator" : "counted";
     a.capacity_source = a.capacity_source.empty() || a.capacity_source == source ? source : "mixed";
     r.r_growth_est_ohm = c.r_growth_ohm - ref->r_growth_ohm;
     r.r_step_growth_ohm = c.r_step_ohm - ref_step;
+    r.r_discharge_step_growth_ohm = c.r_discharge_step_ohm - ref_dstep;
     r.discharge_meas_ah = m.discharge_ah;
     r.soh_meas = m.discharge_ah / ref_meas->discharge_ah;
     r.ir_meas_ohm = m.internal_resistance_ohm;
@@ -87,24 +91,34 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     r.learned = c.learned;
     a.rows.push_back(r);
   }
-  std::vector<double> ir, film, step;
+  std::vector<double> ir, film, step, dstep;
   double sum = 0.0, worst = 0.0, sum_counted = 0.0;
+  std::size_t n_est = 0, n_counted = 0;
   for (const AgingRow& r : a.rows) {
-    const double e = std::abs(r.soh_est - r.soh_meas) * 100.0;
-    sum += e;
-    sum_counted += std::abs(r.soh_counted - r.soh_meas) * 100.0;
-    worst = std::max(worst, e);
+    // A charge cut by a power cycle has no capacity (null): not scored.
+    if (const double e = std::abs(r.soh_est - r.soh_meas) * 100.0; std::isfinite(e)) {
+      sum += e;
+      worst = std::max(worst, e);
+      ++n_est;
+    }
+    if (const double e = std::abs(r.soh_counted - r.soh_meas) * 100.0; std::isfinite(e) && r.counted_complete) {
+      sum_counted += e;
+      ++n_counted;
+    }
     ir.push_back(r.ir_growth_meas_ohm);
     film.push_back(r.r_growth_est_ohm);
     step.push_back(r.r_step_growth_ohm);
+    dstep.push_back(r.r_discharge_step_growth_ohm);
   }
-  if (!a.rows.empty()) {
-    a.soh_mae_pp = sum / static_cast<double>(a.rows.size());
+  a.cycles_scored = n_est;
+  if (n_est > 0) {
+    a.soh_mae_pp = sum / static_cast<double>(n_est);
     a.soh_max_abs_pp = worst;
-    a.soh_counted_mae_pp = sum_counted / static_cast<double>(a.rows.size());
   }
+  if (n_counted > 0) a.soh_counted_mae_pp = sum_counted / static_cast<double>(n_counted);
   a.film_vs_ir = fit_line(ir, film);
   a.step_vs_ir = fit_line(ir, step);
+  a.discharge_step_vs_ir = fit_line(ir, dstep);
   return a;
 }
 
@@ -114,12 +128,14 @@ nlohmann::json aging_json(const AgingComparison& a) {
                           {"intercept_ohm", num(f.intercept)}};
   };
   return {{"cycles_compared", a.rows.size()},
+          {"cycles_scored", a.cycles_scored},
           {"soh_mean_abs_err_pp", num(a.soh_mae_pp)},
           {"soh_max_abs_err_pp", num(a.soh_max_abs_pp)},
           {"capacity_source", a.capacity_source},
           {"soh_counted_mean_abs_err_pp", num(a.soh_counted_mae_pp)},
           {"r_growth_vs_cycler_ir_growth", fit(a.film_vs_ir)},
           {"r_step_growth_vs_cycler_ir_growth", fit(a.step_vs_ir)},
+          {"r_discharge_step_growth_vs_cycler_ir_growth", fit(a.discharge_step_vs_ir)},
           {"note",
            "soh: the charges' capacity_ah / its first (capacity_source: the estimator's open-circuit capacity, or the "
            "counted charge where it identifies none), against the cycler's discharge capacity / its first, same cycle; "
@@ -129,7 +145,8 @@ nlohmann::json aging_json(const AgingComparison& a) {
 std::string write_aging_outputs(const std::filesystem::path& dir, const AgingComparison& a) {
   CsvWriter w(dir / "aging.csv", {"cycle", "capacity_est_ah", "capacity_sd_ah", "soh_est", "discharge_meas_ah",
                                   "soh_meas", "r_growth_est_ohm", "r_step_growth_ohm", "ir_meas_ohm",
-                                  "ir_growth_meas_ohm", "learned", "counted_ah", "soh_counted"});
+                                  "ir_growth_meas_ohm", "learned", "counted_ah", "soh_counted",
+                                  "r_discharge_step_growth_ohm", "counted_complete"});
   const auto cell = [&w](double v) {
     if (std::isfinite(v)) w.cell(v);
     else w.cell("");
@@ -142,6 +159,8 @@ std::string write_aging_outputs(const std::filesystem::path& dir, const AgingCom
     w.cell(r.learned ? 1 : 0);
     cell(r.counted_ah);
     cell(r.soh_counted);
+    cell(r.r_discharge_step_growth_ohm);
+    w.cell(r.counted_complete ? 1 : 0);
     w.end_row();
   }
   w.commit();
@@ -159,7 +178,8 @@ std::string write_aging_outputs(const std::filesystem::path& dir, const AgingCom
       "set ylabel 'growth (ohm)'\n"
       "plot 'aging.csv' using 1:10 skip 1 with points pt 7 ps 0.5 title 'cycler: internal resistance', "
       "'' using 1:7 skip 1 with lines lw 2 title 'estimate: r_growth_ohm (film)', "
-      "'' using 1:8 skip 1 with points pt 6 ps 0.4 title 'measured: voltage step at the charge onset'\n";
+      "'' using 1:8 skip 1 with points pt 6 ps 0.4 title 'measured: voltage step at the charge onset', "
+      "'' using 1:14 skip 1 with points pt 2 ps 0.4 title 'measured: voltage step at the discharge onset'\n";
   AtomicFileWriter script(dir / "plots.gp");
   script.append(gp);
   script.commit();

@@ -19,6 +19,9 @@ struct ChargeReport {
   // RCSI path, learning off) the counted charge below stands in (capacity_source says which).
   double capacity_ah, capacity_sd_ah;
   bool capacity_estimated;
+  // The count spans a whole charge: from a discharge to the lower voltage limit to a rest or a
+  // discharge (not part-way, not cut by a power cycle). Else capacity_ah is null where counted.
+  bool counted_complete;
   // Charge counted (trapezoids on the measured current) from the CC start to the end of the
   // charge (current back to rest, or a discharge). sd: half the charge interpolated across
   // logging gaps inside it (the current there is not measured), plus a 0.1 % sensor gain.
@@ -28,6 +31,10 @@ struct ChargeReport {
   // Measured beside the film: the voltage step at the charge's onset over the current step,
   // (V first under current - V last at rest) / |I|: a lumped resistance at the sample interval.
   double r_step_ohm;
+  // The same at the onset of the discharge that follows the charge (from rest, the cell full):
+  // (V last at rest - V first under discharge) / I, a DC resistance at a repeatable state of
+  // charge, which the charge's onset (from wherever the discharge left the cell) is not.
+  double r_discharge_step_ohm;
   bool learned;  // the firmware learned in this CC phase
 };
 

@@ -118,6 +118,12 @@ class BmsCore {
     // step is a Newton solve of up to about 98 000 instructions on the Cortex-M4F: one step keeps
     // the tick within its 300 000-instruction budget.
     std::uint32_t catch_up_max_voltage_steps = 1u;
+    // A gap without samples longer than this many ticks is a power cycle, not lost frames: the
+    // BMS was off and the cell rested (a cycler record that ends under current is a test that was
+    // stopped; interpolating its last current over days moves many times the cell's capacity).
+    // The model steps over it at rest and, with resync_at_start, re-synchronises to the measured
+    // voltage as at power-up. 0: every gap is caught up as lost frames.
+    std::uint32_t power_cycle_after_ticks = 0u;
     // StateResync. Beyond the paper: once per CV phase, when |I| has fallen to resync_current_a, move the
     // model's state to the measured voltage at the nominal lithium inventory minus the
     // model's own lithium loss (MainModel::resync). Removes initial-condition errors and the
@@ -316,12 +322,14 @@ class BmsCore {
   StatusWord accept_sample(const TickInput<Scalar>& in) {
     const StatusWord st = take_temperature(in.temperature_k);
     const bool first_sample = !have_sample_;
-    if (!first_sample && stale_ticks_ > 0u) catch_up(stale_ticks_, in);
+    const bool power_cycle = !first_sample && config_.power_cycle_after_ticks != 0u &&
+                             stale_ticks_ > config_.power_cycle_after_ticks;
+    if (!first_sample && stale_ticks_ > 0u) catch_up(stale_ticks_, in, power_cycle);
     stale_ticks_ = 0;
     have_sample_ = true;
     last_current_ = in.current_a;
     last_voltage_ = in.voltage_v;
-    if (resync_.should_start_at_power_up(first_sample)) resync_.start_at_power_up();
+    if (resync_.should_start_at_power_up(first_sample || power_cycle)) resync_.start_at_power_up();
     return st;
   }
 
@@ -339,11 +347,13 @@ class BmsCore {
   // Steps the model over `missed` ticks that had no accepted sample (see
   // Config::catch_up_max_ticks). In a CV phase (the last tick was voltage-driven and the
   // voltage held within the detector's CV band) on the interpolated voltage, as the cycler held
-  // it; else on the interpolated current.
-  void catch_up(std::uint32_t missed, const TickInput<Scalar>& in) {
+  // it; else on the interpolated current; over a power cycle at rest (zero current).
+  void catch_up(std::uint32_t missed, const TickInput<Scalar>& in, bool at_rest) {
     const std::uint32_t gap = missed < config_.catch_up_max_ticks ? missed : config_.catch_up_max_ticks;
     if (gap == 0u || config_.catch_up_max_steps == 0u) return;
-    const bool hold_voltage = last_voltage_driven_ && std::fabs(in.voltage_v - last_voltage_) <= config_.detector.cv_band_v;
+    const bool hold_voltage =
+        !at_rest && last_voltage_driven_ && std::fabs(in.voltage_v - last_voltage_) <= config_.detector.cv_band_v;
+    const Scalar from_a = at_rest ? Scalar(0) : last_current_, to_a = at_rest ? Scalar(0) : in.current_a;
     std::uint32_t max_steps = config_.catch_up_max_steps;
     if (hold_voltage && config_.catch_up_max_voltage_steps < max_steps) max_steps = config_.catch_up_max_voltage_steps;
     if (max_steps == 0u) return;
@@ -356,7 +366,7 @@ class BmsCore {
       const Scalar dt = ticks_per_step * config_.dt_s;
       const ModelTickResult<Scalar> r =
           hold_voltage ? model_.step_voltage(last_voltage_ + w * (in.voltage_v - last_voltage_), r_film_ohm_m2(), dt)
-                       : model_.step_current(last_current_ + w * (in.current_a - last_current_), r_film_ohm_m2(), dt);
+                       : model_.step_current(from_a + w * (to_a - from_a), r_film_ohm_m2(), dt);
       if (!r.valid) return;
       // The film grew over the gap too: without this, each lost frame drops a tick of growth.
       path_.propagate(r.j_side_a_m3, dt);
