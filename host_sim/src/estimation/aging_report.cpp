@@ -56,6 +56,7 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     by_cycle[s.cycle] = &s;
   }
   const ChargeReport* ref = nullptr;
+  const ChargeReport* ref_cap = nullptr;
   const CyclerCycleStat* ref_meas = nullptr;
   double ref_ir = std::nan("");
   double ref_step = std::nan(""), ref_dstep = std::nan("");
@@ -63,9 +64,11 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     const auto it = by_cycle.find(c.cycle);
     if (it == by_cycle.end() || !(it->second->discharge_ah >= kPartialCycleShare * max_dis)) continue;
     const CyclerCycleStat& m = *it->second;
-    if (ref == nullptr) {
-      if (!std::isfinite(c.capacity_ah)) continue;  // the reference needs a whole charge
-      ref = &c;
+    if (ref == nullptr) ref = &c;
+    // The capacity's reference is the first charge with one (a whole charge where counted);
+    // before it, and in a record with none (another cell's voltage limits), SoH stays empty.
+    if (ref_meas == nullptr && std::isfinite(c.capacity_ah)) {
+      ref_cap = &c;
       ref_meas = &m;
     }
     if (std::isnan(ref_ir) && std::isfinite(m.internal_resistance_ohm)) ref_ir = m.internal_resistance_ohm;
@@ -75,17 +78,20 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     r.cycle = c.cycle;
     r.capacity_est_ah = c.capacity_ah;
     r.capacity_sd_ah = c.capacity_sd_ah;
-    r.soh_est = c.capacity_ah / ref->capacity_ah;
+    const double nan = std::nan("");
+    r.soh_est = ref_cap != nullptr ? c.capacity_ah / ref_cap->capacity_ah : nan;
     r.counted_ah = c.counted_ah;
-    r.soh_counted = c.counted_ah / ref->counted_ah;
+    r.soh_counted = ref_cap != nullptr ? c.counted_ah / ref_cap->counted_ah : nan;
     r.counted_complete = c.counted_complete;
-    const std::string source = c.capacity_estimated ? "estimator" : "counted";
-    a.capacity_source = a.capacity_source.empty() || a.capacity_source == source ? source : "mixed";
+    if (std::isfinite(c.capacity_ah)) {
+      const std::string source = c.capacity_estimated ? "estimator" : "counted";
+      a.capacity_source = a.capacity_source.empty() || a.capacity_source == source ? source : "mixed";
+    }
     r.r_growth_est_ohm = c.r_growth_ohm - ref->r_growth_ohm;
     r.r_step_growth_ohm = c.r_step_ohm - ref_step;
     r.r_discharge_step_growth_ohm = c.r_discharge_step_ohm - ref_dstep;
     r.discharge_meas_ah = m.discharge_ah;
-    r.soh_meas = m.discharge_ah / ref_meas->discharge_ah;
+    r.soh_meas = ref_meas != nullptr ? m.discharge_ah / ref_meas->discharge_ah : nan;
     r.ir_meas_ohm = m.internal_resistance_ohm;
     r.ir_growth_meas_ohm = m.internal_resistance_ohm - ref_ir;
     r.learned = c.learned;
@@ -165,15 +171,20 @@ std::string write_aging_outputs(const std::filesystem::path& dir, const AgingCom
   }
   w.commit();
   if (a.rows.empty()) return "no CC charge of the record in a cycle the cycler reported: no plots";
-  const std::string gp =
-      "# Made by bmssim estimate; run in this folder: gnuplot plots.gp\n"
-      "set datafile separator ','\nset datafile missing ''\nset terminal pngcairo size 1100,700 noenhanced\nset grid\n"
-      "set key top right\nset xlabel 'cycle'\n"
+  // No capacity to compare (no whole charge by the cell's voltage limits): the resistance plot only.
+  const bool any_soh =
+      std::any_of(a.rows.begin(), a.rows.end(), [](const AgingRow& r) { return std::isfinite(r.soh_meas); });
+  const std::string capacity_gp =
       "set output 'capacity.png.tmp'\nset title 'State of health: the estimate beside the cycler'\n"
       "set ylabel 'capacity / first capacity'\n"
       "plot 'aging.csv' using 1:6 skip 1 with points pt 7 ps 0.5 title 'cycler: discharge capacity', "
       "'' using 1:4 skip 1 with lines lw 2 title 'estimate: capacity_ah', "
-      "'' using 1:13 skip 1 with lines lw 1 dt 2 title 'counted charge'\n"
+      "'' using 1:13 skip 1 with lines lw 1 dt 2 title 'counted charge'\n";
+  const std::string gp =
+      "# Made by bmssim estimate; run in this folder: gnuplot plots.gp\n"
+      "set datafile separator ','\nset datafile missing ''\nset terminal pngcairo size 1100,700 noenhanced\nset grid\n"
+      "set key top right\nset xlabel 'cycle'\n" +
+      (any_soh ? capacity_gp : std::string()) +
       "set output 'resistance.png.tmp'\nset title 'Resistance growth since the first compared charge'\n"
       "set ylabel 'growth (ohm)'\n"
       "plot 'aging.csv' using 1:10 skip 1 with points pt 7 ps 0.5 title 'cycler: internal resistance', "
@@ -186,7 +197,9 @@ std::string write_aging_outputs(const std::filesystem::path& dir, const AgingCom
   GnuplotOptions g;
   g.working_dir = dir;
   std::string problem;
-  commit_plots(dir, {"capacity.png", "resistance.png"}, run_gnuplot("plots.gp", g), problem);
+  std::vector<std::string> plots{"resistance.png"};
+  if (any_soh) plots.insert(plots.begin(), "capacity.png");
+  commit_plots(dir, plots, run_gnuplot("plots.gp", g), problem);
   return problem.empty() ? problem : problem + ": no plots";
 }
 
