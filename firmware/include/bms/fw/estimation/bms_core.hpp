@@ -179,7 +179,8 @@ class BmsCore {
     //                    rejected or missing sample keeps every state and counts towards staleness
     //   2 catch-up       accept_sample(): the measured temperature to the model (take_temperature());
     //                    the model steps over the ticks missed since the last accepted sample
-    //                    (catch_up()); the power-up re-synchronisation window opens
+    //                    (catch_up(); a gap over power_cycle_after_ticks at rest); the power-up
+    //                    re-synchronisation window opens (also after such a gap)
     //   3 detect mode    ModeDetector::update(): debounced operating mode
     //   4 learning gate  open_gate(): LearningGate (CC charge, warm-up, the path ready; at the
     //                    window's start the path is told: RCSI is reset), the path's BiasCalibration
