@@ -6,15 +6,15 @@ if(NOT CMAKE_CROSSCOMPILING)
   # The reference: the same source with the firmware in double (and in float, to separate the
   # board's libm from float itself).
   foreach(suffix "" _float)
-    add_executable(bms_m4f_blind_host${suffix} m4f_blind_main.cpp)
+    add_executable(bms_m4f_blind_host${suffix} m4f_blind_main.cpp platform_host.cpp)
     target_include_directories(bms_m4f_blind_host${suffix} PRIVATE ${bms_m4f_gen})
-    target_link_libraries(bms_m4f_blind_host${suffix} PRIVATE bms_fw_tick_host${suffix} bms_warnings)
+    target_link_libraries(bms_m4f_blind_host${suffix} PRIVATE bms_fw_tick_host${suffix} bms_hal_iface bms_warnings)
     add_dependencies(bms_m4f_blind_host${suffix} bms_fw_source_hash)
   endforeach()
   return()
 endif()
 
-bms_board_image(bms_m4f_blind m4f_blind_main.cpp)
+bms_board_image(bms_m4f_blind m4f_blind_main.cpp platform_mps2.cpp)
 target_include_directories(bms_m4f_blind PRIVATE ${bms_m4f_gen})
 target_compile_definitions(bms_m4f_blind PRIVATE BMS_TARGET_BOARD="${BMS_QEMU_MACHINE}")
 target_link_libraries(bms_m4f_blind PRIVATE bms_fw_tick bms_board_stdio bms_board_mps2 bms_warnings)
