@@ -92,9 +92,11 @@ struct RunTotals {
   unsigned long worst_tick = 0u;
   unsigned worst_mode = 0u;
   std::uint64_t worst_by_mode[kModes] = {};
+  std::uint64_t total_instructions = 0u;
 };
 
 void count_cost(std::uint64_t instructions, unsigned long k, unsigned mode, RunTotals& totals) {
+  totals.total_instructions += instructions;
   if (mode < kModes && instructions > totals.worst_by_mode[mode]) totals.worst_by_mode[mode] = instructions;
   if (instructions <= totals.worst_instructions) return;
   totals.worst_instructions = instructions;
@@ -145,6 +147,8 @@ void print_summary(const bms::target::ReplayFirmware& fw, const RunTotals& total
       std::printf("# worst_tick_instructions_mode%u %lu\n", m, static_cast<unsigned long>(totals.worst_by_mode[m]));
     }
   }
+  std::printf("# mean_tick_instructions %lu\n",
+              static_cast<unsigned long>(done != 0u ? totals.total_instructions / done : 0u));
   std::printf("# counter_overhead_instructions %lu\n", static_cast<unsigned long>(counter_overhead));
 }
 

@@ -16,7 +16,7 @@ float_check.py scores both against the truth.
   m4f_blind.py --bmssim EXE --host-exe EXE --image ELF --out DIR [--qemu EXE] [--machine M]
                [--host-float-exe EXE] [--truths 10] [--cycles 5] [--seed 1] [--max-ticks N]
                [--noise-v-mv 0.2] [--noise-t-k 0] [--temperature-k K] [--effect NAME=VALUE]...
-               [--no-temperature] [--limit-pct 0.5] [--tick-limit 300000] [--estimate-check]
+               [--no-temperature] [--limit-pct 0.5] [--tick-limit 300000] [--estimate-check] [--keep]
 
 The 0.5 % (--limit-pct), per truth, M4F against the host's double build:
   - film estimate: relative difference |f/d - 1|, median over the CC-charge ticks and at the
@@ -300,9 +300,12 @@ def one_truth(a, k, params):
                 "simulate_s": sim_s, "run_s": times, "qemu_ms_per_1000_ticks": times["m4f"] / ticks * 1e6,
                 "temperature_meas_k": temperature_range(os.path.join(d, "truth.csv"), ticks)})
     if a.estimate_check:
-        res["vs_estimate"] = estimate_check(a, d, runs["double"][0])
+        res["vs_estimate"] = e = estimate_check(a, d, runs["double"][0])
+        if e["film_identical_ticks"] != e["ticks"]:
+            res["failures"].append(f"host double vs bmssim estimate: film identical in {e['film_identical_ticks']} "
+                                   f"of {e['ticks']} ticks (max {e['film_max_rel_diff_pct']:.3g} %)")
     for name in ("truth.csv", "measured.bin", "m4f.txt", "double.txt", "host_float.txt"):
-        if os.path.exists(os.path.join(d, name)):
+        if not a.keep and os.path.exists(os.path.join(d, name)):
             os.remove(os.path.join(d, name))  # tens of MB per truth; the scores are kept
     return res
 
@@ -359,7 +362,9 @@ def parse_args():
     ap.add_argument("--limit-pct", type=float, default=0.5)
     ap.add_argument("--tick-limit", type=int, default=300000, help="the board's costliest tick (instructions)")
     ap.add_argument("--estimate-check", action="store_true",
-                    help="compare the host double replay with `bmssim estimate` of the same truth")
+                    help="compare the host double replay with `bmssim estimate` of the same truth (fails unless "
+                         "the film is identical at every tick)")
+    ap.add_argument("--keep", action="store_true", help="keep truth.csv, measured.bin and the runs' outputs")
     return ap.parse_args()
 
 
