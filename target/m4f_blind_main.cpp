@@ -123,13 +123,10 @@ void tick_and_print(bms::target::ReplayFirmware& fw, const MeasuredSample& s, un
   totals.finite = totals.finite && std::isfinite(out.r_film_est_ohm_m2) && std::isfinite(out.growth_gain);
 }
 
-// Unpacks `got` samples of `fields` doubles each (BMSMEAS1: no temperature).
-void unpack(const double* raw, std::size_t got, std::size_t fields, MeasuredSample* out) {
-  for (std::size_t n = 0; n < got; ++n) {
-    out[n].voltage_v = raw[n * fields];
-    out[n].current_a = raw[n * fields + 1u];
-    out[n].temperature_k = fields > 2u ? raw[n * fields + 2u] : 0.0;
-  }
+// Sample n of a chunk of `fields` doubles per sample (BMSMEAS1: no temperature).
+MeasuredSample sample_at(const double* raw, std::size_t n, std::size_t fields) {
+  const double* p = raw + n * fields;
+  return {p[0], p[1], fields > 2u ? p[2] : 0.0};
 }
 
 void print_summary(const bms::target::ReplayFirmware& fw, const RunTotals& totals, unsigned long done, long count,
@@ -150,6 +147,7 @@ void print_summary(const bms::target::ReplayFirmware& fw, const RunTotals& total
   std::printf("# mean_tick_instructions %lu\n",
               static_cast<unsigned long>(done != 0u ? totals.total_instructions / done : 0u));
   std::printf("# counter_overhead_instructions %lu\n", static_cast<unsigned long>(counter_overhead));
+  std::printf("# firmware_state_bytes %u\n", static_cast<unsigned>(sizeof(fw)));
 }
 
 // Streams the file through the tick in chunks. Exit status: 0, 1 (non-finite estimate or a
@@ -168,7 +166,6 @@ int run(const char* path) {
   const std::uint64_t c1 = bms::target::platform_instructions();
   static bms::target::ReplayFirmware fw;  // static: the firmware's state is RAM, not stack
   static double raw[kChunkSamples * kMaxFields];
-  static MeasuredSample chunk[kChunkSamples];
   std::printf("# scalar %s\n", sizeof(Scalar) == sizeof(double) ? "double" : "float");
   std::printf("# source_hash %s\n", BMS_FW_SOURCE_HASH);
   std::printf("# format %s\n", header.fields == 3u ? "BMSMEAS2" : "BMSMEAS1");
@@ -180,8 +177,7 @@ int run(const char* path) {
                                  ? static_cast<std::size_t>(static_cast<unsigned long>(count) - done)
                                  : kChunkSamples;
     const std::size_t got = std::fread(raw, sizeof raw[0] * header.fields, want, in);
-    unpack(raw, got, header.fields, chunk);
-    for (std::size_t n = 0; n < got; ++n, ++done) tick_and_print(fw, chunk[n], done, totals);
+    for (std::size_t n = 0; n < got; ++n, ++done) tick_and_print(fw, sample_at(raw, n, header.fields), done, totals);
     if (got != want) break;
   }
   std::fclose(in);
