@@ -47,6 +47,7 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import float_blind  # noqa: E402  (the truths' draw)
+import float_check  # noqa: E402  (relative differences)
 
 CC_CHARGE = 3
 MAGIC_VI = b"BMSMEAS1"    # voltage, current
@@ -127,7 +128,7 @@ def charge_ends(m4f, dbl, truth_film, cycles):
         if b[1] == CC_CHARGE and (k + 1 == len(dbl) or dbl[k + 1][1] != CC_CHARGE):
             f, d, t = m4f[k][3], b[3], truth_film[k]
             ends.append({"tick": k, "cycle": cycles[k], "film_m4f": f, "film_double": d, "film_truth": t,
-                         "film_rel_diff_pct": abs(f / d - 1) * 100, "film_err_m4f_pct": abs(f / t - 1) * 100,
+                         "film_rel_diff_pct": float_check.rel_pct(f, d), "film_err_m4f_pct": abs(f / t - 1) * 100,
                          "film_err_double_pct": abs(d / t - 1) * 100, "gain_m4f": m4f[k][4], "gain_double": b[4]})
     return ends
 
@@ -143,7 +144,7 @@ def capacity_diff(m4f, dbl, truth_cap):
         if math.isnan(a[7]):
             one_sided += 1
             continue
-        rel.append(abs(a[7] / b[7] - 1) * 100)
+        rel.append(float_check.rel_pct(a[7], b[7]))
     if not rel:
         return None
     end_f, end_d, end_t = m4f[-1][7], dbl[-1][7], truth_cap[-1]
@@ -263,11 +264,11 @@ def estimate_check(a, d, dbl):
         for row, b in zip(csv.DictReader(f), dbl):
             ef, ec = float(row["r_film_est_ohm_m2"]), float(row["capacity_est_ah"])
             film_same += ef == b[3]
-            film_rel = max(film_rel, abs(b[3] / ef - 1) * 100)
+            film_rel = max(film_rel, float_check.rel_pct(b[3], ef))
             if math.isnan(b[7]):
                 continue
             cap_same += ec == b[7]
-            cap_rel = max(cap_rel, abs(b[7] / ec - 1) * 100)
+            cap_rel = max(cap_rel, float_check.rel_pct(b[7], ec))
     shutil.rmtree(out, ignore_errors=True)
     return {"film_identical_ticks": film_same, "film_max_rel_diff_pct": film_rel,
             "capacity_identical_ticks": cap_same, "capacity_max_rel_diff_pct": cap_rel, "ticks": len(dbl)}
