@@ -6,34 +6,46 @@
 // from a truth.csv's measured columns, runs both builds and scores them.
 //
 //   host:   bms_m4f_blind_host MEASURED.bin > OUT.txt
-//   board:  qemu-system-arm ... -semihosting -kernel bms_m4f_blind.elf   (reads ./measured.bin
-//           relative to QEMU's working directory: the board has no command line)
+//   board:  qemu-system-arm ... -semihosting -icount shift=0,sleep=off -kernel bms_m4f_blind.elf
+//           (reads ./measured.bin relative to QEMU's working directory: the board has no
+//           command line)
 //
-// Input (little-endian): 8 bytes "BMSMEAS1", uint32 sample count, uint32 0, then per sample
-// the measured voltage [V] and current [A, positive on discharge] as two IEEE doubles; each
-// is rounded to the build's scalar as the host tools round a truth.csv's text.
+// Input (little-endian): 8 bytes of format name, uint32 sample count, uint32 0, then per sample
+//   BMSMEAS1: the measured voltage [V] and current [A, positive on discharge], two IEEE doubles;
+//   BMSMEAS2: the same and the measured cell temperature [K] (a truth.csv's temperature_meas_k),
+//             three IEEE doubles.
+// Each value is rounded to the build's scalar as the host tools round a truth.csv's text. The
+// temperature goes to the tick as `bmssim estimate` passes it (TickInput::temperature_k); a
+// BMSMEAS1 file, or a 0 in a BMSMEAS2 sample, passes none (the model stays at the last accepted
+// temperature, at power-up the cell's reference temperature).
 // Output: "# columns", one line per tick with the estimates as hexadecimal bit patterns (exact,
-// and cheap to print on a board without double hardware), "# name value" summary lines.
+// and cheap to print on a board without double hardware), "# name value" summary lines; on the
+// board (QEMU -icount shift=0) the costliest tick's instructions overall and per mode (0 on
+// the host).
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
 
 #include "fw_source_hash.hpp"
+#include "platform.hpp"
 #include "replay_tick.hpp"
 
 namespace {
 
 using bms::target::Scalar;
 
-constexpr char kMagic[8] = {'B', 'M', 'S', 'M', 'E', 'A', 'S', '1'};
-constexpr std::size_t kChunkSamples = 128u;  // 2 KiB per read: few semihosting calls, small RAM
+constexpr char kMagicVi[8] = {'B', 'M', 'S', 'M', 'E', 'A', 'S', '1'};   // voltage, current
+constexpr char kMagicVit[8] = {'B', 'M', 'S', 'M', 'E', 'A', 'S', '2'};  // and temperature
+constexpr std::size_t kMaxFields = 3u;
+constexpr std::size_t kChunkSamples = 128u;  // 3 KiB per read at most: few semihosting calls, small RAM
+constexpr unsigned kModes = 8u;              // bms::fw::Mode's values fit below
 
 struct MeasuredSample {
   double voltage_v;
   double current_a;
+  double temperature_k;  // 0: none measured
 };
-static_assert(sizeof(MeasuredSample) == 16u, "two packed doubles per sample");
 
 // The value's bit pattern in hexadecimal: 8 digits for float, 16 for double.
 void put_bits(Scalar v) {
@@ -49,35 +61,93 @@ void put_bits(Scalar v) {
   }
 }
 
-// Reads the header; returns the sample count, or -1 after printing why.
-long read_header(std::FILE* in, const char* path) {
+struct Header {
+  long count = -1;         // -1: not a measured-samples file
+  std::size_t fields = 0;  // doubles per sample: 2 (BMSMEAS1) or 3 (BMSMEAS2)
+};
+
+// Reads the header; count -1 after printing why.
+Header read_header(std::FILE* in, const char* path) {
   char magic[8];
   std::uint32_t words[2];
-  if (std::fread(magic, 1, sizeof magic, in) != sizeof magic || std::memcmp(magic, kMagic, sizeof magic) != 0 ||
-      std::fread(words, sizeof words[0], 2, in) != 2u) {
-    std::printf("# error %s: not a BMSMEAS1 file\n", path);
-    return -1;
+  Header h;
+  if (std::fread(magic, 1, sizeof magic, in) == sizeof magic && std::fread(words, sizeof words[0], 2, in) == 2u) {
+    if (std::memcmp(magic, kMagicVi, sizeof magic) == 0) h.fields = 2u;
+    if (std::memcmp(magic, kMagicVit, sizeof magic) == 0) h.fields = 3u;
   }
-  return static_cast<long>(words[0]);
+  if (h.fields == 0u || words[1] != 0u) {
+    std::printf("# error %s: not a BMSMEAS1 or BMSMEAS2 file\n", path);
+    return h;
+  }
+  h.count = static_cast<long>(words[0]);
+  return h;
 }
 
 struct RunTotals {
   std::uint32_t status_or = 0u;
   std::uint32_t cap_hits = 0u;
+  std::uint32_t temperature_refused = 0u;
   bool finite = true;
+  std::uint64_t worst_instructions = 0u;  // the costliest tick (board only)
+  unsigned long worst_tick = 0u;
+  unsigned worst_mode = 0u;
+  std::uint64_t worst_by_mode[kModes] = {};
+  std::uint64_t total_instructions = 0u;
 };
 
+void count_cost(std::uint64_t instructions, unsigned long k, unsigned mode, RunTotals& totals) {
+  totals.total_instructions += instructions;
+  if (mode < kModes && instructions > totals.worst_by_mode[mode]) totals.worst_by_mode[mode] = instructions;
+  if (instructions <= totals.worst_instructions) return;
+  totals.worst_instructions = instructions;
+  totals.worst_tick = k;
+  totals.worst_mode = mode;
+}
+
 void tick_and_print(bms::target::ReplayFirmware& fw, const MeasuredSample& s, unsigned long k, RunTotals& totals) {
-  const auto out = bms::target::replay_tick(fw, static_cast<Scalar>(s.voltage_v), static_cast<Scalar>(s.current_a));
+  const std::uint64_t t0 = bms::target::platform_instructions();
+  const auto out = bms::target::replay_tick(fw, static_cast<Scalar>(s.voltage_v), static_cast<Scalar>(s.current_a),
+                                            static_cast<Scalar>(s.temperature_k));
+  const std::uint64_t t1 = bms::target::platform_instructions();
   std::printf("%lu %u %u", k, static_cast<unsigned>(out.mode), out.rcsi_active ? 1u : 0u);
   put_bits(out.r_film_est_ohm_m2);
   put_bits(out.growth_gain);
   put_bits(out.inventory_deviation);
   put_bits(out.z_v);
+  put_bits(out.capacity_ah);
   std::printf("\n");
+  count_cost(t1 - t0, k, static_cast<unsigned>(out.mode), totals);
   totals.status_or |= out.status;
   if (bms::fw::has_status(out.status, bms::fw::FwStatus::kModelNotConverged)) ++totals.cap_hits;
+  if (bms::fw::has_status(out.status, bms::fw::FwStatus::kTemperatureImplausible)) ++totals.temperature_refused;
   totals.finite = totals.finite && std::isfinite(out.r_film_est_ohm_m2) && std::isfinite(out.growth_gain);
+}
+
+// Sample n of a chunk of `fields` doubles per sample (BMSMEAS1: no temperature).
+MeasuredSample sample_at(const double* raw, std::size_t n, std::size_t fields) {
+  const double* p = raw + n * fields;
+  return {p[0], p[1], fields > 2u ? p[2] : 0.0};
+}
+
+void print_summary(const bms::target::ReplayFirmware& fw, const RunTotals& totals, unsigned long done, long count,
+                   std::uint64_t counter_overhead) {
+  std::printf("# ticks %lu of %ld\n", done, count);
+  std::printf("# resyncs %u\n", static_cast<unsigned>(fw.core.resync_count()));
+  std::printf("# status_or 0x%08x\n", static_cast<unsigned>(totals.status_or));
+  std::printf("# newton_cap_hits %u\n", static_cast<unsigned>(totals.cap_hits));
+  std::printf("# temperature_refused_ticks %u\n", static_cast<unsigned>(totals.temperature_refused));
+  std::printf("# temperature_k_end %.6f\n", static_cast<double>(fw.model.temperature_k()));
+  std::printf("# worst_tick_instructions %lu tick %lu mode %u\n", static_cast<unsigned long>(totals.worst_instructions),
+              totals.worst_tick, totals.worst_mode);
+  for (unsigned m = 0; m < kModes; ++m) {
+    if (totals.worst_by_mode[m] != 0u) {
+      std::printf("# worst_tick_instructions_mode%u %lu\n", m, static_cast<unsigned long>(totals.worst_by_mode[m]));
+    }
+  }
+  std::printf("# mean_tick_instructions %lu\n",
+              static_cast<unsigned long>(done != 0u ? totals.total_instructions / done : 0u));
+  std::printf("# counter_overhead_instructions %lu\n", static_cast<unsigned long>(counter_overhead));
+  std::printf("# firmware_state_bytes %u\n", static_cast<unsigned>(sizeof(fw)));
 }
 
 // Streams the file through the tick in chunks. Exit status: 0, 1 (non-finite estimate or a
@@ -88,28 +158,30 @@ int run(const char* path) {
     std::printf("# error %s: cannot open\n", path);
     return 2;
   }
-  const long count = read_header(in, path);
-  if (count < 0) return 2;
+  const Header header = read_header(in, path);
+  if (header.count < 0) return 2;
+  const long count = header.count;
+  bms::target::platform_start();
+  const std::uint64_t c0 = bms::target::platform_instructions();
+  const std::uint64_t c1 = bms::target::platform_instructions();
   static bms::target::ReplayFirmware fw;  // static: the firmware's state is RAM, not stack
-  static MeasuredSample chunk[kChunkSamples];
+  static double raw[kChunkSamples * kMaxFields];
   std::printf("# scalar %s\n", sizeof(Scalar) == sizeof(double) ? "double" : "float");
   std::printf("# source_hash %s\n", BMS_FW_SOURCE_HASH);
-  std::printf("# columns tick mode active r_film gain nu z\n");
+  std::printf("# format %s\n", header.fields == 3u ? "BMSMEAS2" : "BMSMEAS1");
+  std::printf("# columns tick mode active r_film gain nu z capacity\n");
   RunTotals totals;
   unsigned long done = 0u;
   while (done < static_cast<unsigned long>(count)) {
     const std::size_t want = static_cast<unsigned long>(count) - done < kChunkSamples
                                  ? static_cast<std::size_t>(static_cast<unsigned long>(count) - done)
                                  : kChunkSamples;
-    const std::size_t got = std::fread(chunk, sizeof chunk[0], want, in);
-    for (std::size_t n = 0; n < got; ++n, ++done) tick_and_print(fw, chunk[n], done, totals);
+    const std::size_t got = std::fread(raw, sizeof raw[0] * header.fields, want, in);
+    for (std::size_t n = 0; n < got; ++n, ++done) tick_and_print(fw, sample_at(raw, n, header.fields), done, totals);
     if (got != want) break;
   }
   std::fclose(in);
-  std::printf("# ticks %lu of %ld\n", done, count);
-  std::printf("# resyncs %u\n", static_cast<unsigned>(fw.core.resync_count()));
-  std::printf("# status_or 0x%08x\n", static_cast<unsigned>(totals.status_or));
-  std::printf("# newton_cap_hits %u\n", static_cast<unsigned>(totals.cap_hits));
+  print_summary(fw, totals, done, count, c1 - c0);
   return totals.finite && done == static_cast<unsigned long>(count) ? 0 : 1;
 }
 

@@ -28,6 +28,10 @@ TickOutput replay_tick(ReplayFirmware& fw, Scalar voltage_v, Scalar current_a) {
   return fw.core.tick({voltage_v, current_a, true});
 }
 
+TickOutput replay_tick(ReplayFirmware& fw, Scalar voltage_v, Scalar current_a, Scalar temperature_k) {
+  return fw.core.tick({voltage_v, current_a, true, temperature_k});
+}
+
 bms::fw::ModelTickResult<Scalar> newton_cap_probe(const ReplayFirmware& fw) {
   Model probe = fw.model;
   // 5 V: the top of the tick's plausible range, far above what the cell can show.

@@ -44,6 +44,9 @@ struct ReplayFirmware {
 /// The firmware's per-tick entry point as the application calls it: one measured sample
 /// (voltage [V], current [A], positive on discharge) in, the tick's estimates out.
 TickOutput replay_tick(ReplayFirmware& fw, Scalar voltage_v, Scalar current_a);
+/// The same with the measured cell temperature [K] (0: none measured this tick; the model keeps
+/// the last accepted one, at power-up the cell's reference temperature).
+TickOutput replay_tick(ReplayFirmware& fw, Scalar voltage_v, Scalar current_a, Scalar temperature_k);
 
 /// Bounded worst case of the tick's model step: the voltage-driven (CV) step of a copy of the
 /// model, asked for a terminal voltage it cannot reach, so that its Newton iteration runs

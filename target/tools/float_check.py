@@ -16,6 +16,7 @@ points from double's. Exit 2: bad input.
 """
 import argparse
 import json
+import math
 import statistics
 import sys
 
@@ -57,6 +58,14 @@ def read_truth(path):
             cycle.append(int(p[ic]))
             film.append(float(p[ir]))
     return cycle, film
+
+
+def rel_pct(f, d):
+    """|f - d| / |d| in percent; a film estimate may pass through 0 in a learning start's swing
+    (0 against 0: no difference; against a nonzero value: infinite)."""
+    if d == 0.0:
+        return 0.0 if f == 0.0 else math.inf
+    return abs(f - d) / abs(d) * 100.0
 
 
 def cycle_errors(est, truth, mode, cycle):
@@ -103,11 +112,11 @@ def main():
         return 2
     mode = [int(m) for m in run["mode_d"]]
     rf, rd = run["r_film_f"], run["r_film_d"]
-    rel = [abs(f - d) / abs(d) * 100.0 for f, d, m in zip(rf, rd, mode) if m == CC_CHARGE]
+    rel = [rel_pct(f, d) for f, d, m in zip(rf, rd, mode) if m == CC_CHARGE]
     per_cycle = {}
     for f, d, m, c in zip(rf, rd, mode, cycle):
         if m == CC_CHARGE:
-            per_cycle.setdefault(c, []).append(abs(f - d) / abs(d) * 100.0)
+            per_cycle.setdefault(c, []).append(rel_pct(f, d))
     res = {"run": a.run, "truth": a.truth, "ticks": len(mode), "cc_charge_ticks": len(rel),
            "mode_mismatches": sum(1 for x, y in zip(run["mode_f"], run["mode_d"]) if x != y),
            "film_float_vs_double_pct": {"median": statistics.median(rel), "max": max(rel),
