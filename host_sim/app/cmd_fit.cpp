@@ -43,7 +43,7 @@ constexpr double kResyncRestS = 1200.0;
 constexpr double kWindowMarginV = 5e-3;
 // The positive OCP correction's knots unless --ocp-knots says otherwise (docs/results/aging.md:
 // how this number was chosen on training cycles only).
-constexpr int kDefaultOcpKnots = 6;
+constexpr int kDefaultOcpKnots = 8;
 
 struct FitOptions {
   std::vector<std::string> data;
