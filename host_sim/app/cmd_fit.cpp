@@ -41,6 +41,9 @@ constexpr double kResyncGapS = 3600.0;
 constexpr double kResyncRestS = 1200.0;
 // The fitted cell's voltage window: the template's unless the data go beyond it by more than this.
 constexpr double kWindowMarginV = 5e-3;
+// The positive OCP correction's knots unless --ocp-knots says otherwise (docs/results/aging.md:
+// how this number was chosen on training cycles only).
+constexpr int kDefaultOcpKnots = 8;
 
 struct FitOptions {
   std::vector<std::string> data;
@@ -52,6 +55,7 @@ struct FitOptions {
   int points = 20, radial = 20, search_points = 8, search_radial = 8;
   double rtol = 1e-6;
   int max_iterations = 12;
+  int ocp_knots = kDefaultOcpKnots;
   bool quiet = false;
 };
 
@@ -163,6 +167,7 @@ std::string command_line(const FitOptions& o) {
     s += fmt::format(" --search-points {} --search-radial {}", o.search_points, o.search_radial);
   if (o.rtol != 1e-6) s += fmt::format(" --rtol {}", o.rtol);
   if (o.max_iterations != 12) s += fmt::format(" --max-iterations {}", o.max_iterations);
+  if (o.ocp_knots != kDefaultOcpKnots) s += fmt::format(" --ocp-knots {}", o.ocp_knots);
   return s + " --out " + o.out;
 }
 
@@ -386,6 +391,17 @@ int run_fit(const FitOptions& o) {
   const CellParameters template_cell = load_cell(o.templ == "lfp" ? template_source : o.templ);
   diagnosis::CellFitSettings settings;
   parse_parameter_list(o.parameters, settings);
+  if (o.ocp_knots == 1 || o.ocp_knots < 0 || o.ocp_knots > diagnosis::kMaxOcpKnots)
+    throw InputError(fmt::format("--ocp-knots {}: must be 0 (no open-circuit correction) or 2..{}", o.ocp_knots,
+                                 diagnosis::kMaxOcpKnots));
+  for (const auto& n : settings.only) {
+    const bool knot = n.rfind("ocp_correction", 0) == 0;
+    const int index = knot && n.size() > 15 ? std::atoi(n.c_str() + 15) : 0;
+    if (knot && (o.ocp_knots == 0 || index > o.ocp_knots))
+      throw InputError(fmt::format("--parameters {}: --ocp-knots {} has no such knot (give --ocp-knots 2..{})", n,
+                                   o.ocp_knots, diagnosis::kMaxOcpKnots));
+  }
+  settings.ocp_knots = o.ocp_knots;
   const CurrentSign sign = current_sign_option(o.current_sign);
   for (const auto& d : o.data)
     if (!std::filesystem::exists(d)) throw InputError("--data " + d + ": no such file or folder");
@@ -441,9 +457,10 @@ Runner add_fit(CLI::App& app) {
   auto* sub = app.add_subcommand(
       "fit",
       "Fit a cell's parameters to its cycler data, starting from a template: the electrode balance (capacity and "
-      "stoichiometry windows), series resistance, solid diffusivities, kinetics and electrolyte conductivity, each "
-      "only where the data identify it (with its standard error); the rest keep the template's values. Writes "
-      "cell.bpx.json (for any --cell), summary.json, fit.csv and plots");
+      "stoichiometry windows), series resistance, solid diffusivities, kinetics, electrolyte conductivity and (by "
+      "default) a correction to the positive electrode's open-circuit potential, each only where the data identify "
+      "it (with its standard error); the rest keep the template's values. Writes cell.bpx.json (for any --cell), "
+      "summary.json, fit.csv and plots");
   auto o = std::make_shared<FitOptions>();
   sub->add_option("--data", o->data,
                   "Measured data: a cycler export (Arbin, Maccor, Neware, BioLogic, NASA), a folder of one cell's "
@@ -475,6 +492,12 @@ Runner add_fit(CLI::App& app) {
   sub->add_option("--rtol", o->rtol, "IDA relative tolerance")->capture_default_str();
   sub->add_option("--max-iterations", o->max_iterations, "Levenberg-Marquardt iterations per round")
       ->capture_default_str()->check(CLI::Range(1, 200));
+  sub->add_option("--ocp-knots", o->ocp_knots,
+                  "Knots of the additive correction to the positive electrode's OCP (piecewise linear in its "
+                  "stoichiometry, evenly over the template's window; each knot a parameter in volts, in --parameters "
+                  "as ocp_correction or ocp_correction_N): 0 = the template's OCP as it is, or 2..8. On by default: "
+                  "a template's OCP is another cell's and its error does not fit into any resistance")
+      ->capture_default_str();
   sub->add_flag("--quiet", o->quiet, "No progress output");
   sub->footer(
       "Exit codes: 0 fitted cell written, 1 runtime failure, 2 bad input.\n"

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Integration test: `bmssim fit` refuses bad input at once: exit code 2, one line naming the
 # option or file, no summary.json (unknown template, paper template, missing file, a record with
-# no current, bad --train-cycles, cycles that hold no data, an unknown --parameters name).
+# no current, bad --train-cycles, cycles that hold no data, an unknown --parameters name, an
+# --ocp-knots count out of 0 or 2..8, knots asked for in --parameters that --ocp-knots has not).
 #
 # Usage: fit_bad_input_test.sh BMSSIM
 set -u
@@ -31,6 +32,12 @@ expect_bad empty_cycles '--train-cycles.*0 training samples' --data syn/truth.cs
 expect_bad heldout_without_train '--heldout-cycles' --data syn/truth.csv --data syn/truth.csv --template lco --heldout-cycles 2
 expect_bad unknown_parameter '--parameters.*nosuch' --data syn/truth.csv --template lco --parameters nosuch
 expect_bad bad_rtol '--rtol' --data syn/truth.csv --template lco --rtol 1
+expect_bad one_knot '--ocp-knots 1' --data syn/truth.csv --template lco --ocp-knots 1
+expect_bad too_many_knots '--ocp-knots 9' --data syn/truth.csv --template lco --ocp-knots 9
+expect_bad knots_off_but_asked '--parameters ocp_correction.*--ocp-knots 0' --data syn/truth.csv --template lco \
+  --ocp-knots 0 --parameters electrode_area_m2,ocp_correction
+expect_bad knot_beyond_count '--parameters ocp_correction_7.*--ocp-knots 6' --data syn/truth.csv --template lco \
+  --ocp-knots 6 --parameters ocp_correction_7
 
 echo "# $PASSED passed, $FAILED failed"
 [ "$FAILED" -eq 0 ]

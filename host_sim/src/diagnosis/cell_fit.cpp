@@ -4,13 +4,16 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
+#include <memory>
 
 #include "diagnosis/diagnose.hpp"
 #include "diagnosis/model_run.hpp"
 #include "io/bpx_reader.hpp"
 #include "io/input_error.hpp"
+#include "io/table_function.hpp"
 
 namespace bms::diagnosis {
 
@@ -18,7 +21,8 @@ namespace {
 
 constexpr double kStoichEdge = 1e-3;
 
-// One parameter fit may move. Log knobs: z = ln(value / template value); the x100 knob: z = value.
+// One parameter fit may move. Log knobs: z = ln(value / template value); the x100 knob: z = value;
+// the open-circuit correction's knots (after the named knobs): z = the correction in volts.
 enum class Knob {
   electrode_area,
   positive_capacity,
@@ -30,7 +34,10 @@ enum class Knob {
   rate_positive,
   conductivity,
 };
-constexpr int kKnobs = 9;
+constexpr int kNamedKnobs = 9;
+constexpr int kKnobs = kNamedKnobs + kMaxOcpKnots;
+constexpr int kFirstKnot = kNamedKnobs;
+bool is_knot(int k) { return k >= kFirstKnot; }
 // Bounded sizes throughout: the host links the firmware's EIGEN_NO_MALLOC, so no Eigen object
 // here may allocate. z holds every knob; the Jacobian is columns of std::vector (one a knob).
 using ZVec = Eigen::Matrix<double, kKnobs, 1>;
@@ -78,7 +85,13 @@ struct KnobInfo {
 };
 
 const KnobInfo& info(Knob k) {
-  static const KnobInfo table[kKnobs] = {
+  static const std::array<std::string, kMaxOcpKnots> knot_names = [] {
+    std::array<std::string, kMaxOcpKnots> n;
+    for (int i = 0; i < kMaxOcpKnots; ++i) n[static_cast<std::size_t>(i)] = fmt::format("ocp_correction_{}", i + 1);
+    return n;
+  }();
+  static const std::array<KnobInfo, kKnobs> table = [] {
+    std::array<KnobInfo, kKnobs> t{{
       {"electrode_area_m2", "m2", "Cell.Electrode area: both electrodes' capacity (and every resistance per area)",
        true, std::log(0.3), std::log(4.0), 0.01, 0.3},
       {"positive_max_concentration_mol_m3", "mol/m3",
@@ -102,8 +115,16 @@ const KnobInfo& info(Knob k) {
        std::log(1e-3), std::log(1e3), 0.08, 1.5},
       {"electrolyte_conductivity_scale", "-", "Electrolyte.Conductivity: factor on kappa(c_e)", true, std::log(0.05),
        std::log(20.0), 0.08, 1.5},
-  };
-  return table[static_cast<int>(k)];
+  }};
+    for (int i = 0; i < kMaxOcpKnots; ++i)
+      t[static_cast<std::size_t>(kFirstKnot + i)] = {
+          knot_names[static_cast<std::size_t>(i)].c_str(), "V",
+          "Positive electrode.OCP: additive correction at this knot (piecewise linear in the positive "
+          "stoichiometry between knots, constant beyond the end knots)",
+          false, -0.3, 0.3, 0.005, 0.05};
+    return t;
+  }();
+  return table[static_cast<std::size_t>(k)];
 }
 
 // A number, an expression or a table ({"x":..,"y":..}) times f.
@@ -157,11 +178,12 @@ struct Balance {
 };
 
 // The electrode balance at the voltage window for electrode capacities qn, qp (Ah) and the
-// negative stoichiometry x100 at v_max.
-Balance balance(const CellParameters& c, double qn, double qp, double x100, double v_min, double v_max) {
+// negative stoichiometry x100 at v_max; `correction` (if any) is added to the positive's OCP.
+Balance balance(const CellParameters& c, double qn, double qp, double x100, double v_min, double v_max,
+                const ScalarFunction* correction = nullptr) {
   Balance b;
   auto un = [&](double x) { return c.negative.ocp_v->value(x); };
-  auto up = [&](double y) { return c.positive.ocp_v->value(y); };
+  auto up = [&](double y) { return c.positive.ocp_v->value(y) + (correction ? correction->value(y) : 0.0); };
   const double target = v_max + un(x100);
   auto fy = [&](double y) { return target - up(y); };  // up falls with y
   const double ylo = kStoichEdge, yhi = 1.0 - kStoichEdge;
@@ -177,6 +199,44 @@ Balance balance(const CellParameters& c, double qn, double qp, double x100, doub
   b.capacity_ah = (x100 - b.x0) * qn;
   b.ok = std::isfinite(b.capacity_ah) && b.capacity_ah > 0;
   return b;
+}
+
+// The piecewise-linear function through (x_k, y_k), constant beyond the ends, as a BPX expression
+// (exactly: c + sum_k w_k |x - x_k| with w_k half the change of slope at knot k).
+std::string piecewise_linear_expression(const std::vector<double>& x, const std::vector<double>& y) {
+  const std::size_t n = x.size();
+  std::vector<double> slope(n + 1, 0.0);  // slope[k]: left of knot k; slope[n]: right of the last
+  for (std::size_t k = 1; k < n; ++k) slope[k] = (y[k] - y[k - 1]) / (x[k] - x[k - 1]);
+  double c = y[0];
+  std::string terms;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double w = 0.5 * (slope[k + 1] - slope[k]);
+    c -= w * (x[k] - x[0]);
+    terms += fmt::format(" + ({:.17g}) * abs(x - {:.17g})", w, x[k]);
+  }
+  return fmt::format("({:.17g}){}", c, terms);
+}
+
+// The template's OCP (a number, an expression or a table) plus the correction, exactly: a table
+// on the union of its points and the knots, otherwise an expression.
+void add_ocp_correction(nlohmann::json& v, const TableFunction& correction) {
+  const std::string corr = piecewise_linear_expression(correction.x(), correction.y());
+  if (v.is_number()) {
+    v = fmt::format("{:.17g} + {}", v.get<double>(), corr);
+  } else if (v.is_string()) {
+    v = fmt::format("({}) + {}", v.get<std::string>(), corr);
+  } else if (v.is_object() && v.contains("x") && v.contains("y")) {
+    const TableFunction base(v["x"].get<std::vector<double>>(), v["y"].get<std::vector<double>>(), "template OCP");
+    std::vector<double> xs = base.x();
+    xs.insert(xs.end(), correction.x().begin(), correction.x().end());
+    std::sort(xs.begin(), xs.end());
+    xs.erase(std::unique(xs.begin(), xs.end()), xs.end());
+    std::vector<double> ys;
+    for (double x : xs) ys.push_back(base.value(x) + correction.value(x));
+    v = {{"x", xs}, {"y", ys}};
+  } else {
+    throw InputError("template: field 'Positive electrode.OCP [V]' is neither a number, an expression nor a table");
+  }
 }
 
 class Problem {
@@ -212,6 +272,15 @@ class Problem {
       throw InputError(fmt::format("--template {}: its open-circuit curves have no state at the data's voltage "
                                    "window {:.3f}-{:.3f} V; give --template a cell for this chemistry",
                                    name, s_.v_min, s_.v_max));
+    // The correction's knots: evenly over the positive's window of the template at the data's voltages.
+    if (s_.ocp_knots >= 2) {
+      const nlohmann::json& ocp = tmpl_.at("Parameterisation").at("Positive electrode").value("OCP [V]", nlohmann::json());
+      if (!(ocp.is_number() || ocp.is_string() || (ocp.is_object() && ocp.contains("x") && ocp.contains("y"))))
+        throw InputError("--ocp-knots: the template has no 'Positive electrode.OCP [V]' number, expression or table "
+                         "to correct");
+      for (int i = 0; i < s_.ocp_knots; ++i)
+        knot_y_.push_back(check.y100 + (check.y0 - check.y100) * i / (s_.ocp_knots - 1));
+    }
     template_values_ = {
         number_of(field(tmpl_, "Cell", "Electrode area [m2]"), "Cell.Electrode area [m2]"),
         number_of(field(tmpl_, "Positive electrode", "Maximum concentration [mol.m-3]"),
@@ -223,6 +292,7 @@ class Problem {
         number_or_nan("Negative electrode", "Reaction rate constant [mol.m-2.s-1]"),
         number_or_nan("Positive electrode", "Reaction rate constant [mol.m-2.s-1]"),
         1.0};
+    template_values_.resize(kKnobs, 0.0);  // the open-circuit correction: none
     if (!base_.side.enabled) notes_.push_back("the template has no side reaction: the series film is not fitted");
   }
 
@@ -247,6 +317,8 @@ class Problem {
   const std::vector<std::string>& notes() const { return notes_; }
   const CellParameters& base() const { return base_; }
   bool has_film() const { return base_.side.enabled; }
+  int knot_count() const { return static_cast<int>(knot_y_.size()); }
+  double knot_y(int i) const { return knot_y_[static_cast<std::size_t>(i)]; }
 
   // The candidate cell as BPX JSON; ok = false when the electrode balance has no solution.
   nlohmann::json bpx(const ZVec& z, Balance& b) const {
@@ -270,7 +342,20 @@ class Problem {
           base_.side.initial_film_resistance_ohm_m2 * f(Knob::series_film);
     const double qn = qn0_ * f(Knob::electrode_area);
     const double qp = qp0_ * f(Knob::electrode_area) * f(Knob::positive_capacity);
-    b = balance(base_, qn, qp, z[static_cast<int>(Knob::negative_stoich_full)], s_.v_min, s_.v_max);
+    // The open-circuit correction (none written while every knot is zero: the template's OCP as it was).
+    std::vector<double> knots;
+    bool any = false;
+    for (std::size_t i = 0; i < knot_y_.size(); ++i) {
+      knots.push_back(z[kFirstKnot + static_cast<int>(i)]);
+      any = any || knots.back() != 0.0;
+    }
+    std::unique_ptr<TableFunction> correction;
+    if (any) {
+      correction = std::make_unique<TableFunction>(knot_y_, knots, "the open-circuit correction");
+      add_ocp_correction(field(j, "Positive electrode", "OCP [V]"), *correction);
+    }
+    b = balance(base_, qn, qp, z[static_cast<int>(Knob::negative_stoich_full)], s_.v_min, s_.v_max,
+                correction.get());
     if (!b.ok) return j;
     field(j, "Negative electrode", "Minimum stoichiometry") = b.x0;
     field(j, "Negative electrode", "Maximum stoichiometry") = b.x100;
@@ -351,6 +436,7 @@ class Problem {
   CellParameters base_;
   double qn0_ = 0, qp0_ = 0, x100_0_ = 0;
   std::vector<double> template_values_;
+  std::vector<double> knot_y_;  // the correction's knots (positive stoichiometry)
   std::vector<std::string> notes_;
 };
 
@@ -456,7 +542,11 @@ std::vector<int> candidate_knobs(const Problem& problem, const CellFitSettings& 
   std::vector<int> candidates;
   for (int k = 0; k < kKnobs; ++k) {
     const std::string name = info(static_cast<Knob>(k)).name;
-    if (!settings.only.empty() && std::find(settings.only.begin(), settings.only.end(), name) == settings.only.end()) {
+    if (is_knot(k) && k - kFirstKnot >= problem.knot_count()) continue;  // beyond --ocp-knots
+    auto asked = [&](const std::string& n) {
+      return std::find(settings.only.begin(), settings.only.end(), n) != settings.only.end();
+    };
+    if (!settings.only.empty() && !asked(name) && !(is_knot(k) && asked("ocp_correction"))) {
       why[static_cast<std::size_t>(k)] = "not asked for (--parameters)";
       continue;
     }
@@ -489,17 +579,18 @@ std::vector<int> identifiable_knobs(Search& search, const ZVec& z, const std::ve
   std::vector<int> chosen_cols, active;
   for (const auto& [rms_mv, c] : by_norm) {
     const int k = candidates[static_cast<std::size_t>(c)];
-    const double scale = info(static_cast<Knob>(k)).log ? 1.0 : 0.01;  // per factor e; x100 per 0.01
+    // Per factor e; x100 per 0.01; an OCP knot per 0.01 V.
+    const double scale = info(static_cast<Knob>(k)).log ? 1.0 : 0.01;
     if (rms_mv * scale < settings.min_sensitivity_mv) {
       why[static_cast<std::size_t>(k)] =
           fmt::format("the voltage hardly depends on it here ({:.3g} mV RMS for {})", rms_mv * scale,
-                      info(static_cast<Knob>(k)).log ? "a factor e" : "0.01");
+                      info(static_cast<Knob>(k)).log ? "a factor e" : is_knot(k) ? "10 mV" : "0.01");
       continue;
     }
     const double col = collinearity(Jn, c, chosen_cols);
     if (col > settings.max_collinearity) {
       why[static_cast<std::size_t>(k)] =
-          fmt::format("its Jacobian column is nearly collinear with those of the parameters fitted before it (balance, series resistance, diffusion, kinetics, electrolyte in that order) (|cos| {:.4f})", col);
+          fmt::format("its Jacobian column is nearly collinear with those of the parameters fitted before it (balance, series resistance, diffusion, kinetics, electrolyte, open-circuit correction in that order) (|cos| {:.4f})", col);
       continue;
     }
     chosen_cols.push_back(c);
@@ -524,22 +615,29 @@ SmallMatrix fit_and_prune(Search& search, const Problem& problem, const CellFitS
     const double dof = std::max(1.0, static_cast<double>(r.size()) - static_cast<double>(active.size()));
     s2 = sum_sq(r) / dof;
     cov = s2 * pseudo_inverse(gram(J));
-    // The parameter with the largest relative sd above the bar leaves, and the rest is refitted.
+    // The parameter furthest over its bar leaves, and the rest is refitted: the relative sd for
+    // the named parameters, the absolute sd (mV) for the additive OCP knots.
     int worst = -1;
-    double worst_rel = settings.max_relative_sd;
+    double worst_ratio = 1.0, worst_sd = 0.0;
     for (std::size_t c = 0; c < active.size(); ++c) {
       const int k = active[c];
       const double sd_z = std::sqrt(std::max(0.0, cov(static_cast<long>(c), static_cast<long>(c))));
-      const double rel = info(static_cast<Knob>(k)).log ? sd_z : sd_z / std::max(z[k], 1e-9);
-      if (!(rel <= worst_rel)) worst = static_cast<int>(c), worst_rel = std::isfinite(rel) ? rel : HUGE_VAL;
+      const double sd = is_knot(k) ? 1e3 * sd_z : info(static_cast<Knob>(k)).log ? sd_z : sd_z / std::max(z[k], 1e-9);
+      const double ratio = sd / (is_knot(k) ? settings.max_ocp_sd_mv : settings.max_relative_sd);
+      if (!(ratio <= worst_ratio))
+        worst = static_cast<int>(c), worst_ratio = std::isfinite(ratio) ? ratio : HUGE_VAL, worst_sd = sd;
     }
     if (worst < 0) break;
     const int k = active[static_cast<std::size_t>(worst)];
     why[static_cast<std::size_t>(k)] =
-        fmt::format("relative standard error {:.3g} at the optimum (over {:g}): not identifiable from these data",
-                    worst_rel, settings.max_relative_sd);
-    log(fmt::format("{} not identifiable (relative sd {:.3g}); refitting without it", info(static_cast<Knob>(k)).name,
-                    worst_rel));
+        is_knot(k) ? fmt::format("standard error {:.3g} mV at the optimum (over {:g} mV): not identifiable from these "
+                                 "data",
+                                 worst_sd, settings.max_ocp_sd_mv)
+                   : fmt::format("relative standard error {:.3g} at the optimum (over {:g}): not identifiable from "
+                                 "these data",
+                                 worst_sd, settings.max_relative_sd);
+    log(fmt::format("{} not identifiable ({} {:.3g}); refitting without it", info(static_cast<Knob>(k)).name,
+                    is_knot(k) ? "sd in mV" : "relative sd", worst_sd));
     active.erase(active.begin() + worst);
     z[k] = problem.z0()[k];  // the template's value
     r = search.eval(z);
@@ -554,9 +652,12 @@ std::vector<FitParameter> parameters_of(const Problem& problem, const ZVec& z,
                                         const std::vector<std::string>& why) {
   std::vector<FitParameter> out;
   for (int k = 0; k < kKnobs; ++k) {
+    if (is_knot(k) && k - kFirstKnot >= problem.knot_count()) break;
     FitParameter p;
     const KnobInfo& ki = info(static_cast<Knob>(k));
     p.name = ki.name, p.unit = ki.unit, p.meaning = ki.meaning;
+    if (is_knot(k))
+      p.meaning = fmt::format("{} (knot at positive stoichiometry {:.4f})", ki.meaning, problem.knot_y(k - kFirstKnot));
     p.template_value = problem.template_value(k);
     p.value = problem.value(k, z[k]);
     const auto it = std::find(active.begin(), active.end(), k);
@@ -610,7 +711,9 @@ void score_final(const Problem& problem, const std::vector<FitPiece>& pieces, co
 
 std::vector<std::string> fit_parameter_names() {
   std::vector<std::string> n;
-  for (int k = 0; k < kKnobs; ++k) n.emplace_back(info(static_cast<Knob>(k)).name);
+  for (int k = 0; k < kNamedKnobs; ++k) n.emplace_back(info(static_cast<Knob>(k)).name);
+  n.emplace_back("ocp_correction");  // every knot
+  for (int k = kFirstKnot; k < kKnobs; ++k) n.emplace_back(info(static_cast<Knob>(k)).name);
   return n;
 }
 
@@ -649,6 +752,18 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
                  {"negative_stoichiometry_window", {b.x0, b.x100}},
                  {"positive_stoichiometry_window", {b.y100, b.y0}},
                  {"capacity_ah", b.capacity_ah}};
+  if (problem.knot_count() > 0) {
+    nlohmann::json knots = {{"positive_stoichiometry", nlohmann::json::array()},
+                            {"correction_v", nlohmann::json::array()},
+                            {"sd_v", nlohmann::json::array()}};
+    for (int i = 0; i < problem.knot_count(); ++i) {
+      const FitParameter& p = out.parameters[static_cast<std::size_t>(kFirstKnot + i)];
+      knots["positive_stoichiometry"].push_back(problem.knot_y(i));
+      knots["correction_v"].push_back(p.value);
+      knots["sd_v"].push_back(p.fitted ? nlohmann::json(p.sd) : nlohmann::json(nullptr));
+    }
+    out.derived["ocp_correction"] = knots;
+  }
   Balance b0;
   problem.bpx(problem.z0(), b0);
   out.derived["template_capacity_ah_in_this_window"] = b0.capacity_ah;

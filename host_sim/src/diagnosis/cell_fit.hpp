@@ -8,7 +8,10 @@
 // reader every --cell uses, so the fitted cell is exactly the one written. Standard errors:
 // (J^T J)^-1 s^2 at the optimum (J by finite differences, s^2 the residual variance). A
 // parameter the data cannot tell (a Jacobian column too small, nearly collinear with the
-// others, or a relative sd too large) is not fitted and keeps the template's value.
+// others, or a relative sd too large) is not fitted and keeps the template's value. Optionally
+// an additive correction to the positive electrode's open-circuit potential (knots in volts,
+// piecewise linear in stoichiometry), written into the BPX file as the template's OCP plus the
+// correction, exactly.
 #include <functional>
 #include <limits>
 #include <string>
@@ -32,6 +35,9 @@ struct FitPiece {
 inline constexpr char kRoleTrain = 1;
 inline constexpr char kRoleHeldOut = 2;
 
+// The positive electrode's open-circuit correction: at most this many knots.
+inline constexpr int kMaxOcpKnots = 8;
+
 struct CellFitSettings {
   DfnMesh search_mesh{8, 8, 8, 8};   // the fit's runs
   DfnMesh final_mesh{20, 20, 20, 20};  // scoring (the --cell default mesh)
@@ -42,6 +48,11 @@ struct CellFitSettings {
   double max_relative_sd = 0.5;     // above: not identifiable
   double max_collinearity = 0.99;   // |cos| of a column to the span of the others
   double min_sensitivity_mv = 0.2;  // RMS voltage change for a change of 1 in the parameter's unit of search
+  // An additive correction to the positive electrode's OCP, piecewise linear in its stoichiometry
+  // through this many knots spread evenly over the template's positive window at the data's
+  // voltage window (0: none; else 2..kMaxOcpKnots); each knot a parameter in volts.
+  int ocp_knots = 0;
+  double max_ocp_sd_mv = 10.0;  // a knot's sd above this (absolute: the knot is additive): not identifiable
   std::vector<std::string> only;    // non-empty: fit only these names
   // > 0: the largest charge (Ah) one discharge of the training rows delivered; the search starts
   // from the electrode area that gives the template's window this capacity.
