@@ -281,6 +281,101 @@ constexpr double kDifferenceShare = 0.01;
 // One step moves a knob by at most this share of its range (the response is not linear far out).
 constexpr double kMaxStepShare = 0.35;
 
+using Columns = std::vector<std::vector<double>>;  // one Jacobian column per knob
+
+// J^T J and J^T r.
+void normal_equations(const Columns& jac, const std::vector<double>& r, SmallMatrix& a, SmallVector& g) {
+  const auto p = static_cast<Eigen::Index>(jac.size());
+  a.resize(p, p);
+  g.resize(p);
+  for (Eigen::Index j = 0; j < p; ++j) {
+    const auto& cj = jac[static_cast<std::size_t>(j)];
+    double gj = 0.0;
+    for (std::size_t i = 0; i < r.size(); ++i) gj += cj[i] * r[i];
+    g(j) = gj;
+    for (Eigen::Index l = 0; l <= j; ++l) {
+      const auto& cl = jac[static_cast<std::size_t>(l)];
+      double d = 0.0;
+      for (std::size_t i = 0; i < r.size(); ++i) d += cj[i] * cl[i];
+      a(j, l) = a(l, j) = d;
+    }
+  }
+}
+
+// The damped Gauss-Newton step from x, shortened to stay near the linearisation and clipped
+// to the ranges: the trial point xt and dx = xt - x. True when every |dx| is within its knob's
+// tolerance (converged, or pressed against a bound).
+bool damped_step(const SmallMatrix& a, const SmallVector& g, double lambda, const std::vector<SearchSpace>& sp,
+                 const std::vector<double>& x, std::vector<double>& xt, std::vector<double>& dx) {
+  const std::size_t p = x.size();
+  SmallMatrix damped = a;
+  for (Eigen::Index j = 0; j < damped.rows(); ++j) damped(j, j) += (lambda + 1e-12) * std::max(a(j, j), 1e-300);
+  const SmallVector solved = damped.ldlt().solve(-g);
+  double shrink = 1.0;
+  for (std::size_t j = 0; j < p; ++j) {
+    const double d = std::abs(solved(static_cast<Eigen::Index>(j))), lim = kMaxStepShare * (sp[j].hi - sp[j].lo);
+    if (std::isfinite(d) && d > lim) shrink = std::min(shrink, lim / d);
+  }
+  xt.assign(p, 0.0);
+  dx.assign(p, 0.0);
+  bool small = true;
+  for (std::size_t j = 0; j < p; ++j) {
+    const double sj = solved(static_cast<Eigen::Index>(j));
+    xt[j] = std::clamp(x[j] + (std::isfinite(sj) ? shrink * sj : 0.0), sp[j].lo, sp[j].hi);
+    dx[j] = xt[j] - x[j];
+    small = small && std::abs(dx[j]) < sp[j].tol;
+  }
+  return small;
+}
+
+// The RMS the linear model predicts after dx: |r + J dx|^2 = |r|^2 + 2 g.dx + dx.A.dx.
+double predicted_rms(double rms, std::size_t m, const SmallMatrix& a, const SmallVector& g, const std::vector<double>& dx) {
+  double ss = rms * rms * static_cast<double>(m);
+  for (std::size_t j = 0; j < dx.size(); ++j) {
+    ss += 2.0 * g(static_cast<Eigen::Index>(j)) * dx[j];
+    for (std::size_t l = 0; l < dx.size(); ++l) ss += dx[j] * a(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(l)) * dx[l];
+  }
+  return std::sqrt(std::max(ss, 0.0) / static_cast<double>(std::max<std::size_t>(m, 1)));
+}
+
+// Broyden: J += (dr - J dx) dx^T / |dx|^2 (for one knob: the secant through the two points).
+void broyden_update(Columns& jac, const std::vector<double>& r0, const std::vector<double>& r1, const std::vector<double>& dx) {
+  double dx2 = 0.0;
+  for (double d : dx) dx2 += d * d;
+  if (!(dx2 > 0.0)) return;
+  for (std::size_t i = 0; i < r0.size(); ++i) {
+    double y = r1[i] - r0[i];
+    for (std::size_t j = 0; j < dx.size(); ++j) y -= jac[j][i] * dx[j];
+    for (std::size_t j = 0; j < dx.size(); ++j) jac[j][i] += y * dx[j] / dx2;
+  }
+}
+
+// Forward differences of the training residual at x, one knob at a time (the other side of
+// x when a run fails there; a zero column when both fail).
+template <class At>
+Columns forward_jacobian(Context& ctx, const Fold& fold, const std::vector<SearchSpace>& sp, const std::vector<double>& x,
+                         const TrainResidual& cur, const At& at, int& evaluations) {
+  Columns jac(x.size());
+  for (std::size_t j = 0; j < x.size(); ++j) {
+    const double range = sp[j].hi - sp[j].lo;
+    double dx = kDifferenceShare * range * (x[j] + kDifferenceShare * range > sp[j].hi ? -1.0 : 1.0);
+    std::vector<double> xp = x;
+    xp[j] += dx;
+    TrainResidual rp = train_residual(ctx, at(xp), fold);
+    ++evaluations;
+    if (!rp.ok) {
+      dx = -dx;
+      xp[j] = x[j] + dx;
+      rp = train_residual(ctx, at(xp), fold);
+      ++evaluations;
+    }
+    jac[j].assign(cur.r.size(), 0.0);
+    if (rp.ok)
+      for (std::size_t i = 0; i < cur.r.size(); ++i) jac[j][i] = (rp.r[i] - cur.r[i]) / dx;
+  }
+  return jac;
+}
+
 FitResult fit_by_gauss_newton(Context& ctx, Hypothesis h, const std::vector<Effect>& knobs, const Fold& fold) {
   const std::size_t p = knobs.size();
   std::vector<SearchSpace> sp;
@@ -298,79 +393,20 @@ FitResult fit_by_gauss_newton(Context& ctx, Hypothesis h, const std::vector<Effe
   TrainResidual cur = train_residual(ctx, at(x), fold);
   ++out.evaluations;
   if (!cur.ok) return fit_by_grid(ctx, h, knobs, fold, false);  // no point to linearise at
-  const std::size_t m = cur.r.size();
-  std::vector<std::vector<double>> jac(p);
-  for (std::size_t j = 0; j < p; ++j) {
-    const double range = sp[j].hi - sp[j].lo;
-    double dx = kDifferenceShare * range * (x[j] + kDifferenceShare * range > sp[j].hi ? -1.0 : 1.0);
-    std::vector<double> xp = x;
-    xp[j] += dx;
-    TrainResidual rp = train_residual(ctx, at(xp), fold);
-    ++out.evaluations;
-    if (!rp.ok) {  // the other side
-      dx = -dx;
-      xp[j] = x[j] + dx;
-      rp = train_residual(ctx, at(xp), fold);
-      ++out.evaluations;
-    }
-    jac[j].assign(m, 0.0);
-    if (rp.ok)
-      for (std::size_t i = 0; i < m; ++i) jac[j][i] = (rp.r[i] - cur.r[i]) / dx;
-  }
-  const auto pn = static_cast<Eigen::Index>(p);
+  Columns jac = forward_jacobian(ctx, fold, sp, x, cur, at, out.evaluations);
   double lambda = 0.0;
   int failed = 0;
+  SmallMatrix a;
+  SmallVector g;
+  std::vector<double> xt, dx;
   for (int step = 0; step < kMaxFitSteps && failed < kMaxFailedSteps; ++step) {
-    SmallMatrix a(pn, pn);
-    SmallVector g(pn);
-    for (std::size_t j = 0; j < p; ++j) {
-      double gj = 0.0;
-      for (std::size_t i = 0; i < m; ++i) gj += jac[j][i] * cur.r[i];
-      g(static_cast<Eigen::Index>(j)) = gj;
-      for (std::size_t l = 0; l <= j; ++l) {
-        double d = 0.0;
-        for (std::size_t i = 0; i < m; ++i) d += jac[j][i] * jac[l][i];
-        a(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(l)) = a(static_cast<Eigen::Index>(l), static_cast<Eigen::Index>(j)) = d;
-      }
-    }
-    SmallMatrix damped = a;
-    for (Eigen::Index j = 0; j < pn; ++j) damped(j, j) += (lambda + 1e-12) * std::max(a(j, j), 1e-300);
-    const SmallVector solved = damped.ldlt().solve(-g);
-    // The step, shortened to stay near the linearisation and clipped to the ranges.
-    double shrink = 1.0;
-    for (std::size_t j = 0; j < p; ++j) {
-      const double d = std::abs(solved(static_cast<Eigen::Index>(j))), lim = kMaxStepShare * (sp[j].hi - sp[j].lo);
-      if (std::isfinite(d) && d > lim) shrink = std::min(shrink, lim / d);
-    }
-    std::vector<double> xt(p), dx(p);
-    bool small = true;
-    for (std::size_t j = 0; j < p; ++j) {
-      const double d = std::isfinite(solved(static_cast<Eigen::Index>(j))) ? shrink * solved(static_cast<Eigen::Index>(j)) : 0.0;
-      xt[j] = std::clamp(x[j] + d, sp[j].lo, sp[j].hi);
-      dx[j] = xt[j] - x[j];
-      small = small && std::abs(dx[j]) < sp[j].tol;
-    }
-    if (small) break;  // converged (or pressed against a bound)
-    // The gain the linear model predicts: |r + J dx|^2 = |r|^2 + 2 g.dx + dx.A.dx.
-    double ss = cur.rms * cur.rms * static_cast<double>(m);
-    for (std::size_t j = 0; j < p; ++j) {
-      ss += 2.0 * g(static_cast<Eigen::Index>(j)) * dx[j];
-      for (std::size_t l = 0; l < p; ++l) ss += dx[j] * a(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(l)) * dx[l];
-    }
-    const double predicted = std::sqrt(std::max(ss, 0.0) / static_cast<double>(std::max<std::size_t>(m, 1)));
-    if (lambda == 0.0 && cur.rms - predicted < kInvisibleGainShare * ctx.floor_mv) break;  // at the floor
+    normal_equations(jac, cur.r, a, g);
+    if (damped_step(a, g, lambda, sp, x, xt, dx)) break;
+    if (lambda == 0.0 && cur.rms - predicted_rms(cur.rms, cur.r.size(), a, g, dx) < kInvisibleGainShare * ctx.floor_mv)
+      break;  // what is left to gain is invisible against the floor
     TrainResidual trial = train_residual(ctx, at(xt), fold);
     ++out.evaluations;
-    if (trial.ok) {
-      // Broyden: J += (dr - J dx) dx^T / |dx|^2.
-      double dx2 = 0.0;
-      for (double d : dx) dx2 += d * d;
-      for (std::size_t i = 0; i < m; ++i) {
-        double y = trial.r[i] - cur.r[i];
-        for (std::size_t j = 0; j < p; ++j) y -= jac[j][i] * dx[j];
-        for (std::size_t j = 0; j < p; ++j) jac[j][i] += y * dx[j] / dx2;
-      }
-    }
+    if (trial.ok) broyden_update(jac, cur.r, trial.r, dx);
     if (trial.ok && trial.rms < cur.rms) {
       const double gain = cur.rms - trial.rms;
       x = xt;
