@@ -276,8 +276,13 @@ constexpr int kMaxFitSteps = 10;
 constexpr int kMaxFailedSteps = 3;
 // A step that would gain less than this share of the floor (RMS, mV) is not taken.
 constexpr double kInvisibleGainShare = 1e-3;
-// Forward-difference step: this share of the knob's range (as the sensitivities use).
-constexpr double kDifferenceShare = 0.01;
+// Forward-difference step: this share of the knob's range. Not smaller: a drive correction
+// changes where the current's pieces and steps fall, which makes the voltage a slightly rough
+// function of the knob; a 1 % difference of a current-sensor gain on a drive cycle saw that
+// roughness instead of the slope (the secant updates refine the slope anyway).
+constexpr double kDifferenceShare = 0.05;
+// Grid points that seed the fit of a drive correction.
+constexpr int kDriveSeedPoints = 5;
 // One step moves a knob by at most this share of its range (the response is not linear far out).
 constexpr double kMaxStepShare = 0.35;
 
@@ -396,6 +401,7 @@ FitResult fit_by_gauss_newton(Context& ctx, Hypothesis h, const std::vector<Effe
   Columns jac = forward_jacobian(ctx, fold, sp, x, cur, at, out.evaluations);
   double lambda = 0.0;
   int failed = 0;
+  bool moved = false;
   SmallMatrix a;
   SmallVector g;
   std::vector<double> xt, dx;
@@ -413,11 +419,19 @@ FitResult fit_by_gauss_newton(Context& ctx, Hypothesis h, const std::vector<Effe
       cur = std::move(trial);
       lambda = lambda > 1e-3 ? lambda / 4.0 : 0.0;
       failed = 0;
+      moved = true;
       if (gain < kInvisibleGainShare * ctx.floor_mv) break;  // stopped improving
     } else {
       lambda = lambda == 0.0 ? 1.0 : 4.0 * lambda;
       ++failed;
     }
+  }
+  if (failed >= kMaxFailedSteps && !moved) {
+    // Not one step downhill from the start: the linearisation does not describe the knob
+    // here; the grid over the whole range does not need it.
+    FitResult grid = fit_by_grid(ctx, h, knobs, fold, false);
+    grid.evaluations += out.evaluations;
+    return grid;
   }
   out.h = at(x);
   out.train_mv = cur.rms;
@@ -431,7 +445,29 @@ FitResult fit_knobs(Context& ctx, Hypothesis h, const std::vector<Effect>& knobs
     if (!has_knob(h, k)) h.push_back({k, neutral_value(k)});
   const bool post_only = std::all_of(knobs.begin(), knobs.end(), [](Effect k) { return knob_kind(k) == KnobKind::post; });
   if (post_only) return fit_by_grid(ctx, std::move(h), knobs, fold, narrow);
-  return fit_by_gauss_newton(ctx, std::move(h), knobs, fold);
+  int seed_evaluations = 0;
+  if (!narrow && knobs.size() == 1 && knob_kind(knobs.front()) == KnobKind::drive) {
+    // A drive correction (current-sensor offset or gain, start state) moves every later state:
+    // on a drive cycle the residual is far from linear in it, and Gauss-Newton from the plain
+    // model stopped at a sixth of a 3 % gain. A coarse grid over the range picks the start.
+    const SearchSpace sp = search_space(knobs.front(), ctx.imax, ctx.dt_s);
+    double best_x = sp.x_of(knob_value(h, knobs.front())), best_f = HUGE_VAL;
+    for (int k = 0; k < kDriveSeedPoints; ++k) {
+      const double x = sp.lo + (sp.hi - sp.lo) * k / (kDriveSeedPoints - 1);
+      Hypothesis t = h;
+      set_knob(t, knobs.front(), sp.value(x));
+      const double f = train_rmse(ctx, t, fold);
+      ++seed_evaluations;
+      if (f < best_f) {
+        best_f = f;
+        best_x = x;
+      }
+    }
+    set_knob(h, knobs.front(), sp.value(best_x));
+  }
+  FitResult out = fit_by_gauss_newton(ctx, std::move(h), knobs, fold);
+  out.evaluations += seed_evaluations;
+  return out;
 }
 
 struct Score {
