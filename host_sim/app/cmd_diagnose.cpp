@@ -39,6 +39,7 @@ struct DiagnoseOptions {
   int max_effects = 3;
   double search_drive_tolerance = 0.0;
   double open_gain = 0.1;
+  int threads = 0;
   std::string initial_soc = "auto";
   std::string current_sign = "by-layout";
   bool quiet = false;
@@ -83,6 +84,7 @@ std::string command_line(const DiagnoseOptions& o) {
   if (o.max_effects != 3) s += fmt::format(" --max-effects {}", o.max_effects);
   if (o.open_gain != 0.1) s += fmt::format(" --open-gain {}", o.open_gain);
   if (o.search_drive_tolerance > 0) s += fmt::format(" --search-drive-tolerance {}", o.search_drive_tolerance);
+  if (o.threads != 0) s += fmt::format(" --threads {}", o.threads);
   if (o.initial_soc != "auto") s += " --initial-soc " + o.initial_soc;
   if (o.current_sign != "by-layout") s += " --current-sign " + o.current_sign;
   return s + " --out " + o.out;
@@ -99,6 +101,7 @@ int run_diagnose(const DiagnoseOptions& o) {
   settings.max_effects = o.max_effects;
   settings.search_drive_tolerance = o.search_drive_tolerance;
   settings.open_gain = o.open_gain;
+  settings.threads = o.threads;
   const CurrentSign sign = current_sign_option(o.current_sign);
   const CellParameters cell = load_cell(o.cell);
   std::vector<diagnosis::Record> records;
@@ -184,6 +187,10 @@ Runner add_diagnose(CLI::App& app) {
       ->capture_default_str()->check(CLI::Range(0.0, 0.2));
   sub->add_option("--blocks", o->blocks, "One record: split into this many blocks, alternately training and validation")
       ->capture_default_str()->check(CLI::Range(2, 1000));
+  sub->add_option("--threads", o->threads,
+                  "Candidates and sensitivities on this many threads (0: one per core); the answer and every number "
+                  "are the same for any count")
+      ->capture_default_str()->check(CLI::Range(0, 64));
   sub->add_flag("--quiet", o->quiet, "No progress output");
   sub->footer(
       "Exit codes: 0 diagnosis written (possibly 'none', with the reason), 1 runtime failure, 2 bad input.\n"

@@ -6,9 +6,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <atomic>
 #include <map>
+#include <memory>
+#include <mutex>
 
 #include "diagnosis/minimise.hpp"
+#include "diagnosis/parallel.hpp"
 #include "io/input_error.hpp"
 #include "io/statistics.hpp"
 
@@ -84,6 +88,12 @@ bool has_knob(const Hypothesis& h, Effect e) {
   return std::any_of(h.begin(), h.end(), [e](const EffectSetting& s) { return s.effect == e; });
 }
 
+// Small normal equations and the Fisher information in matrices of bounded size: the host
+// links the firmware's EIGEN_NO_MALLOC, so nothing here may allocate.
+constexpr std::size_t kMaxFisherKnobs = 16;
+using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxFisherKnobs, kMaxFisherKnobs>;
+using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxFisherKnobs, 1>;
+
 // Pooled sums of squares over several cases.
 struct Pool {
   double sum2 = 0.0, max_abs = 0.0;
@@ -106,15 +116,17 @@ struct Fold {
 
 // Runs the model (cached by the knobs that need a run) and applies the post knobs. Search
 // runs carry the plain model's final-minus-search difference, so a fit sees the effect, not
-// the mesh.
+// the mesh. Safe to call from several threads: runs are shared, read-only, and a run gives the
+// same voltages whichever thread makes it (or makes it twice).
 class Evaluator {
  public:
+  using Run = std::shared_ptr<const std::vector<double>>;
   Evaluator(const std::vector<CaseResult>& cases, ModelSetup search, ModelSetup final_setup)
       : cases_(cases), search_(std::move(search)), final_(std::move(final_setup)), delta_(cases.size()) {}
 
   std::vector<double> voltage(std::size_t c, const Hypothesis& h, bool final_mesh) {
-    const std::vector<double>& raw = run(c, h, final_mesh);
-    std::vector<double> v = raw;
+    const Run raw = run(c, h, final_mesh);
+    std::vector<double> v = *raw;
     if (!final_mesh && !delta_[c].empty())
       for (std::size_t k = 0; k < v.size(); ++k) v[k] += std::isfinite(delta_[c][k]) ? delta_[c][k] : 0.0;
     const Record& r = *cases_[c].record;
@@ -123,19 +135,26 @@ class Evaluator {
   std::vector<double> residual(std::size_t c, const Hypothesis& h, bool final_mesh) {
     return residual_mv(voltage(c, h, final_mesh), *cases_[c].record);
   }
-  const std::vector<double>& run(std::size_t c, const Hypothesis& h, bool final_mesh) {
+  Run run(std::size_t c, const Hypothesis& h, bool final_mesh) {
     Hypothesis knobs;
     const std::string key = key_of(c, h, final_mesh, knobs);
-    auto it = cache_.find(key);
-    if (it != cache_.end()) return it->second;
-    if (cache_.size() >= kCacheRuns) cache_.clear();
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      if (auto it = pinned_.find(key); it != pinned_.end()) return it->second;
+      if (auto it = cache_.find(key); it != cache_.end()) return it->second;
+    }
     ++runs_;
-    auto v = run_model(setup(final_mesh), *cases_[c].record, knobs).voltage_v;
+    Run v = std::make_shared<const std::vector<double>>(run_model(setup(final_mesh), *cases_[c].record, knobs).voltage_v);
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (cache_.size() >= kCacheRuns) cache_.clear();
     return cache_.emplace(key, std::move(v)).first->second;
   }
+  // A run kept for the whole diagnosis (the plain model's).
   void put(std::size_t c, const Hypothesis& h, bool final_mesh, std::vector<double> v) {
     Hypothesis knobs;
-    cache_[key_of(c, h, final_mesh, knobs)] = std::move(v);
+    const std::string key = key_of(c, h, final_mesh, knobs);
+    const std::lock_guard<std::mutex> lock(mutex_);
+    pinned_[key] = std::make_shared<const std::vector<double>>(std::move(v));
   }
   const ModelSetup& setup(bool final_mesh) const { return final_mesh ? final_ : search_; }
   void set_delta(std::size_t c, std::vector<double> d) { delta_[c] = std::move(d); }
@@ -154,8 +173,9 @@ class Evaluator {
   const std::vector<CaseResult>& cases_;
   ModelSetup search_, final_;
   std::vector<std::vector<double>> delta_;
-  std::map<std::string, std::vector<double>> cache_;
-  int runs_ = 0;
+  std::mutex mutex_;
+  std::map<std::string, Run> cache_, pinned_;
+  std::atomic<int> runs_{0};
 };
 
 struct Context {
@@ -166,6 +186,8 @@ struct Context {
   Fold all;  // the fit reported as "after"
   double imax = 0.0, dt_s = 1.0;
   std::function<void(const std::string&)> say;
+  double floor_mv = 0.0;  // set once the plain model has run
+  int threads = 1;
 };
 
 double train_rmse(Context& ctx, const Hypothesis& h, const Fold& fold) {
@@ -186,11 +208,10 @@ struct FitResult {
 };
 
 // Coordinate search over `knobs` (others fixed): a grid over the whole range, golden section
-// around its best point; `narrow` searches only around the current value.
-FitResult fit_knobs(Context& ctx, Hypothesis h, const std::vector<Effect>& knobs, const Fold& fold, bool narrow) {
+// around its best point; `narrow` searches only around the current value. Used for knobs that
+// need no model run (the measurement structure), where an evaluation costs nothing.
+FitResult fit_by_grid(Context& ctx, Hypothesis h, const std::vector<Effect>& knobs, const Fold& fold, bool narrow) {
   FitResult out;
-  for (Effect k : knobs)
-    if (!has_knob(h, k)) h.push_back({k, neutral_value(k)});
   const bool post_only = std::all_of(knobs.begin(), knobs.end(), [](Effect k) { return knob_kind(k) == KnobKind::post; });
   const int sweeps = knobs.size() > 1 && post_only ? 3 : 1;
   for (int sweep = 0; sweep < sweeps; ++sweep) {
@@ -214,6 +235,238 @@ FitResult fit_knobs(Context& ctx, Hypothesis h, const std::vector<Effect>& knobs
     }
   }
   out.h = std::move(h);
+  return out;
+}
+
+// The training residual (mV) of a hypothesis, sample by sample over the fold's training
+// samples; ok = false when the model failed.
+struct TrainResidual {
+  std::vector<double> r;
+  double rms = kFailedRunMv;
+  bool ok = false;
+};
+
+TrainResidual train_residual(Context& ctx, const Hypothesis& h, const Fold& fold) {
+  TrainResidual out;
+  try {
+    for (std::size_t c = 0; c < ctx.cases.size(); ++c) {
+      if (fold.train[c].empty()) continue;
+      const auto res = ctx.eval.residual(c, h, false);
+      for (std::size_t k = 0; k < res.size(); ++k)
+        if (fold.train[c][k]) out.r.push_back(res[k]);
+    }
+  } catch (const RuntimeFailure&) {
+    out.r.clear();
+    return out;
+  }
+  double s2 = 0.0;
+  for (double x : out.r) s2 += x * x;
+  out.rms = out.r.empty() ? 0.0 : std::sqrt(s2 / static_cast<double>(out.r.size()));
+  out.ok = true;
+  return out;
+}
+
+// Gauss-Newton steps with Levenberg-Marquardt damping on the knobs (in their search variables,
+// inside their ranges). The Jacobian of the training residual starts from forward differences
+// (one run per knob that needs a run; none for the measurement structure) and is then kept up
+// to date from the runs the steps make anyway (Broyden's secant update: for one knob the slope
+// through the last two points). It stops when the step is within the knobs' tolerances, when
+// the predicted gain is invisible against the residual's floor, or when steps stop improving.
+constexpr int kMaxFitSteps = 10;
+constexpr int kMaxFailedSteps = 3;
+// A step that would gain less than this share of the floor (RMS, mV) is not taken.
+constexpr double kInvisibleGainShare = 1e-3;
+// Forward-difference step: this share of the knob's range. Not smaller: a drive correction
+// changes where the current's pieces and steps fall, which makes the voltage a slightly rough
+// function of the knob; a 1 % difference of a current-sensor gain on a drive cycle saw that
+// roughness instead of the slope (the secant updates refine the slope anyway).
+constexpr double kDifferenceShare = 0.05;
+// Grid points that seed the fit of a drive correction.
+constexpr int kDriveSeedPoints = 5;
+// One step moves a knob by at most this share of its range (the response is not linear far out).
+constexpr double kMaxStepShare = 0.35;
+
+using Columns = std::vector<std::vector<double>>;  // one Jacobian column per knob
+
+// J^T J and J^T r.
+void normal_equations(const Columns& jac, const std::vector<double>& r, SmallMatrix& a, SmallVector& g) {
+  const auto p = static_cast<Eigen::Index>(jac.size());
+  a.resize(p, p);
+  g.resize(p);
+  for (Eigen::Index j = 0; j < p; ++j) {
+    const auto& cj = jac[static_cast<std::size_t>(j)];
+    double gj = 0.0;
+    for (std::size_t i = 0; i < r.size(); ++i) gj += cj[i] * r[i];
+    g(j) = gj;
+    for (Eigen::Index l = 0; l <= j; ++l) {
+      const auto& cl = jac[static_cast<std::size_t>(l)];
+      double d = 0.0;
+      for (std::size_t i = 0; i < r.size(); ++i) d += cj[i] * cl[i];
+      a(j, l) = a(l, j) = d;
+    }
+  }
+}
+
+// The damped Gauss-Newton step from x, shortened to stay near the linearisation and clipped
+// to the ranges: the trial point xt and dx = xt - x. True when every |dx| is within its knob's
+// tolerance (converged, or pressed against a bound).
+bool damped_step(const SmallMatrix& a, const SmallVector& g, double lambda, const std::vector<SearchSpace>& sp,
+                 const std::vector<double>& x, std::vector<double>& xt, std::vector<double>& dx) {
+  const std::size_t p = x.size();
+  SmallMatrix damped = a;
+  for (Eigen::Index j = 0; j < damped.rows(); ++j) damped(j, j) += (lambda + 1e-12) * std::max(a(j, j), 1e-300);
+  const SmallVector solved = damped.ldlt().solve(-g);
+  double shrink = 1.0;
+  for (std::size_t j = 0; j < p; ++j) {
+    const double d = std::abs(solved(static_cast<Eigen::Index>(j))), lim = kMaxStepShare * (sp[j].hi - sp[j].lo);
+    if (std::isfinite(d) && d > lim) shrink = std::min(shrink, lim / d);
+  }
+  xt.assign(p, 0.0);
+  dx.assign(p, 0.0);
+  bool small = true;
+  for (std::size_t j = 0; j < p; ++j) {
+    const double sj = solved(static_cast<Eigen::Index>(j));
+    xt[j] = std::clamp(x[j] + (std::isfinite(sj) ? shrink * sj : 0.0), sp[j].lo, sp[j].hi);
+    dx[j] = xt[j] - x[j];
+    small = small && std::abs(dx[j]) < sp[j].tol;
+  }
+  return small;
+}
+
+// The RMS the linear model predicts after dx: |r + J dx|^2 = |r|^2 + 2 g.dx + dx.A.dx.
+double predicted_rms(double rms, std::size_t m, const SmallMatrix& a, const SmallVector& g, const std::vector<double>& dx) {
+  double ss = rms * rms * static_cast<double>(m);
+  for (std::size_t j = 0; j < dx.size(); ++j) {
+    ss += 2.0 * g(static_cast<Eigen::Index>(j)) * dx[j];
+    for (std::size_t l = 0; l < dx.size(); ++l) ss += dx[j] * a(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(l)) * dx[l];
+  }
+  return std::sqrt(std::max(ss, 0.0) / static_cast<double>(std::max<std::size_t>(m, 1)));
+}
+
+// Broyden: J += (dr - J dx) dx^T / |dx|^2 (for one knob: the secant through the two points).
+void broyden_update(Columns& jac, const std::vector<double>& r0, const std::vector<double>& r1, const std::vector<double>& dx) {
+  double dx2 = 0.0;
+  for (double d : dx) dx2 += d * d;
+  if (!(dx2 > 0.0)) return;
+  for (std::size_t i = 0; i < r0.size(); ++i) {
+    double y = r1[i] - r0[i];
+    for (std::size_t j = 0; j < dx.size(); ++j) y -= jac[j][i] * dx[j];
+    for (std::size_t j = 0; j < dx.size(); ++j) jac[j][i] += y * dx[j] / dx2;
+  }
+}
+
+// Forward differences of the training residual at x, one knob at a time (the other side of
+// x when a run fails there; a zero column when both fail).
+template <class At>
+Columns forward_jacobian(Context& ctx, const Fold& fold, const std::vector<SearchSpace>& sp, const std::vector<double>& x,
+                         const TrainResidual& cur, const At& at, int& evaluations) {
+  Columns jac(x.size());
+  for (std::size_t j = 0; j < x.size(); ++j) {
+    const double range = sp[j].hi - sp[j].lo;
+    double dx = kDifferenceShare * range * (x[j] + kDifferenceShare * range > sp[j].hi ? -1.0 : 1.0);
+    std::vector<double> xp = x;
+    xp[j] += dx;
+    TrainResidual rp = train_residual(ctx, at(xp), fold);
+    ++evaluations;
+    if (!rp.ok) {
+      dx = -dx;
+      xp[j] = x[j] + dx;
+      rp = train_residual(ctx, at(xp), fold);
+      ++evaluations;
+    }
+    jac[j].assign(cur.r.size(), 0.0);
+    if (rp.ok)
+      for (std::size_t i = 0; i < cur.r.size(); ++i) jac[j][i] = (rp.r[i] - cur.r[i]) / dx;
+  }
+  return jac;
+}
+
+FitResult fit_by_gauss_newton(Context& ctx, Hypothesis h, const std::vector<Effect>& knobs, const Fold& fold) {
+  const std::size_t p = knobs.size();
+  std::vector<SearchSpace> sp;
+  std::vector<double> x(p);
+  for (std::size_t j = 0; j < p; ++j) {
+    sp.push_back(search_space(knobs[j], ctx.imax, ctx.dt_s));
+    x[j] = std::clamp(sp[j].x_of(knob_value(h, knobs[j], neutral_value(knobs[j]))), sp[j].lo, sp[j].hi);
+  }
+  auto at = [&](const std::vector<double>& xs) {
+    Hypothesis t = h;
+    for (std::size_t j = 0; j < p; ++j) set_knob(t, knobs[j], sp[j].value(xs[j]));
+    return t;
+  };
+  FitResult out;
+  TrainResidual cur = train_residual(ctx, at(x), fold);
+  ++out.evaluations;
+  if (!cur.ok) return fit_by_grid(ctx, h, knobs, fold, false);  // no point to linearise at
+  Columns jac = forward_jacobian(ctx, fold, sp, x, cur, at, out.evaluations);
+  double lambda = 0.0;
+  int failed = 0;
+  bool moved = false;
+  SmallMatrix a;
+  SmallVector g;
+  std::vector<double> xt, dx;
+  for (int step = 0; step < kMaxFitSteps && failed < kMaxFailedSteps; ++step) {
+    normal_equations(jac, cur.r, a, g);
+    if (damped_step(a, g, lambda, sp, x, xt, dx)) break;
+    if (lambda == 0.0 && cur.rms - predicted_rms(cur.rms, cur.r.size(), a, g, dx) < kInvisibleGainShare * ctx.floor_mv)
+      break;  // what is left to gain is invisible against the floor
+    TrainResidual trial = train_residual(ctx, at(xt), fold);
+    ++out.evaluations;
+    if (trial.ok) broyden_update(jac, cur.r, trial.r, dx);
+    if (trial.ok && trial.rms < cur.rms) {
+      const double gain = cur.rms - trial.rms;
+      x = xt;
+      cur = std::move(trial);
+      lambda = lambda > 1e-3 ? lambda / 4.0 : 0.0;
+      failed = 0;
+      moved = true;
+      if (gain < kInvisibleGainShare * ctx.floor_mv) break;  // stopped improving
+    } else {
+      lambda = lambda == 0.0 ? 1.0 : 4.0 * lambda;
+      ++failed;
+    }
+  }
+  if (failed >= kMaxFailedSteps && !moved) {
+    // Not one step downhill from the start: the linearisation does not describe the knob
+    // here; the grid over the whole range does not need it.
+    FitResult grid = fit_by_grid(ctx, h, knobs, fold, false);
+    grid.evaluations += out.evaluations;
+    return grid;
+  }
+  out.h = at(x);
+  out.train_mv = cur.rms;
+  return out;
+}
+
+// Knobs that need model runs are fitted by Gauss-Newton (a few runs each); knobs applied to
+// the model's voltage only by the grid (free).
+FitResult fit_knobs(Context& ctx, Hypothesis h, const std::vector<Effect>& knobs, const Fold& fold, bool narrow) {
+  for (Effect k : knobs)
+    if (!has_knob(h, k)) h.push_back({k, neutral_value(k)});
+  const bool post_only = std::all_of(knobs.begin(), knobs.end(), [](Effect k) { return knob_kind(k) == KnobKind::post; });
+  if (post_only) return fit_by_grid(ctx, std::move(h), knobs, fold, narrow);
+  int seed_evaluations = 0;
+  if (!narrow && knobs.size() == 1 && knob_kind(knobs.front()) == KnobKind::drive) {
+    // A drive correction (current-sensor offset or gain, start state) moves every later state:
+    // on a drive cycle the residual is far from linear in it, and Gauss-Newton from the plain
+    // model stopped at a sixth of a 3 % gain. A coarse grid over the range picks the start.
+    const SearchSpace sp = search_space(knobs.front(), ctx.imax, ctx.dt_s);
+    double best_x = sp.x_of(knob_value(h, knobs.front())), best_f = HUGE_VAL;
+    for (int k = 0; k < kDriveSeedPoints; ++k) {
+      const double x = sp.lo + (sp.hi - sp.lo) * k / (kDriveSeedPoints - 1);
+      Hypothesis t = h;
+      set_knob(t, knobs.front(), sp.value(x));
+      const double f = train_rmse(ctx, t, fold);
+      ++seed_evaluations;
+      if (f < best_f) {
+        best_f = f;
+        best_x = x;
+      }
+    }
+    set_knob(h, knobs.front(), sp.value(best_x));
+  }
+  FitResult out = fit_by_gauss_newton(ctx, std::move(h), knobs, fold);
+  out.evaluations += seed_evaluations;
   return out;
 }
 
@@ -400,22 +653,38 @@ void run_before(Context& ctx, DiagnosisResult& out) {
   double floor2 = 0.0;
   std::size_t samples = 0;
   const auto& s = ctx.settings;
-  for (std::size_t c = 0; c < ctx.cases.size(); ++c) {
+  // Every case's plain runs at once: the final mesh, the search mesh and, when the search
+  // follows the drive in pieces, the search mesh on the exact drive (for the numerical error).
+  const std::size_t nc = ctx.cases.size(), per_case = s.search_drive_tolerance > 0 ? 3 : 2;
+  std::vector<std::vector<double>> plain(nc * per_case);
+  for (const auto& cr : ctx.cases)
+    ctx.say(fmt::format("{}: plain model, mesh {}/{} and {}/{}", cr.record->source, s.final_mesh.n_neg,
+                        s.final_mesh.n_r, s.search_mesh.n_neg, s.search_mesh.n_r));
+  parallel_for(plain.size(), ctx.threads, [&](std::size_t t) {
+    const std::size_t c = t / per_case, kind = t % per_case;
+    const Record& rec = *ctx.cases[c].record;
+    if (kind == 0) {
+      ModelRun run = run_model(ctx.eval.setup(true), rec, Hypothesis{});
+      plain[t] = run.voltage_v;
+      ctx.cases[c].before = std::move(run);
+    } else if (kind == 1) {
+      plain[t] = *ctx.eval.run(c, {}, false);
+    } else {
+      plain[t] = run_model(ModelSetup{ctx.eval.setup(false).cell, s.search_mesh, s.rtol}, rec, Hypothesis{}).voltage_v;
+    }
+  });
+  for (std::size_t c = 0; c < nc; ++c) {
     auto& cr = ctx.cases[c];
     const Record& rec = *cr.record;
-    ctx.say(fmt::format("{}: plain model, mesh {}/{} and {}/{}", rec.source, s.final_mesh.n_neg, s.final_mesh.n_r,
-                        s.search_mesh.n_neg, s.search_mesh.n_r));
-    cr.before = run_model(ctx.eval.setup(true), rec, Hypothesis{});
     ctx.eval.put(c, {}, true, cr.before.voltage_v);
-    const auto& coarse = ctx.eval.run(c, {}, false);
+    ctx.eval.put(c, {}, false, plain[c * per_case + 1]);
+    const auto& coarse = plain[c * per_case + 1];
     std::vector<double> delta(coarse.size());
     for (std::size_t k = 0; k < delta.size(); ++k) delta[k] = cr.before.voltage_v[k] - coarse[k];
     // The mesh's own error from runs that differ only in the mesh (not in how the drive is followed).
-    const double numerical = numerical_error_mv(
-        cr.before.voltage_v,
-        s.search_drive_tolerance > 0 ? run_model(ModelSetup{ctx.eval.setup(false).cell, s.search_mesh, s.rtol}, rec, Hypothesis{}).voltage_v
-                                     : coarse,
-        s.search_mesh.n_r, s.final_mesh.n_r);
+    const double numerical =
+        numerical_error_mv(cr.before.voltage_v, per_case > 2 ? plain[c * per_case + 2] : coarse, s.search_mesh.n_r,
+                           s.final_mesh.n_r);
     ctx.eval.set_delta(c, std::move(delta));
     cr.residual_before_mv = residual_mv(cr.before.voltage_v, rec);
     cr.rmse_before_mv = rms(cr.residual_before_mv);
@@ -436,6 +705,7 @@ void run_before(Context& ctx, DiagnosisResult& out) {
   out.heldout_before_mv = held.rms();
   out.floor_mv = std::sqrt(floor2 / static_cast<double>(std::max<std::size_t>(samples, 1)));
   out.at_floor_before = out.heldout_before_mv <= kFloorFactor * out.floor_mv;
+  ctx.floor_mv = out.floor_mv;
 }
 
 struct Candidate {
@@ -466,6 +736,12 @@ std::vector<Candidate> score_candidates(Context& ctx, DiagnosisResult& out, bool
   std::vector<CandidateScore> scores;
   for (const auto& c : tried) scores.push_back({c.effect, true, 0.0, c.score.heldout_mv});
   const std::vector<Hypothesis> empty(ctx.folds.size());
+  // Every available candidate fitted and scored at once (independent of each other), then
+  // reported in the list's order.
+  std::vector<Candidate> fitted(list.size(), Candidate{Effect::none, {}, {}, 0.0, 0});
+  parallel_for(list.size(), ctx.threads, [&](std::size_t i) {
+    if (effect_available(list[i])) fitted[i] = try_candidate(ctx, list[i], empty);
+  });
   for (std::size_t i = 0; i < list.size(); ++i) {
     const Effect e = list[i];
     CandidateResult cand;
@@ -476,7 +752,7 @@ std::vector<Candidate> score_candidates(Context& ctx, DiagnosisResult& out, bool
       out.candidates.push_back(cand);
       continue;
     }
-    Candidate c = try_candidate(ctx, e, empty);
+    Candidate& c = fitted[i];
     cand.fitted = c.per_fold.front();
     cand.value = knob_value(cand.fitted, e);
     cand.train_rmse_mv = c.train_mv;
@@ -488,13 +764,14 @@ std::vector<Candidate> score_candidates(Context& ctx, DiagnosisResult& out, bool
       cand.available = false;
       cand.note = "the model failed on the final mesh with the fitted value";
     }
-    ctx.say(fmt::format("step 1, candidate {}/{} {}: {}: held-out RMSE {:.3f} mV (plain {:.3f}), {} runs so far",
+    ctx.say(fmt::format("step 1, candidate {}/{} {}: {}: held-out RMSE {:.3f} mV (plain {:.3f}), {} evaluations",
                         i + 1, list.size(), effect_name(e), knob_list(cand.fitted), cand.heldout_rmse_mv,
-                        out.heldout_before_mv, ctx.eval.runs()));
+                        out.heldout_before_mv, cand.evaluations));
     scores.push_back({e, cand.available, cand.value, cand.heldout_rmse_mv});
     out.candidates.push_back(cand);
     if (cand.available) tried.push_back(std::move(c));
   }
+  ctx.say(fmt::format("step 1: {} model runs so far", ctx.eval.runs()));
   SelectionRules rules = ctx.settings.rules;
   rules.constant_current_only = all_constant;
   rules.floor_mv = out.floor_mv;
@@ -533,13 +810,17 @@ Candidate forward_selection(Context& ctx, DiagnosisResult& out, std::vector<Cand
     step.base = out.effects;
     Candidate best{Effect::none, {}, {}, 0.0, 0};
     best.score.heldout_mv = HUGE_VAL;
-    for (const auto& t : tried) {
-      if (std::find(out.effects.begin(), out.effects.end(), t.effect) != out.effects.end()) continue;
-      Candidate c = try_candidate(ctx, t.effect, current.per_fold);
-      step.scores.emplace_back(t.effect, c.score.heldout_mv);
-      ctx.say(fmt::format("step {}, {} + {}: held-out RMSE {:.3f} mV (now {:.3f}), {} runs so far", out.steps.size() + 1,
-                          effect_list(out.effects), effect_name(t.effect), c.score.heldout_mv, current.score.heldout_mv,
-                          ctx.eval.runs()));
+    std::vector<Effect> remaining;
+    for (const auto& t : tried)
+      if (std::find(out.effects.begin(), out.effects.end(), t.effect) == out.effects.end()) remaining.push_back(t.effect);
+    std::vector<Candidate> added(remaining.size(), Candidate{Effect::none, {}, {}, 0.0, 0});
+    parallel_for(remaining.size(), ctx.threads,
+                 [&](std::size_t i) { added[i] = try_candidate(ctx, remaining[i], current.per_fold); });
+    for (auto& c : added) {
+      step.scores.emplace_back(c.effect, c.score.heldout_mv);
+      ctx.say(fmt::format("step {}, {} + {}: held-out RMSE {:.3f} mV (now {:.3f}), {} evaluations", out.steps.size() + 1,
+                          effect_list(out.effects), effect_name(c.effect), c.score.heldout_mv, current.score.heldout_mv,
+                          c.evaluations));
       if (c.score.heldout_mv < best.score.heldout_mv) best = std::move(c);
     }
     const double gain = current.score.heldout_mv - best.score.heldout_mv;
@@ -601,10 +882,7 @@ void fit_all_and_after(Context& ctx, DiagnosisResult& out, const Candidate& best
   out.max_abs_after_mv = all.max_abs;
 }
 
-// The Fisher information J^T J / sigma^2 of a few knobs and its pseudo-inverse, in matrices of
-// bounded size: the host links the firmware's EIGEN_NO_MALLOC, so nothing here may allocate.
-constexpr std::size_t kMaxFisherKnobs = 16;
-using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxFisherKnobs, kMaxFisherKnobs>;
+// The Fisher information J^T J / sigma^2 of a few knobs and its pseudo-inverse.
 
 SmallMatrix fisher_pseudo_inverse(const std::vector<std::vector<double>>& columns, double sigma) {
   const auto p = static_cast<Eigen::Index>(columns.size());
@@ -636,8 +914,11 @@ void identifiability(Context& ctx, DiagnosisResult& out) {
       if (effect_available(k) && std::find(knobs.begin(), knobs.end(), k) == knobs.end()) knobs.push_back(k);
   std::vector<std::vector<double>> base(ctx.cases.size());
   for (std::size_t c = 0; c < ctx.cases.size(); ++c) base[c] = ctx.eval.voltage(c, out.model, false);
-  std::vector<std::vector<double>> columns;
-  for (Effect k : knobs) {
+  // One forward difference per knob, every knob at once; a knob whose run fails is left out.
+  std::vector<std::vector<double>> knob_columns(knobs.size());
+  std::vector<char> knob_ok(knobs.size(), 0);
+  parallel_for(knobs.size(), ctx.threads, [&](std::size_t j) {
+    const Effect k = knobs[j];
     const SearchSpace sp = search_space(k, ctx.imax, ctx.dt_s);
     Hypothesis h = out.model;
     if (!has_knob(h, k)) h.push_back({k, neutral_value(k)});
@@ -653,8 +934,16 @@ void identifiability(Context& ctx, DiagnosisResult& out) {
           col.push_back(std::isfinite(v[i]) && std::isfinite(base[c][i]) ? 1e3 * (v[i] - base[c][i]) / dx : 0.0);
       }
     } catch (const RuntimeFailure&) {
-      continue;
+      return;
     }
+    knob_columns[j] = std::move(col);
+    knob_ok[j] = 1;
+  });
+  std::vector<std::vector<double>> columns;
+  for (std::size_t j = 0; j < knobs.size(); ++j) {
+    if (!knob_ok[j]) continue;
+    const Effect k = knobs[j];
+    std::vector<double>& col = knob_columns[j];
     KnobIdentifiability ki;
     ki.knob = k;
     ki.value = knob_value(out.model, k, neutral_value(k));
@@ -734,7 +1023,7 @@ DiagnosisResult diagnose(const CellParameters& cell, const std::vector<Record>& 
   const Setup st = build_cases(cell, records, settings, out, say);
   Evaluator eval(out.cases, ModelSetup{cell, settings.search_mesh, settings.rtol, settings.search_drive_tolerance},
                  ModelSetup{cell, settings.final_mesh, settings.rtol});
-  Context ctx{settings, out.cases, eval, {}, {}, st.imax, st.dt_s, say};
+  Context ctx{settings, out.cases, eval, {}, {}, st.imax, st.dt_s, say, 0.0, thread_count(settings.threads)};
   ctx.folds = make_folds(out.cases, ctx.all);
   run_before(ctx, out);
   CandidateResult none;

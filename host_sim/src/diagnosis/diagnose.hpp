@@ -37,6 +37,9 @@ struct DiagnoseSettings {
   // The held-out RMSE must fall to this share of the plain model's for `explained`.
   double explained_share = 0.2;
   SelectionRules rules;
+  // Candidates (and the plain model's runs, the sensitivities) on this many threads; <= 0: one
+  // per hardware thread. The answer and every number do not depend on it.
+  int threads = 0;
 };
 
 struct CaseResult {
