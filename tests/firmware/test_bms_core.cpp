@@ -155,13 +155,13 @@ TEST(BmsCore, CatchUpOverALongGapInBoundedSteps) {
 }
 
 // A record that stops under current and resumes after a long pause (a stopped test, the BMS
-// off): beyond power_cycle_after_ticks the model rests over the gap, as the cell did, and
+// off): beyond power_cycle_after_s the model rests over the gap, as the cell did, and
 // re-synchronises at the first sample; the lost-frame catch-up would interpolate the last
 // current over the whole pause.
 TEST(BmsCore, APowerCycleGapIsARestAndAResync) {
-  auto run = [](std::uint32_t power_cycle_after_ticks) {
+  auto run = [](double power_cycle_after_s) {
     Core::Config cfg;
-    cfg.power_cycle_after_ticks = power_cycle_after_ticks;
+    cfg.power_cycle_after_s = power_cycle_after_s;
     cfg.resync_at_start = true;
     Model design;
     design.init_default();
@@ -175,8 +175,8 @@ TEST(BmsCore, APowerCycleGapIsARestAndAResync) {
     rig.core.tick({r.voltage_v, 0.0, true});
     return std::make_pair(rig.lag(), rig.core.resync_count() - resyncs_before);
   };
-  const auto [lag_power_cycle, resyncs] = run(1000u);
-  const auto [lag_interpolated, resyncs_off] = run(0u);
+  const auto [lag_power_cycle, resyncs] = run(200.0);  // 1000 ticks
+  const auto [lag_interpolated, resyncs_off] = run(0.0);
   EXPECT_LT(lag_power_cycle, 1e-6);
   EXPECT_GT(lag_interpolated, 100.0 * lag_power_cycle + 1e-4);  // half the gap at ~1.25 A
   EXPECT_EQ(resyncs_off, 0u);

@@ -67,7 +67,7 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     if (ref == nullptr) ref = &c;
     // The capacity's reference is the first charge with one (a whole charge where counted);
     // before it, and in a record with none (another cell's voltage limits), SoH stays empty.
-    if (ref_meas == nullptr && std::isfinite(c.capacity_ah)) {
+    if (ref_cap == nullptr && std::isfinite(c.capacity_ah)) {
       ref_cap = &c;
       ref_meas = &m;
     }
@@ -101,7 +101,7 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
   double sum = 0.0, worst = 0.0, sum_counted = 0.0;
   std::size_t n_est = 0, n_counted = 0;
   for (const AgingRow& r : a.rows) {
-    // A charge cut by a power cycle has no capacity (null): not scored.
+    // A charge with no capacity (not a whole charge, counted) is not scored.
     if (const double e = std::abs(r.soh_est - r.soh_meas) * 100.0; std::isfinite(e)) {
       sum += e;
       worst = std::max(worst, e);

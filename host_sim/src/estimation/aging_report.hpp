@@ -19,7 +19,7 @@ struct AgingRow {
       r_discharge_step_growth_ohm;
   double discharge_meas_ah, soh_meas, ir_meas_ohm, ir_growth_meas_ohm;
   bool learned;
-  bool counted_complete;  // the charge's count ended at a discharge or a long rest
+  bool counted_complete;  // ChargeReport::counted_complete: the count spans a whole charge
 };
 
 struct LineFit {
@@ -33,7 +33,7 @@ struct AgingComparison {
   std::vector<AgingRow> rows;  // one per CC charge (learned or not) whose cycle the cycler reported
   double soh_mae_pp = std::nan(""), soh_max_abs_pp = std::nan("");  // the estimate's capacity_ah
   double soh_counted_mae_pp = std::nan("");                           // the counted charge's
-  std::size_t cycles_scored = 0;  // rows with a capacity (a charge cut by a power cycle has none)
+  std::size_t cycles_scored = 0;  // rows with a capacity (ChargeReport::capacity_ah not null)
   std::string capacity_source;  // of the compared charges' capacity_ah: estimator, counted or mixed
   LineFit film_vs_ir, step_vs_ir, discharge_step_vs_ir;  // y = estimate's growth, x = the cycler's IR growth
 };

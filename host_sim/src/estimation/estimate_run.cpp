@@ -221,7 +221,6 @@ void run_core_with(Model& model, const MeasuredSeries& d, const EstimateOptions&
   const fw::Refusal refused = estimate_config<Core>(cell, o, dt_s, cfg);
   if (refused.option != nullptr) throw InputError(fmt::format("--{}: {}", refused.option, refused.reason));
   adapt_to_sample_step(cfg, d, dt_s);
-  cfg.power_cycle_after_ticks = static_cast<std::uint32_t>(std::llround(kPowerCycleGapS / dt_s));
   res.config = summarise_config(cfg, Nc);
   Core core(cfg, model);
   const std::size_t n = d.t_s.size();

@@ -55,12 +55,9 @@ constexpr double kMaxModelTickS = 1.0;
 // the level only across charges, is what coarser records leave undetermined). A coarser record is
 // refused naming this interval rather than estimated wrong.
 constexpr double kMaxSampleStepS = 2.0;
-// A gap without samples longer than this (s) is a power cycle (BmsCore's power_cycle_after_ticks):
-// the model rests over it and re-synchronises to the voltage after it, and a charge's count ends
-// at it. Shorter gaps are lost samples, caught up on the interpolated current. An hour of a
-// cycler's current is 0.5-1 of a cell's capacity: a record that ends under current and resumes
-// later (a stopped test, a new file) is not credibly interpolated over it.
-constexpr double kPowerCycleGapS = 3600.0;
+// A gap over this (s) is a power cycle (the firmware profiles' power_cycle_after_s): a charge's
+// count ends at it.
+constexpr double kPowerCycleGapS = fw::kPowerCycleGapS;
 // The coarsest sample step a measured record is read and run at (s): a control run
 // (--no-learning: the nominal model and the charges' counted capacity, no film identified) may
 // use records up to this step; learning needs kMaxSampleStepS.

@@ -245,16 +245,24 @@ void apply_voltage_window(const NominalCell& cell, Config& cfg) {
   cfg.voltage_max_v = Scalar(cell.upper_voltage_v + kVoltagePlausibilityMarginV);
 }
 
+// A gap without samples longer than this [s] is a power cycle (BmsCore::Config::power_cycle_after_s):
+// an hour of a cycler's current is half to all of a cell's capacity, so a record that stops under
+// current and resumes later (a stopped test, a new file, the BMS off) is not credibly interpolated
+// over it; shorter gaps are lost samples, caught up on the interpolated current.
+constexpr double kPowerCycleGapS = 3600.0;
+
 namespace profiles {
 
 // What best and nominal-growth share: H from the model and the state observer
-// (re-synchronisation at power-up and at each CV end over a 50-tick window).
+// (re-synchronisation at power-up, after a power cycle and at each CV end over a 50-tick window).
 template <class Config>
 void observer(Config& c) {
+  using Scalar = decltype(Config::dt_s);
   if constexpr (decltype(c.film_path)::kKind == FilmPathKind::rcsi) c.film_path.markov_from_model = true;
   c.resync_at_cv_end = true;
   c.resync_at_start = true;
   c.resync_window_ticks = 50u;
+  c.power_cycle_after_s = Scalar(kPowerCycleGapS);
 }
 
 // best: the film, its growth gain and the inventory identified together; 900 s warm-up (the

@@ -118,12 +118,12 @@ class BmsCore {
     // step is a Newton solve of up to about 98 000 instructions on the Cortex-M4F: one step keeps
     // the tick within its 300 000-instruction budget.
     std::uint32_t catch_up_max_voltage_steps = 1u;
-    // A gap without samples longer than this many ticks is a power cycle, not lost frames: the
-    // BMS was off and the cell rested (a cycler record that ends under current is a test that was
+    // A gap without samples longer than this [s] is a power cycle, not lost frames: the BMS was
+    // off and the cell rested (a cycler record that ends under current is a test that was
     // stopped; interpolating its last current over days moves many times the cell's capacity).
     // The model steps over it at rest and, with resync_at_start, re-synchronises to the measured
     // voltage as at power-up. 0: every gap is caught up as lost frames.
-    std::uint32_t power_cycle_after_ticks = 0u;
+    Scalar power_cycle_after_s = Scalar(0);
     // StateResync. Beyond the paper: once per CV phase, when |I| has fallen to resync_current_a, move the
     // model's state to the measured voltage at the nominal lithium inventory minus the
     // model's own lithium loss (MainModel::resync). Removes initial-condition errors and the
@@ -179,7 +179,7 @@ class BmsCore {
     //                    rejected or missing sample keeps every state and counts towards staleness
     //   2 catch-up       accept_sample(): the measured temperature to the model (take_temperature());
     //                    the model steps over the ticks missed since the last accepted sample
-    //                    (catch_up(); a gap over power_cycle_after_ticks at rest); the power-up
+    //                    (catch_up(); a gap over power_cycle_after_s at rest); the power-up
     //                    re-synchronisation window opens (also after such a gap)
     //   3 detect mode    ModeDetector::update(): debounced operating mode
     //   4 learning gate  open_gate(): LearningGate (CC charge, warm-up, the path ready; at the
@@ -323,8 +323,8 @@ class BmsCore {
   StatusWord accept_sample(const TickInput<Scalar>& in) {
     const StatusWord st = take_temperature(in.temperature_k);
     const bool first_sample = !have_sample_;
-    const bool power_cycle = !first_sample && config_.power_cycle_after_ticks != 0u &&
-                             stale_ticks_ > config_.power_cycle_after_ticks;
+    const bool power_cycle = !first_sample && config_.power_cycle_after_s > Scalar(0) &&
+                             static_cast<Scalar>(stale_ticks_) * config_.dt_s > config_.power_cycle_after_s;
     if (!first_sample && stale_ticks_ > 0u) catch_up(stale_ticks_, in, power_cycle);
     stale_ticks_ = 0;
     have_sample_ = true;
