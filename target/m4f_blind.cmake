@@ -25,20 +25,19 @@ add_dependencies(bms_m4f_blind bms_fw_source_hash)
 # double build of the same source: fails when the film estimate differs by more than 0.5 %.
 if(BMS_TARGET_SCALAR STREQUAL "float")
   set(BMS_M4F_BLIND_TEST_TICKS 0 CACHE STRING "Ticks of the m4f blind ctest (0: the whole first cycle)")
+  # Every ctest below: one truth's first cycle on the board and in the host's double build.
+  set(bms_m4f_blind_first_cycle
+      ${BMS_PYTHON3} ${BMS_TARGET_TOOLS}/m4f_blind.py
+      --bmssim ${BMS_HOST_BUILD_DIR}/host_sim/bmssim
+      --host-exe ${BMS_HOST_BUILD_DIR}/target/bms_m4f_blind_host
+      --image $<TARGET_FILE:bms_m4f_blind> --qemu ${BMS_QEMU_SYSTEM_ARM} --machine ${BMS_QEMU_MACHINE}
+      --truths 1 --cycles 1 --max-ticks ${BMS_M4F_BLIND_TEST_TICKS})
   add_test(NAME target_m4f_blind_vs_host
-    COMMAND ${BMS_PYTHON3} ${BMS_TARGET_TOOLS}/m4f_blind.py
-            --bmssim ${BMS_HOST_BUILD_DIR}/host_sim/bmssim
-            --host-exe ${BMS_HOST_BUILD_DIR}/target/bms_m4f_blind_host
-            --image $<TARGET_FILE:bms_m4f_blind> --qemu ${BMS_QEMU_SYSTEM_ARM} --machine ${BMS_QEMU_MACHINE}
-            --truths 1 --cycles 1 --max-ticks ${BMS_M4F_BLIND_TEST_TICKS} --limit-pct 0.5
+    COMMAND ${bms_m4f_blind_first_cycle} --limit-pct 0.5
             --out ${CMAKE_CURRENT_BINARY_DIR}/results/m4f-blind-test)
   # The same comparison held to 0.001 %: the check must report the film's difference.
   add_test(NAME target_m4f_blind_detects_difference
-    COMMAND ${BMS_PYTHON3} ${BMS_TARGET_TOOLS}/m4f_blind.py
-            --bmssim ${BMS_HOST_BUILD_DIR}/host_sim/bmssim
-            --host-exe ${BMS_HOST_BUILD_DIR}/target/bms_m4f_blind_host
-            --image $<TARGET_FILE:bms_m4f_blind> --qemu ${BMS_QEMU_SYSTEM_ARM} --machine ${BMS_QEMU_MACHINE}
-            --truths 1 --cycles 1 --max-ticks ${BMS_M4F_BLIND_TEST_TICKS} --limit-pct 0.001
+    COMMAND ${bms_m4f_blind_first_cycle} --limit-pct 0.001
             --out ${CMAKE_CURRENT_BINARY_DIR}/results/m4f-blind-canary)
   set_tests_properties(target_m4f_blind_detects_difference PROPERTIES
     PASS_REGULAR_EXPRESSION "FAIL: film float vs double: median")
@@ -48,21 +47,13 @@ if(BMS_TARGET_SCALAR STREQUAL "float")
   # 0.5 % of it (film, capacity), its costliest tick within 300 000 instructions.
   set(bms_m4f_thermal_truth --temperature-k 288.15 --effect thermal=0.05 --noise-t-k 0.1)
   add_test(NAME target_m4f_blind_temperature_vs_host
-    COMMAND ${BMS_PYTHON3} ${BMS_TARGET_TOOLS}/m4f_blind.py
-            --bmssim ${BMS_HOST_BUILD_DIR}/host_sim/bmssim
-            --host-exe ${BMS_HOST_BUILD_DIR}/target/bms_m4f_blind_host
-            --image $<TARGET_FILE:bms_m4f_blind> --qemu ${BMS_QEMU_SYSTEM_ARM} --machine ${BMS_QEMU_MACHINE}
-            --truths 1 --cycles 1 --max-ticks ${BMS_M4F_BLIND_TEST_TICKS} --limit-pct 0.5 --tick-limit 300000
+    COMMAND ${bms_m4f_blind_first_cycle} --limit-pct 0.5 --tick-limit 300000
             ${bms_m4f_thermal_truth} --estimate-check
             --out ${CMAKE_CURRENT_BINARY_DIR}/results/m4f-blind-temperature)
   # The same truth with the temperature left out of the file (BMSMEAS1): the replay must no longer
   # equal estimate's, or the comparison above would not show that the temperature arrives.
   add_test(NAME target_m4f_blind_temperature_detects_missing
-    COMMAND ${BMS_PYTHON3} ${BMS_TARGET_TOOLS}/m4f_blind.py
-            --bmssim ${BMS_HOST_BUILD_DIR}/host_sim/bmssim
-            --host-exe ${BMS_HOST_BUILD_DIR}/target/bms_m4f_blind_host
-            --image $<TARGET_FILE:bms_m4f_blind> --qemu ${BMS_QEMU_SYSTEM_ARM} --machine ${BMS_QEMU_MACHINE}
-            --truths 1 --cycles 1 --max-ticks ${BMS_M4F_BLIND_TEST_TICKS} --limit-pct 0.5
+    COMMAND ${bms_m4f_blind_first_cycle} --limit-pct 0.5
             ${bms_m4f_thermal_truth} --estimate-check --no-temperature
             --out ${CMAKE_CURRENT_BINARY_DIR}/results/m4f-blind-temperature-missing)
   set_tests_properties(target_m4f_blind_temperature_detects_missing PROPERTIES
