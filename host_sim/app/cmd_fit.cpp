@@ -395,8 +395,9 @@ int run_fit(const FitOptions& o) {
     throw InputError(fmt::format("--ocp-knots {}: must be 0 (no open-circuit correction) or 2..{}", o.ocp_knots,
                                  diagnosis::kMaxOcpKnots));
   for (const auto& n : settings.only) {
+    static const std::string kOneKnot = "ocp_correction_";  // cell_fit's knot names: ocp_correction_N
     const bool knot = n.rfind("ocp_correction", 0) == 0;
-    const int index = knot && n.size() > 15 ? std::atoi(n.c_str() + 15) : 0;
+    const int index = knot && n.size() > kOneKnot.size() ? std::atoi(n.c_str() + kOneKnot.size()) : 0;
     if (knot && (o.ocp_knots == 0 || index > o.ocp_knots))
       throw InputError(fmt::format("--parameters {}: --ocp-knots {} has no such knot (give --ocp-knots 2..{})", n,
                                    o.ocp_knots, diagnosis::kMaxOcpKnots));
