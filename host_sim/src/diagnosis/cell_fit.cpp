@@ -11,6 +11,7 @@
 
 #include "diagnosis/diagnose.hpp"
 #include "diagnosis/model_run.hpp"
+#include "diagnosis/normal_equations.hpp"
 #include "io/bpx_reader.hpp"
 #include "io/input_error.hpp"
 #include "io/table_function.hpp"
@@ -41,25 +42,8 @@ bool is_knot(int k) { return k >= kFirstKnot; }
 // Bounded sizes throughout: the host links the firmware's EIGEN_NO_MALLOC, so no Eigen object
 // here may allocate. z holds every knob; the Jacobian is columns of std::vector (one a knob).
 using ZVec = Eigen::Matrix<double, kKnobs, 1>;
-using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kKnobs, kKnobs>;
-using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kKnobs, 1>;
-using Columns = std::vector<std::vector<double>>;
-
-double dot(const std::vector<double>& a, const std::vector<double>& b) {
-  double d = 0.0;
-  for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) d += a[i] * b[i];
-  return d;
-}
-
-// J^T J of the columns.
-SmallMatrix gram(const Columns& J) {
-  const auto n = static_cast<Eigen::Index>(J.size());
-  SmallMatrix g(n, n);
-  for (Eigen::Index a = 0; a < n; ++a)
-    for (Eigen::Index b = 0; b <= a; ++b)
-      g(a, b) = g(b, a) = dot(J[static_cast<std::size_t>(a)], J[static_cast<std::size_t>(b)]);
-  return g;
-}
+using SmallMatrix = BoundedMatrix<kKnobs>;
+using SmallVector = BoundedVector<kKnobs>;
 
 // The pseudo-inverse of a symmetric positive semi-definite matrix (eigenvalues under 1e-12 of the
 // largest taken as zero).
@@ -488,9 +472,8 @@ struct Search {
     double cost = sum_sq(r), lambda = 1e-2;
     for (int it = 0; it < s.max_iterations && !active.empty(); ++it) {
       const Columns J = jacobian(z, r, active);
-      const SmallMatrix H = gram(J);
-      SmallVector grad(static_cast<Eigen::Index>(J.size()));
-      for (std::size_t c = 0; c < J.size(); ++c) grad[static_cast<Eigen::Index>(c)] = dot(J[c], r);
+      const SmallMatrix H = gram<kKnobs>(J);
+      const SmallVector grad = gradient<kKnobs>(J, r);
       bool accepted = false;
       double gain = 0;
       for (int tries = 0; tries < 6 && !accepted; ++tries) {
@@ -532,7 +515,7 @@ double collinearity(const Columns& Jn, int c, const std::vector<int>& others) {
   const std::vector<double>& y = Jn[static_cast<std::size_t>(c)];
   SmallVector by(static_cast<Eigen::Index>(B.size()));
   for (std::size_t i = 0; i < B.size(); ++i) by[static_cast<Eigen::Index>(i)] = dot(B[i], y);
-  const SmallVector coef = pseudo_inverse(gram(B)) * by;
+  const SmallVector coef = pseudo_inverse(gram<kKnobs>(B)) * by;
   const double projected = by.dot(coef) / std::max(dot(y, y), 1e-300);
   return std::sqrt(std::clamp(projected, 0.0, 1.0));
 }
@@ -614,7 +597,7 @@ SmallMatrix fit_and_prune(Search& search, const Problem& problem, const CellFitS
     const Columns J = search.jacobian(z, r, active);
     const double dof = std::max(1.0, static_cast<double>(r.size()) - static_cast<double>(active.size()));
     s2 = sum_sq(r) / dof;
-    cov = s2 * pseudo_inverse(gram(J));
+    cov = s2 * pseudo_inverse(gram<kKnobs>(J));
     // The parameter furthest over its bar leaves, and the rest is refitted: the relative sd for
     // the named parameters, the absolute sd (mV) for the additive OCP knots.
     int worst = -1;

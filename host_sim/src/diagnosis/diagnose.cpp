@@ -12,6 +12,7 @@
 #include <mutex>
 
 #include "diagnosis/minimise.hpp"
+#include "diagnosis/normal_equations.hpp"
 #include "diagnosis/parallel.hpp"
 #include "io/input_error.hpp"
 #include "io/statistics.hpp"
@@ -91,8 +92,8 @@ bool has_knob(const Hypothesis& h, Effect e) {
 // Small normal equations and the Fisher information in matrices of bounded size: the host
 // links the firmware's EIGEN_NO_MALLOC, so nothing here may allocate.
 constexpr std::size_t kMaxFisherKnobs = 16;
-using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxFisherKnobs, kMaxFisherKnobs>;
-using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxFisherKnobs, 1>;
+using SmallMatrix = BoundedMatrix<static_cast<int>(kMaxFisherKnobs)>;
+using SmallVector = BoundedVector<static_cast<int>(kMaxFisherKnobs)>;
 
 // Pooled sums of squares over several cases.
 struct Pool {
@@ -286,25 +287,10 @@ constexpr int kDriveSeedPoints = 5;
 // One step moves a knob by at most this share of its range (the response is not linear far out).
 constexpr double kMaxStepShare = 0.35;
 
-using Columns = std::vector<std::vector<double>>;  // one Jacobian column per knob
-
 // J^T J and J^T r.
 void normal_equations(const Columns& jac, const std::vector<double>& r, SmallMatrix& a, SmallVector& g) {
-  const auto p = static_cast<Eigen::Index>(jac.size());
-  a.resize(p, p);
-  g.resize(p);
-  for (Eigen::Index j = 0; j < p; ++j) {
-    const auto& cj = jac[static_cast<std::size_t>(j)];
-    double gj = 0.0;
-    for (std::size_t i = 0; i < r.size(); ++i) gj += cj[i] * r[i];
-    g(j) = gj;
-    for (Eigen::Index l = 0; l <= j; ++l) {
-      const auto& cl = jac[static_cast<std::size_t>(l)];
-      double d = 0.0;
-      for (std::size_t i = 0; i < r.size(); ++i) d += cj[i] * cl[i];
-      a(j, l) = a(l, j) = d;
-    }
-  }
+  a = gram<static_cast<int>(kMaxFisherKnobs)>(jac);
+  g = gradient<static_cast<int>(kMaxFisherKnobs)>(jac, r);
 }
 
 // The damped Gauss-Newton step from x, shortened to stay near the linearisation and clipped
