@@ -59,7 +59,7 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
   const ChargeReport* ref_cap = nullptr;
   const CyclerCycleStat* ref_meas = nullptr;
   double ref_ir = std::nan("");
-  double ref_step = std::nan(""), ref_dstep = std::nan("");
+  double ref_step = std::nan(""), ref_dstep = std::nan(""), ref_onset = std::nan("");
   for (const ChargeReport& c : charges) {
     const auto it = by_cycle.find(c.cycle);
     if (it == by_cycle.end() || !(it->second->discharge_ah >= kPartialCycleShare * max_dis)) continue;
@@ -74,6 +74,7 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     if (std::isnan(ref_ir) && std::isfinite(m.internal_resistance_ohm)) ref_ir = m.internal_resistance_ohm;
     if (std::isnan(ref_step) && std::isfinite(c.r_step_ohm)) ref_step = c.r_step_ohm;
     if (std::isnan(ref_dstep) && std::isfinite(c.r_discharge_step_ohm)) ref_dstep = c.r_discharge_step_ohm;
+    if (std::isnan(ref_onset) && std::isfinite(c.r_discharge_onset_ohm)) ref_onset = c.r_discharge_onset_ohm;
     AgingRow r{};
     r.cycle = c.cycle;
     r.capacity_est_ah = c.capacity_ah;
@@ -90,6 +91,7 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     r.r_growth_est_ohm = c.r_growth_ohm - ref->r_growth_ohm;
     r.r_step_growth_ohm = c.r_step_ohm - ref_step;
     r.r_discharge_step_growth_ohm = c.r_discharge_step_ohm - ref_dstep;
+    r.r_discharge_onset_growth_ohm = c.r_discharge_onset_ohm - ref_onset;
     r.discharge_meas_ah = m.discharge_ah;
     r.soh_meas = ref_meas != nullptr ? m.discharge_ah / ref_meas->discharge_ah : nan;
     r.ir_meas_ohm = m.internal_resistance_ohm;
@@ -97,7 +99,7 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     r.learned = c.learned;
     a.rows.push_back(r);
   }
-  std::vector<double> ir, film, step, dstep;
+  std::vector<double> ir, film, step, dstep, onset;
   double sum = 0.0, worst = 0.0, sum_counted = 0.0;
   std::size_t n_est = 0, n_counted = 0;
   for (const AgingRow& r : a.rows) {
@@ -115,6 +117,7 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     film.push_back(r.r_growth_est_ohm);
     step.push_back(r.r_step_growth_ohm);
     dstep.push_back(r.r_discharge_step_growth_ohm);
+    onset.push_back(r.r_discharge_onset_growth_ohm);
   }
   a.cycles_scored = n_est;
   if (n_est > 0) {
@@ -125,6 +128,7 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
   a.film_vs_ir = fit_line(ir, film);
   a.step_vs_ir = fit_line(ir, step);
   a.discharge_step_vs_ir = fit_line(ir, dstep);
+  a.discharge_onset_vs_ir = fit_line(ir, onset);
   return a;
 }
 
@@ -142,6 +146,7 @@ nlohmann::json aging_json(const AgingComparison& a) {
           {"r_growth_vs_cycler_ir_growth", fit(a.film_vs_ir)},
           {"r_step_growth_vs_cycler_ir_growth", fit(a.step_vs_ir)},
           {"r_discharge_step_growth_vs_cycler_ir_growth", fit(a.discharge_step_vs_ir)},
+          {"r_discharge_onset_growth_vs_cycler_ir_growth", fit(a.discharge_onset_vs_ir)},
           {"note",
            "soh: the charges' capacity_ah / its first (capacity_source: the estimator's open-circuit capacity, or the "
            "counted charge where it identifies none), against the cycler's discharge capacity / its first, same cycle; "
@@ -152,7 +157,7 @@ std::string write_aging_outputs(const std::filesystem::path& dir, const AgingCom
   CsvWriter w(dir / "aging.csv", {"cycle", "capacity_est_ah", "capacity_sd_ah", "soh_est", "discharge_meas_ah",
                                   "soh_meas", "r_growth_est_ohm", "r_step_growth_ohm", "ir_meas_ohm",
                                   "ir_growth_meas_ohm", "learned", "counted_ah", "soh_counted",
-                                  "r_discharge_step_growth_ohm", "counted_complete"});
+                                  "r_discharge_step_growth_ohm", "counted_complete", "r_discharge_onset_growth_ohm"});
   const auto cell = [&w](double v) {
     if (std::isfinite(v)) w.cell(v);
     else w.cell("");
@@ -167,6 +172,7 @@ std::string write_aging_outputs(const std::filesystem::path& dir, const AgingCom
     cell(r.soh_counted);
     cell(r.r_discharge_step_growth_ohm);
     w.cell(r.counted_complete ? 1 : 0);
+    cell(r.r_discharge_onset_growth_ohm);
     w.end_row();
   }
   w.commit();
@@ -190,7 +196,8 @@ std::string write_aging_outputs(const std::filesystem::path& dir, const AgingCom
       "plot 'aging.csv' using 1:10 skip 1 with points pt 7 ps 0.5 title 'cycler: internal resistance', "
       "'' using 1:7 skip 1 with lines lw 2 title 'estimate: r_growth_ohm (film)', "
       "'' using 1:8 skip 1 with points pt 6 ps 0.4 title 'measured: voltage step at the charge onset', "
-      "'' using 1:14 skip 1 with points pt 2 ps 0.4 title 'measured: voltage step at the discharge onset'\n";
+      "'' using 1:14 skip 1 with points pt 2 ps 0.4 title 'measured: voltage step at the discharge onset', "
+      "'' using 1:16 skip 1 with points pt 5 ps 0.4 title 'measured: discharge onset at the step instant'\n";
   AtomicFileWriter script(dir / "plots.gp");
   script.append(gp);
   script.commit();
