@@ -47,6 +47,44 @@ LineFit fit_line(const std::vector<double>& x, const std::vector<double>& y) {
   return f;
 }
 
+namespace {
+
+// The SoH errors over the rows with a capacity and the resistance growths' lines on the IR growth.
+void score(AgingComparison& a) {
+  std::vector<double> ir, film, step, dstep, onset;
+  double sum = 0.0, worst = 0.0, sum_counted = 0.0;
+  std::size_t n_est = 0, n_counted = 0;
+  for (const AgingRow& r : a.rows) {
+    // A charge with no capacity (not a whole charge, counted) is not scored.
+    if (const double e = std::abs(r.soh_est - r.soh_meas) * 100.0; std::isfinite(e)) {
+      sum += e;
+      worst = std::max(worst, e);
+      ++n_est;
+    }
+    if (const double e = std::abs(r.soh_counted - r.soh_meas) * 100.0; std::isfinite(e) && r.counted_complete) {
+      sum_counted += e;
+      ++n_counted;
+    }
+    ir.push_back(r.ir_growth_meas_ohm);
+    film.push_back(r.r_growth_est_ohm);
+    step.push_back(r.r_step_growth_ohm);
+    dstep.push_back(r.r_discharge_step_growth_ohm);
+    onset.push_back(r.r_discharge_onset_growth_ohm);
+  }
+  a.cycles_scored = n_est;
+  if (n_est > 0) {
+    a.soh_mae_pp = sum / static_cast<double>(n_est);
+    a.soh_max_abs_pp = worst;
+  }
+  if (n_counted > 0) a.soh_counted_mae_pp = sum_counted / static_cast<double>(n_counted);
+  a.film_vs_ir = fit_line(ir, film);
+  a.step_vs_ir = fit_line(ir, step);
+  a.discharge_step_vs_ir = fit_line(ir, dstep);
+  a.discharge_onset_vs_ir = fit_line(ir, onset);
+}
+
+}  // namespace
+
 AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const std::vector<CyclerCycleStat>& cycler) {
   AgingComparison a;
   double max_dis = 0.0;
@@ -99,36 +137,7 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     r.learned = c.learned;
     a.rows.push_back(r);
   }
-  std::vector<double> ir, film, step, dstep, onset;
-  double sum = 0.0, worst = 0.0, sum_counted = 0.0;
-  std::size_t n_est = 0, n_counted = 0;
-  for (const AgingRow& r : a.rows) {
-    // A charge with no capacity (not a whole charge, counted) is not scored.
-    if (const double e = std::abs(r.soh_est - r.soh_meas) * 100.0; std::isfinite(e)) {
-      sum += e;
-      worst = std::max(worst, e);
-      ++n_est;
-    }
-    if (const double e = std::abs(r.soh_counted - r.soh_meas) * 100.0; std::isfinite(e) && r.counted_complete) {
-      sum_counted += e;
-      ++n_counted;
-    }
-    ir.push_back(r.ir_growth_meas_ohm);
-    film.push_back(r.r_growth_est_ohm);
-    step.push_back(r.r_step_growth_ohm);
-    dstep.push_back(r.r_discharge_step_growth_ohm);
-    onset.push_back(r.r_discharge_onset_growth_ohm);
-  }
-  a.cycles_scored = n_est;
-  if (n_est > 0) {
-    a.soh_mae_pp = sum / static_cast<double>(n_est);
-    a.soh_max_abs_pp = worst;
-  }
-  if (n_counted > 0) a.soh_counted_mae_pp = sum_counted / static_cast<double>(n_counted);
-  a.film_vs_ir = fit_line(ir, film);
-  a.step_vs_ir = fit_line(ir, step);
-  a.discharge_step_vs_ir = fit_line(ir, dstep);
-  a.discharge_onset_vs_ir = fit_line(ir, onset);
+  score(a);
   return a;
 }
 
