@@ -165,9 +165,11 @@ void add_pieces(const Group& g, const std::vector<char>& role, double v_max, boo
   const std::vector<std::size_t> starts = restart_rows(d, v_max, full_charges);
   for (std::size_t s = 0; s + 1 < starts.size(); ++s) {
     const std::size_t a = starts[s], b = starts[s + 1];
-    bool used = false;
-    for (std::size_t k = a; k < b; ++k) used = used || (role[k] & want) != 0;
-    if (!used) continue;
+    // A piece that holds one wanted row only (the restart row at the end of the last wanted cycle)
+    // is left out: a model run needs two samples.
+    std::size_t used = 0;
+    for (std::size_t k = a; k < b; ++k) used += (role[k] & want) != 0;
+    if (used < 2) continue;
     auto slice = [&](const std::vector<double>& v) {
       return v.empty() ? std::vector<double>{} : std::vector<double>(v.begin() + static_cast<long>(a), v.begin() + static_cast<long>(b));
     };
@@ -210,19 +212,19 @@ std::string cycle_panels_gp(const std::vector<diagnosis::CycleScore>& cycles, co
   const int cols = std::max(1, static_cast<int>(std::ceil(std::sqrt(static_cast<double>(held.size())))));
   const int rows = (static_cast<int>(held.size()) + cols - 1) / cols;
   std::string gp = fmt::format(
-      "set output '{}.tmp'\nset terminal pngcairo size {},{} noenhanced\nset multiplot layout {},{} title "
+      "set output '{}.tmp'\nset autoscale\nset terminal pngcairo size {},{} noenhanced\nset multiplot layout {},{} title "
       "'Held-out cycles: measured (black) and fitted (red) voltage; each piece restarted from the rest after a full "
       "charge'\nunset key\nset xlabel 'h since the cycle began'; set ylabel 'V'\n",
       name, 380 * cols, 300 * rows + 60, rows, cols);
   for (int c : held) {
     const auto it = std::find_if(cycles.begin(), cycles.end(), [&](const auto& x) { return x.cycle == c; });
     gp += fmt::format(
-        "set title 'cycle {}: RMSE {:.1f} mV, {} of {} rows scored'\n"
+        "set title 'cycle {}: {:.1f} mV, {}/{} rows'\n"
         "plot 'fit.csv' skip 1 using 12:($4=={}&&$5==2?$7:1/0) with lines lw 2 lc rgb 'black', "
         "'' skip 1 using 12:($4=={}&&$5==2?$9:1/0) with lines lc rgb 'red'\n",
         c, it->rmse_mv, it->scored, it->samples, c, c);
   }
-  return gp + "unset multiplot\nset terminal pngcairo size 1400,800 noenhanced\nset key outside bottom center horizontal\n";
+  return gp + "unset multiplot\nset autoscale\nset terminal pngcairo size 1400,800 noenhanced\nset key outside bottom center horizontal\n";
 }
 
 std::vector<std::string> plot(const std::filesystem::path& dir, const std::vector<diagnosis::CycleScore>& cycles,
@@ -255,7 +257,7 @@ std::vector<std::string> plot(const std::filesystem::path& dir, const std::vecto
   // cycles.csv: 1 cycle, 2 role, 3 samples, 4 scored, 5 rmse_mv, 6 mean_mv, 7 max_abs_mv, 8 rmse_template_mv
   gp += fmt::format(
       "set output '{0}.tmp'\nset title 'Voltage RMSE per cycle (rows the model reached)'\n"
-      "set xlabel 'cycle'; set ylabel 'RMSE (mV)'; set style fill solid 0.6; set boxwidth 0.7\n"
+      "set xlabel 'cycle'; set ylabel 'RMSE (mV)'; set yrange [0:*]; set style fill solid 0.6; set boxwidth 0.7\n"
       "plot 'cycles.csv' skip 1 using 1:(strcol(2) eq 'train'?$5:1/0) with boxes lc rgb 'blue' title 'fitted, training', "
       "'' skip 1 using 1:(strcol(2) eq 'heldout'?$5:1/0) with boxes lc rgb 'red' title 'fitted, held out', "
       "'' skip 1 using 1:8 with linespoints lc rgb '#999999' title 'template'\n",
@@ -623,7 +625,12 @@ int run_score_only(const FitOptions& o) {
   if (!(o.rtol > 0.0 && o.rtol < 1e-2)) throw InputError("--rtol: must be in (0, 0.01)");
   if (!std::filesystem::is_regular_file(o.score_only))
     throw InputError("--score-only " + o.score_only + ": no such file (give a cell's BPX file, e.g. a fit's cell.bpx.json)");
-  const CellParameters cell = load_cell(o.score_only);
+  CellParameters cell;
+  try {
+    cell = load_cell(o.score_only);
+  } catch (const InputError& e) {
+    throw InputError(std::string("--score-only: ") + e.what());
+  }
   OutputFolder folder(o.out);
   const Prepared d = prepare(o);
   std::vector<diagnosis::FitPiece> pieces;
