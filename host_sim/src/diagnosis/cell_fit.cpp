@@ -611,17 +611,29 @@ SmallMatrix fit_and_prune(Search& search, const Problem& problem, const CellFitS
       if (!(ratio <= worst_ratio))
         worst = static_cast<int>(c), worst_ratio = std::isfinite(ratio) ? ratio : HUGE_VAL, worst_sd = sd;
     }
+    // A parameter the search pushed to a bound of its range leaves first: its sd there says nothing
+    // and the data want it outside the range searched (e.g. a series film traded for the
+    // electrolyte's conductivity, which carries the same resistance).
+    int at_bound = -1;
+    for (std::size_t c = 0; c < active.size() && at_bound < 0; ++c) {
+      const KnobInfo& ki = info(static_cast<Knob>(active[c]));
+      if (z[active[c]] <= ki.lo + 1e-9 || z[active[c]] >= ki.hi - 1e-9) at_bound = static_cast<int>(c);
+    }
+    if (at_bound >= 0) worst = at_bound;
     if (worst < 0) break;
     const int k = active[static_cast<std::size_t>(worst)];
     why[static_cast<std::size_t>(k)] =
-        is_knot(k) ? fmt::format("standard error {:.3g} mV at the optimum (over {:g} mV): not identifiable from these "
+        at_bound >= 0 ? std::string("at a bound of its search range at the optimum (the data push it beyond it): not "
+                                    "identifiable from these data")
+        : is_knot(k) ? fmt::format("standard error {:.3g} mV at the optimum (over {:g} mV): not identifiable from these "
                                  "data",
                                  worst_sd, settings.max_ocp_sd_mv)
                    : fmt::format("relative standard error {:.3g} at the optimum (over {:g}): not identifiable from "
                                  "these data",
                                  worst_sd, settings.max_relative_sd);
-    log(fmt::format("{} not identifiable ({} {:.3g}); refitting without it", info(static_cast<Knob>(k)).name,
-                    is_knot(k) ? "sd in mV" : "relative sd", worst_sd));
+    log(fmt::format("{} not identifiable ({}); refitting without it", info(static_cast<Knob>(k)).name,
+                    at_bound >= 0 ? std::string("at a search bound")
+                                  : fmt::format("{} {:.3g}", is_knot(k) ? "sd in mV" : "relative sd", worst_sd)));
     active.erase(active.begin() + worst);
     z[k] = problem.z0()[k];  // the template's value
     r = search.eval(z);
