@@ -2,7 +2,8 @@
 # Integration test: `bmssim fit` refuses bad input at once: exit code 2, one line naming the
 # option or file, no summary.json (unknown template, paper template, missing file, a record with
 # no current, bad --train-cycles, cycles that hold no data, an unknown --parameters name, an
-# --ocp-knots count out of 0 or 2..8, knots asked for in --parameters that --ocp-knots has not).
+# --ocp-knots count out of 0 or 2..8, knots asked for in --parameters that --ocp-knots has not, no --template, a bad
+# --train-restarts, --score-only with a missing or non-BPX file or with a fitting option).
 #
 # Usage: fit_bad_input_test.sh BMSSIM
 set -u
@@ -38,6 +39,14 @@ expect_bad knots_off_but_asked '--parameters ocp_correction.*--ocp-knots 0' --da
   --ocp-knots 0 --parameters electrode_area_m2,ocp_correction
 expect_bad knot_beyond_count '--parameters ocp_correction_7.*--ocp-knots 6' --data syn/truth.csv --template lco \
   --ocp-knots 6 --parameters ocp_correction_7
+expect_bad no_template '--template.*required' --data syn/truth.csv
+expect_bad bad_train_restarts '--train-restarts.*often' --data syn/truth.csv --template lco --train-restarts often
+expect_bad score_only_missing '--score-only.*nosuch\.bpx\.json' --data syn/truth.csv --score-only nosuch.bpx.json
+expect_bad score_only_with_template '--template.*--score-only' --data syn/truth.csv --score-only "$HERE/../../host_sim/cells/lco.bpx.json" \
+  --template lco
+expect_bad score_only_with_knots '--ocp-knots.*--score-only' --data syn/truth.csv --score-only "$HERE/../../host_sim/cells/lco.bpx.json" \
+  --ocp-knots 4
+expect_bad score_only_not_bpx '--score-only: rest\.csv' --data syn/truth.csv --score-only rest.csv
 
 echo "# $PASSED passed, $FAILED failed"
 [ "$FAILED" -eq 0 ]

@@ -7,6 +7,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <memory>
 
 #include "diagnosis/diagnose.hpp"
@@ -610,17 +611,29 @@ SmallMatrix fit_and_prune(Search& search, const Problem& problem, const CellFitS
       if (!(ratio <= worst_ratio))
         worst = static_cast<int>(c), worst_ratio = std::isfinite(ratio) ? ratio : HUGE_VAL, worst_sd = sd;
     }
+    // A parameter the search pushed to a bound of its range leaves first: its sd there says nothing
+    // and the data want it outside the range searched (e.g. a series film traded for the
+    // electrolyte's conductivity, which carries the same resistance).
+    int at_bound = -1;
+    for (std::size_t c = 0; c < active.size() && at_bound < 0; ++c) {
+      const KnobInfo& ki = info(static_cast<Knob>(active[c]));
+      if (z[active[c]] <= ki.lo + 1e-9 || z[active[c]] >= ki.hi - 1e-9) at_bound = static_cast<int>(c);
+    }
+    if (at_bound >= 0) worst = at_bound;
     if (worst < 0) break;
     const int k = active[static_cast<std::size_t>(worst)];
     why[static_cast<std::size_t>(k)] =
-        is_knot(k) ? fmt::format("standard error {:.3g} mV at the optimum (over {:g} mV): not identifiable from these "
+        at_bound >= 0 ? std::string("at a bound of its search range at the optimum (the data push it beyond it): not "
+                                    "identifiable from these data")
+        : is_knot(k) ? fmt::format("standard error {:.3g} mV at the optimum (over {:g} mV): not identifiable from these "
                                  "data",
                                  worst_sd, settings.max_ocp_sd_mv)
                    : fmt::format("relative standard error {:.3g} at the optimum (over {:g}): not identifiable from "
                                  "these data",
                                  worst_sd, settings.max_relative_sd);
-    log(fmt::format("{} not identifiable ({} {:.3g}); refitting without it", info(static_cast<Knob>(k)).name,
-                    is_knot(k) ? "sd in mV" : "relative sd", worst_sd));
+    log(fmt::format("{} not identifiable ({}); refitting without it", info(static_cast<Knob>(k)).name,
+                    at_bound >= 0 ? std::string("at a search bound")
+                                  : fmt::format("{} {:.3g}", is_knot(k) ? "sd in mV" : "relative sd", worst_sd)));
     active.erase(active.begin() + worst);
     z[k] = problem.z0()[k];  // the template's value
     r = search.eval(z);
@@ -660,37 +673,102 @@ std::vector<FitParameter> parameters_of(const Problem& problem, const ZVec& z,
   return out;
 }
 
-// The fitted cell (z) and the template (z0) scored on the final mesh, train and held out.
-void score_final(const Problem& problem, const std::vector<FitPiece>& pieces, const CellFitSettings& settings,
-                 const std::function<void(const std::string&)>& log, const ZVec& z, CellFitResult& out) {
+// The fitted cell and the template, as written, scored on the final mesh and the scoring pieces.
+void score_final(const Problem& problem, const std::vector<FitPiece>& score_pieces, const CellFitSettings& settings,
+                 const std::function<void(const std::string&)>& log, CellFitResult& out) {
   log("scoring on the final mesh");
-  auto score = [&](const ZVec& zz, std::vector<std::vector<double>>& v, double& train, double& held,
-                   double* held_max) {
-    std::vector<std::string> early;
-    if (!problem.run(zz, settings.final_mesh, kRoleTrain | kRoleHeldOut, v, &early))
-      throw RuntimeFailure("the fitted cell's model fails on the final mesh; try a finer --search-points");
-    double st = 0, sh = 0, mh = 0;
-    std::size_t nt = 0, nh = 0;
-    for (std::size_t p = 0; p < pieces.size(); ++p)
-      for (std::size_t k = 0; k < v[p].size(); ++k) {
-        const double e = 1e3 * (v[p][k] - pieces[p].record.voltage_v[k]);
-        if (pieces[p].role[k] == kRoleTrain) st += e * e, ++nt;
-        if (pieces[p].role[k] == kRoleHeldOut) sh += e * e, ++nh, mh = std::max(mh, std::abs(e));
-      }
-    train = nt ? std::sqrt(st / static_cast<double>(nt)) : std::nan("");
-    held = nh ? std::sqrt(sh / static_cast<double>(nh)) : std::nan("");
-    if (held_max) {
-      *held_max = nh ? mh : std::nan("");
-      for (const auto& e : early) out.notes.push_back("fitted cell: " + e);
-      if (!early.empty()) log(fmt::format("warning: the fitted model stopped early in {} piece(s) (summary.json notes)", early.size()));
-    }
-    out.heldout_samples = nh;
-  };
-  score(z, out.model_v, out.rmse_train_mv, out.rmse_heldout_mv, &out.max_abs_heldout_mv);
-  score(problem.z0(), out.template_v, out.rmse_template_train_mv, out.rmse_template_heldout_mv, nullptr);
+  out.fitted = score_cell(out.cell, score_pieces, settings.final_mesh, settings.rtol);
+  Balance b0;
+  const CellParameters template_cell = read_bpx_text(problem.bpx(problem.z0(), b0).dump(), "template");
+  out.templ = score_cell(template_cell, score_pieces, settings.final_mesh, settings.rtol);
+  out.rmse_train_mv = out.fitted.rmse_train_mv, out.rmse_heldout_mv = out.fitted.rmse_heldout_mv;
+  out.max_abs_heldout_mv = out.fitted.max_abs_heldout_mv;
+  out.rmse_template_train_mv = out.templ.rmse_train_mv, out.rmse_template_heldout_mv = out.templ.rmse_heldout_mv;
+  out.heldout_samples = out.fitted.heldout_samples;
+  for (const auto& st : out.fitted.stops)
+    out.notes.push_back(fmt::format("fitted cell: the model stopped at row {} of {} of piece {} (cycle {}, t = {:.1f} "
+                                    "s): {}; the rows after it are not scored",
+                                    st.row + 1, st.rows, st.piece + 1, st.cycle, st.t_s, st.why));
+  if (!out.fitted.stops.empty())
+    log(fmt::format("warning: the fitted model stopped early in {} piece(s) (summary.json notes, stops)",
+                    out.fitted.stops.size()));
 }
 
+// One piece's rows up to its last used one, restarted from its first row's rest voltage.
+Record piece_record(const FitPiece& piece, const CellParameters& cell, std::size_t n) {
+  Record r = piece.record;
+  r.t_s.resize(n), r.current_a.resize(n), r.voltage_v.resize(n), r.mode.resize(n);
+  if (!r.temperature_k.empty()) r.temperature_k.resize(n);
+  r.initial_depth_ah = std::numeric_limits<double>::quiet_NaN();
+  set_initial_state(r, cell, "auto");
+  return r;
+}
+
+struct Moments {
+  double ss = 0, sum = 0, max_abs = 0;
+  std::size_t n = 0;
+  void add(double e) { ss += e * e, sum += e, max_abs = std::max(max_abs, std::abs(e)), ++n; }
+  double rms() const { return n ? std::sqrt(ss / static_cast<double>(n)) : std::nan(""); }
+};
+
 }  // namespace
+
+CellScore score_cell(const CellParameters& cell, const std::vector<FitPiece>& pieces, const DfnMesh& mesh,
+                     double rtol) {
+  CellScore out;
+  const ModelSetup setup{cell, mesh, rtol, 0.0};
+  std::map<int, std::pair<CycleScore, Moments>> cycles;
+  Moments train, held;
+  out.voltage_v.assign(pieces.size(), {});
+  for (std::size_t p = 0; p < pieces.size(); ++p) {
+    const FitPiece& piece = pieces[p];
+    out.voltage_v[p].assign(piece.role.size(), std::numeric_limits<double>::quiet_NaN());
+    std::size_t n = 0;
+    for (std::size_t k = 0; k < piece.role.size(); ++k)
+      if (piece.role[k]) n = k + 1;
+    if (n == 0) {
+      out.initial_states.emplace_back("(no scored rows)");
+      continue;
+    }
+    const Record r = piece_record(piece, cell, n);
+    out.initial_states.push_back(r.initial_state_note);
+    std::size_t covered = 0;
+    std::string why;
+    try {
+      const ModelRun m = run_model(setup, r, Hypothesis{});
+      covered = m.samples_covered;
+      for (std::size_t k = 0; k < covered; ++k) out.voltage_v[p][k] = m.voltage_v[k];
+      why = m.note;
+    } catch (const RuntimeFailure& e) {
+      why = e.what();
+    }
+    for (std::size_t k = 0; k < n; ++k)
+      if (std::isfinite(out.voltage_v[p][k])) covered = k + 1;
+    if (covered < n)
+      out.stops.push_back({p, covered, n, piece.cycle[covered], r.t_s[covered], why.empty() ? "the solver stopped" : why});
+    for (std::size_t k = 0; k < n; ++k) {
+      if (!piece.role[k]) continue;
+      auto& [cs, mom] = cycles[piece.cycle[k]];
+      cs.cycle = piece.cycle[k], cs.role = piece.role[k];
+      ++cs.samples;
+      (piece.role[k] == kRoleTrain ? out.train_samples : out.heldout_samples)++;
+      if (!std::isfinite(out.voltage_v[p][k])) continue;
+      const double e = 1e3 * (out.voltage_v[p][k] - r.voltage_v[k]);
+      mom.add(e);
+      (piece.role[k] == kRoleTrain ? train : held).add(e);
+    }
+  }
+  for (auto& [c, cm] : cycles) {
+    auto& [cs, mom] = cm;
+    cs.scored = mom.n;
+    if (mom.n) cs.rmse_mv = mom.rms(), cs.mean_mv = mom.sum / static_cast<double>(mom.n), cs.max_abs_mv = mom.max_abs;
+    out.cycles.push_back(cs);
+  }
+  out.train_scored = train.n, out.heldout_scored = held.n;
+  out.rmse_train_mv = train.rms(), out.rmse_heldout_mv = held.rms();
+  out.max_abs_heldout_mv = held.n ? held.max_abs : std::nan("");
+  return out;
+}
 
 std::vector<std::string> fit_parameter_names() {
   std::vector<std::string> n;
@@ -701,9 +779,9 @@ std::vector<std::string> fit_parameter_names() {
 }
 
 CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& template_name,
-                       const std::vector<FitPiece>& pieces, const CellFitSettings& settings,
-                       const std::function<void(const std::string&)>& log) {
-  Problem problem(template_bpx, template_name, pieces, settings);
+                       const std::vector<FitPiece>& search_pieces, const std::vector<FitPiece>& score_pieces,
+                       const CellFitSettings& settings, const std::function<void(const std::string&)>& log) {
+  Problem problem(template_bpx, template_name, search_pieces, settings);
   CellFitResult out;
   out.notes = problem.notes();
   Search search{problem, settings, log};
@@ -724,6 +802,7 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
   std::vector<int> active = identifiable_knobs(search, z, r, candidates, settings, why);
   log(fmt::format("fitting {} of {} parameters", active.size(), candidates.size()));
   const SmallMatrix cov = fit_and_prune(search, problem, settings, log, z, r, active, why, out);
+  out.rmse_objective_mv = std::sqrt(sum_sq(r) / static_cast<double>(std::max<std::size_t>(r.size(), 1)));
   out.evaluations = search.evaluations;
   out.parameters = parameters_of(problem, z, active, cov, why);
   // Final: the fitted cell as written, scored on the final mesh (train and held out).
@@ -750,7 +829,7 @@ CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& te
   Balance b0;
   problem.bpx(problem.z0(), b0);
   out.derived["template_capacity_ah_in_this_window"] = b0.capacity_ah;
-  score_final(problem, pieces, settings, log, z, out);
+  score_final(problem, score_pieces, settings, log, out);
   return out;
 }
 

@@ -67,25 +67,65 @@ struct FitParameter {
   std::string note;  // why not fitted
 };
 
+// Where a piece's model run stopped before the piece's last scored row, and why.
+struct ModelStop {
+  std::size_t piece = 0, row = 0, rows = 0;  // row: the first row not reached (0-based in the piece), of rows
+  int cycle = 0;
+  double t_s = 0.0;
+  std::string why;
+};
+
+// One cycle's voltage residual (model - measured) over the rows the model reached.
+struct CycleScore {
+  int cycle = 0;
+  char role = 0;                   // kRoleTrain or kRoleHeldOut
+  std::size_t samples = 0, scored = 0;  // rows of the cycle, rows the model reached
+  double rmse_mv = std::numeric_limits<double>::quiet_NaN();
+  double mean_mv = std::numeric_limits<double>::quiet_NaN();
+  double max_abs_mv = std::numeric_limits<double>::quiet_NaN();
+};
+
+// A cell scored on pieces, each run from its own initial state (the measured rest voltage at its
+// first row through the cell's open-circuit curve). Rows the model did not reach are not scored
+// (NaN in voltage_v) and are counted: coverage = scored / samples.
+struct CellScore {
+  std::vector<std::vector<double>> voltage_v;  // per piece, per row; NaN where unused or not reached
+  std::vector<CycleScore> cycles;
+  std::vector<ModelStop> stops;
+  std::vector<std::string> initial_states;  // per piece: how its initial state was set
+  std::size_t train_samples = 0, train_scored = 0, heldout_samples = 0, heldout_scored = 0;
+  double rmse_train_mv = std::numeric_limits<double>::quiet_NaN();
+  double rmse_heldout_mv = std::numeric_limits<double>::quiet_NaN();
+  double max_abs_heldout_mv = std::numeric_limits<double>::quiet_NaN();
+};
+
+// Runs `cell` on every piece (mesh, rtol) and scores the training and held-out rows.
+CellScore score_cell(const CellParameters& cell, const std::vector<FitPiece>& pieces, const DfnMesh& mesh,
+                     double rtol);
+
 struct CellFitResult {
   std::string bpx_text;  // the fitted cell
   CellParameters cell;
   std::vector<FitParameter> parameters;
   nlohmann::json derived;  // voltage window, stoichiometry window, capacity
+  CellScore fitted, templ;  // the final scores (the scoring pieces, final mesh)
   double rmse_template_train_mv = 0.0, rmse_train_mv = 0.0;
   double rmse_template_heldout_mv = std::numeric_limits<double>::quiet_NaN();
   double rmse_heldout_mv = std::numeric_limits<double>::quiet_NaN();
   double max_abs_heldout_mv = std::numeric_limits<double>::quiet_NaN();
   std::size_t train_samples = 0, heldout_samples = 0;
-  std::vector<std::vector<double>> model_v, template_v;  // per piece, per row (final mesh); NaN where unused
   int evaluations = 0, iterations = 0;
   double residual_sd_mv = 0.0;
+  double rmse_objective_mv = 0.0;  // the search's training RMSE at the optimum (search mesh and pieces)
   std::vector<std::string> notes;
 };
 
 // template_bpx: the template's BPX JSON (its numbers, expressions or tables are scaled where fitted).
+// search_pieces: the training rows the search runs on; score_pieces: every training and held-out
+// row, in the pieces the final score runs (restarted at every state known from measurements).
 CellFitResult fit_cell(const nlohmann::json& template_bpx, const std::string& template_name,
-                       const std::vector<FitPiece>& pieces, const CellFitSettings& settings,
+                       const std::vector<FitPiece>& search_pieces, const std::vector<FitPiece>& score_pieces,
+                       const CellFitSettings& settings,
                        const std::function<void(const std::string&)>& log);
 
 // Names of every parameter fit may move, in order.
