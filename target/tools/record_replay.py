@@ -21,8 +21,9 @@
      same first and last tick;
    - per charge, board against host double, |b/d - 1| <= --limit-pct for: the film at the CC end,
      the capacity at the CC end, the model voltage at the CC start, the CC end and the charge's
-     end (the last CV-charge tick), and the charge counted on the measured current from the CC
-     start to the charge's end (trapezoids on the ticks' times).
+     end (the last tick before the next discharge or CC charge: the CV and the rests included), and
+     the charge counted on the measured charging current from the CC start to the charge's end
+     (trapezoids on the ticks' times; it moves only with the charge's boundaries).
    Reported besides (not limited): every tick's relative differences (film, capacity, model
    voltage; median and max), the mode agreement, the board's instructions per tick (mean, worst).
 Writes DIR/summary.json. Exit 0 on pass, 1 on a failed check or run, 2 on bad input.
@@ -44,7 +45,8 @@ sys.path.insert(0, HERE)
 import m4f_blind  # noqa: E402  (read_run, qemu_cmd, run_timed)
 
 MODES = {"rest": 0, "cc_discharge": 1, "cv_discharge": 2, "cc_charge": 3, "cv_charge": 4, "unknown": 15}
-CC_CHARGE, CV_CHARGE = 3, 4
+CC_CHARGE = 3
+ENDS_CHARGE = (1, 2, 3)  # cc_discharge, cv_discharge, the next cc_charge
 # Row layout of m4f_blind.read_run: tick, mode, active, r_film, gain, nu, z, capacity, model_v.
 FILM, Z, CAP, MODEL_V = 3, 6, 7, 8
 
@@ -142,7 +144,9 @@ def estimate_check(est_csv, dbl):
 
 
 def charges(rows, samples):
-    """The CC charges of a run: (first CC tick, last CC tick, last tick of the charge: CC then CV)."""
+    """The CC charges of a run (estimate's: runs of the detector's cc_charge): (first CC tick, last
+    CC tick, last tick of the charge: before the next discharge or CC charge, the CV and rests
+    between them included)."""
     out, k, n = [], 0, len(rows)
     while k < n:
         if rows[k][1] != CC_CHARGE:
@@ -152,7 +156,7 @@ def charges(rows, samples):
         while k + 1 < n and rows[k + 1][1] == CC_CHARGE:
             k += 1
         cc_end = k
-        while k + 1 < n and rows[k + 1][1] == CV_CHARGE:
+        while k + 1 < n and rows[k + 1][1] not in ENDS_CHARGE:
             k += 1
         out.append((start, cc_end, k))
         k += 1
@@ -163,7 +167,7 @@ def counted_ah(samples, start, end):
     q = 0.0
     for k in range(start + 1, end + 1):
         (t0, i0), (t1, i1) = samples[k - 1], samples[k]
-        q += -0.5 * (i0 + i1) * (t1 - t0)
+        q += -0.5 * (min(i0, 0.0) + min(i1, 0.0)) * (t1 - t0)  # charging current only
     return q / 3600.0
 
 
