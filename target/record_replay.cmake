@@ -33,6 +33,16 @@ function(bms_fw_tick_cell_file name scalar)
   add_dependencies(${name} bms_cell_file_header)
 endfunction()
 
+# The first files of the record (read from ../shared at test time, as they come).
+set(BMS_RECORD_DATA_DIR "${PROJECT_SOURCE_DIR}/../shared/data/calce-cs2-35" CACHE PATH
+    "Folder of the cycler record the record-replay ctests read (CALCE CS2_35)")
+set(BMS_RECORD_TEST_FILES CS2_35_8_17_10_Channel_1-008.csv CS2_35_8_18_10_Channel_1-008.csv CACHE STRING
+    "Files of BMS_RECORD_DATA_DIR the record-replay ctests run (the whole life: target/tools/record_replay.py)")
+set(bms_record_data)
+foreach(f ${BMS_RECORD_TEST_FILES})
+  list(APPEND bms_record_data ${BMS_RECORD_DATA_DIR}/${f})
+endforeach()
+
 if(NOT CMAKE_CROSSCOMPILING)
   bms_cell_file_header($<TARGET_FILE:bmssim> bmssim)
   bms_fw_tick_cell_file(bms_fw_tick_host_cell_file double)
@@ -40,6 +50,21 @@ if(NOT CMAKE_CROSSCOMPILING)
   target_include_directories(bms_record_replay_host PRIVATE ${CMAKE_CURRENT_BINARY_DIR}/generated)
   target_link_libraries(bms_record_replay_host PRIVATE bms_fw_tick_host_cell_file bms_hal_iface bms_warnings)
   add_dependencies(bms_record_replay_host bms_fw_source_hash)
+  # The reference of the board's test: the host's double build over the stream estimate wrote
+  # equals estimate's own estimates.csv at every tick (film, model voltage, capacity, mode).
+  set(bms_record_host_check ${BMS_PYTHON3} ${BMS_TARGET_TOOLS}/record_replay.py --host-only
+      --bmssim $<TARGET_FILE:bmssim> --host-exe $<TARGET_FILE:bms_record_replay_host>
+      --cell ${BMS_CELL_FILE} --data ${bms_record_data})
+  add_test(NAME target_record_replay_host_vs_estimate
+    COMMAND ${bms_record_host_check} --out ${CMAKE_CURRENT_BINARY_DIR}/results/record-replay-host)
+  # Estimate told of 1 % more lithium than the replay: the check must see the configurations differ.
+  add_test(NAME target_record_replay_host_detects_difference
+    COMMAND ${bms_record_host_check} --estimate-arg=--inventory-error-pct=1
+            --out ${CMAKE_CURRENT_BINARY_DIR}/results/record-replay-host-canary)
+  set_tests_properties(target_record_replay_host_detects_difference PROPERTIES
+    PASS_REGULAR_EXPRESSION "FAIL: host double vs bmssim estimate: max ")
+  set_tests_properties(target_record_replay_host_vs_estimate target_record_replay_host_detects_difference PROPERTIES
+    LABELS target TIMEOUT 300)
   return()
 endif()
 
@@ -55,19 +80,10 @@ target_compile_definitions(bms_record_replay PRIVATE BMS_TARGET_BOARD="${BMS_QEM
 target_link_libraries(bms_record_replay PRIVATE bms_fw_tick_cell_file bms_board_stdio bms_board_mps2 bms_warnings)
 add_dependencies(bms_record_replay bms_fw_source_hash)
 
-# The first files of the record (read from ../shared at test time, as they come), the control
-# run (learning is refused at the record's 10-30 s samples): every tick of the board against the
+# The first files of the record, the control run (learning is refused at the record's 10-30 s samples): every tick of the board against the
 # host's double build of the same source, the host's double build against `bmssim estimate`'s
 # own estimates.csv, and per CC charge (film, capacity, model voltage at the charge's ends,
 # charge counted) within 0.5 %.
-set(BMS_RECORD_DATA_DIR "${PROJECT_SOURCE_DIR}/../shared/data/calce-cs2-35" CACHE PATH
-    "Folder of the cycler record the record-replay ctest reads (CALCE CS2_35)")
-set(BMS_RECORD_TEST_FILES CS2_35_8_17_10_Channel_1-008.csv CS2_35_8_18_10_Channel_1-008.csv CACHE STRING
-    "Files of BMS_RECORD_DATA_DIR the record-replay ctest runs (the whole life: target/tools/record_replay.py)")
-set(bms_record_data)
-foreach(f ${BMS_RECORD_TEST_FILES})
-  list(APPEND bms_record_data ${BMS_RECORD_DATA_DIR}/${f})
-endforeach()
 set(bms_record_replay
     ${BMS_PYTHON3} ${BMS_TARGET_TOOLS}/record_replay.py
     --bmssim ${bms_host_bmssim} --host-exe ${BMS_HOST_BUILD_DIR}/target/bms_record_replay_host

@@ -5,6 +5,7 @@
   record_replay.py --bmssim EXE --host-exe EXE --image ELF --cell CELL.bpx.json --data FILE|DIR...
                    --out DIR [--qemu EXE] [--machine M] [--learning] [--limit-pct 0.5]
                    [--estimate-limit-pct 1e-6]
+  record_replay.py --host-only ... (no --image: steps 1 and 2 on the host, the first check only)
 
 1. `bmssim estimate --data ... --cell CELL --no-learning --write-firmware-stream` (the readers,
    the gaps, the power cycles and the model tick are the host's own code): DIR/estimate/, with
@@ -59,18 +60,23 @@ def parse_args():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--bmssim", required=True)
     p.add_argument("--host-exe", required=True)
-    p.add_argument("--image", required=True)
+    p.add_argument("--image")
+    p.add_argument("--host-only", action="store_true", help="no board: the host double build against estimate")
     p.add_argument("--cell", required=True)
     p.add_argument("--data", required=True, nargs="+")
     p.add_argument("--out", required=True)
     p.add_argument("--qemu", default="qemu-system-arm")
     p.add_argument("--machine", default="mps2-an386")
     p.add_argument("--learning", action="store_true", help="learning on (the record must allow it)")
+    p.add_argument("--estimate-arg", action="append", default=[],
+                   help="an option given to estimate that the replays are not told (a canary: the checks must fail)")
     p.add_argument("--limit-pct", type=float, default=0.5)
     p.add_argument("--estimate-limit-pct", type=float, default=1e-6)
     a = p.parse_args()
+    if (a.image is None) != a.host_only:
+        raise BadInput("give --image, or --host-only without it")
     for path, what in [(a.bmssim, "--bmssim"), (a.host_exe, "--host-exe"), (a.image, "--image"), (a.cell, "--cell")]:
-        if not os.path.isfile(path):
+        if path is not None and not os.path.isfile(path):
             raise BadInput(f"{what} {path}: no such file")
     for d in a.data:
         if not os.path.exists(d):
@@ -86,6 +92,7 @@ def run_estimate(a, out):
         cmd += ["--data", d]
     if not a.learning:
         cmd.append("--no-learning")
+    cmd += a.estimate_arg
     t0 = time.monotonic()
     r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     if r.returncode != 0:
@@ -207,7 +214,10 @@ def tick_diffs(m4f, dbl):
 
 def run_replays(a, d):
     runs, times = {}, {}
-    for name, cmd in [("host_double", [os.path.abspath(a.host_exe), "measured.bin"]), ("m4f", m4f_blind.qemu_cmd(a))]:
+    todo = [("host_double", [os.path.abspath(a.host_exe), "measured.bin"])]
+    if not a.host_only:
+        todo.append(("m4f", m4f_blind.qemu_cmd(a)))
+    for name, cmd in todo:
         out = os.path.join(d, f"{name}.txt")
         rc, times[name] = m4f_blind.run_timed(cmd, out, cwd=d)
         if rc != 0:
@@ -246,6 +256,21 @@ def verdicts(a, s):
     return fails
 
 
+def host_only(a, d, runs, count, est_dir):
+    dbl, sd = runs["host_double"]
+    e = estimate_check(os.path.join(est_dir, "estimates.csv"), dbl)
+    worst = max(e["max_rel_diff_pct"].values())
+    ok = sd.get("format") == "BMSMEAS3" and len(dbl) == count and e["ticks"] == count and \
+        worst <= a.estimate_limit_pct and e["mode_differs_ticks"] == 0
+    with open(os.path.join(d, "summary.json"), "w") as f:
+        json.dump({"ticks": count, "host_double_vs_estimate": e, "pass": ok}, f, indent=1)
+    print(f"host double vs estimate: {count} ticks, max {e['max_rel_diff_pct']} %, identical {e['identical_ticks']}, "
+          f"{e['mode_differs_ticks']} ticks of another mode")
+    print("PASS: the host double build equals bmssim estimate" if ok else
+          f"FAIL: host double vs bmssim estimate: max {worst:.3g} % (limit {a.estimate_limit_pct:g} %)")
+    return 0 if ok else 1
+
+
 def main():
     try:
         a = parse_args()
@@ -262,6 +287,8 @@ def main():
         tick_s, step_s, learning, samples = read_stream(stream)
         os.symlink(stream, os.path.join(d, "measured.bin"))
         runs, times = run_replays(a, d)
+        if a.host_only:
+            return host_only(a, d, runs, len(samples), est_dir)
         check_runs(runs, len(samples))
     except RuntimeError as e:
         print(f"FAIL: {e}")
