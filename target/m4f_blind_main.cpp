@@ -13,12 +13,17 @@
 // Input (little-endian): 8 bytes of format name, uint32 sample count, uint32 0, then per sample
 //   BMSMEAS1: the measured voltage [V] and current [A, positive on discharge], two IEEE doubles;
 //   BMSMEAS2: the same and the measured cell temperature [K] (a truth.csv's temperature_meas_k),
-//             three IEEE doubles.
+//             three IEEE doubles;
+//   BMSMEAS3: a cycler record as `bmssim estimate --write-firmware-stream` ran it: after the
+//             header three doubles (the model tick [s], the record's sample step when coarser
+//             than the tick [s] or 0, learning 1 or 0: the firmware is configured as estimate's,
+//             record_config), then per sample voltage, current, temperature (0: none) and the
+//             ticks missed before it (BmsCore::ticks_missed), four IEEE doubles.
 // Each value is rounded to the build's scalar as the host tools round a truth.csv's text. The
 // temperature goes to the tick as `bmssim estimate` passes it (TickInput::temperature_k); a
 // BMSMEAS1 file, or a 0 in a BMSMEAS2 sample, passes none (the model stays at the last accepted
 // temperature, at power-up the cell's reference temperature).
-// Output: "# columns", one line per tick with the estimates as hexadecimal bit patterns (exact,
+// Output: "# columns", one line per tick (the last column the model's voltage) with the estimates as hexadecimal bit patterns (exact,
 // and cheap to print on a board without double hardware), "# name value" summary lines; on the
 // board (QEMU -icount shift=0) the costliest tick's instructions overall and per mode (0 on
 // the host).
@@ -26,6 +31,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <new>
 
 #include "fw_source_hash.hpp"
 #include "platform.hpp"
@@ -37,7 +43,8 @@ using bms::target::Scalar;
 
 constexpr char kMagicVi[8] = {'B', 'M', 'S', 'M', 'E', 'A', 'S', '1'};   // voltage, current
 constexpr char kMagicVit[8] = {'B', 'M', 'S', 'M', 'E', 'A', 'S', '2'};  // and temperature
-constexpr std::size_t kMaxFields = 3u;
+constexpr char kMagicRecord[8] = {'B', 'M', 'S', 'M', 'E', 'A', 'S', '3'};  // a cycler record
+constexpr std::size_t kMaxFields = 4u;
 constexpr std::size_t kChunkSamples = 128u;  // 3 KiB per read at most: few semihosting calls, small RAM
 constexpr unsigned kModes = 8u;              // bms::fw::Mode's values fit below
 
@@ -45,6 +52,7 @@ struct MeasuredSample {
   double voltage_v;
   double current_a;
   double temperature_k;  // 0: none measured
+  double missed_ticks;   // ticks without a sample before this one (BMSMEAS3)
 };
 
 // The value's bit pattern in hexadecimal: 8 digits for float, 16 for double.
@@ -63,7 +71,8 @@ void put_bits(Scalar v) {
 
 struct Header {
   long count = -1;         // -1: not a measured-samples file
-  std::size_t fields = 0;  // doubles per sample: 2 (BMSMEAS1) or 3 (BMSMEAS2)
+  std::size_t fields = 0;  // doubles per sample: 2 (BMSMEAS1), 3 (BMSMEAS2) or 4 (BMSMEAS3)
+  double record[3] = {};   // BMSMEAS3: model tick [s], sample step [s], learning
 };
 
 // Reads the header; count -1 after printing why.
@@ -74,9 +83,12 @@ Header read_header(std::FILE* in, const char* path) {
   if (std::fread(magic, 1, sizeof magic, in) == sizeof magic && std::fread(words, sizeof words[0], 2, in) == 2u) {
     if (std::memcmp(magic, kMagicVi, sizeof magic) == 0) h.fields = 2u;
     if (std::memcmp(magic, kMagicVit, sizeof magic) == 0) h.fields = 3u;
+    if (std::memcmp(magic, kMagicRecord, sizeof magic) == 0) h.fields = 4u;
   }
-  if (h.fields == 0u || words[1] != 0u) {
-    std::printf("# error %s: not a BMSMEAS1 or BMSMEAS2 file\n", path);
+  const bool record_ok = h.fields != 4u || std::fread(h.record, sizeof h.record[0], 3, in) == 3u;
+  if (h.fields == 0u || words[1] != 0u || !record_ok || (h.fields == 4u && !(h.record[0] > 0.0))) {
+    std::printf("# error %s: not a BMSMEAS1, BMSMEAS2 or BMSMEAS3 file\n", path);
+    h.count = -1;
     return h;
   }
   h.count = static_cast<long>(words[0]);
@@ -104,7 +116,17 @@ void count_cost(std::uint64_t instructions, unsigned long k, unsigned mode, RunT
   totals.worst_mode = mode;
 }
 
+// A count of missed ticks as the core takes it (32-bit chunks, as estimate tells it).
+void tell_missed(bms::target::ReplayFirmware& fw, double missed) {
+  while (missed > 0.0) {
+    const double chunk = missed < 2147483647.0 ? missed : 2147483647.0;
+    fw.core.ticks_missed(static_cast<std::uint32_t>(chunk));
+    missed -= chunk;
+  }
+}
+
 void tick_and_print(bms::target::ReplayFirmware& fw, const MeasuredSample& s, unsigned long k, RunTotals& totals) {
+  tell_missed(fw, s.missed_ticks);
   const std::uint64_t t0 = bms::target::platform_instructions();
   const auto out = bms::target::replay_tick(fw, static_cast<Scalar>(s.voltage_v), static_cast<Scalar>(s.current_a),
                                             static_cast<Scalar>(s.temperature_k));
@@ -115,6 +137,7 @@ void tick_and_print(bms::target::ReplayFirmware& fw, const MeasuredSample& s, un
   put_bits(out.inventory_deviation);
   put_bits(out.z_v);
   put_bits(out.capacity_ah);
+  put_bits(out.model_voltage_v);
   std::printf("\n");
   count_cost(t1 - t0, k, static_cast<unsigned>(out.mode), totals);
   totals.status_or |= out.status;
@@ -126,7 +149,7 @@ void tick_and_print(bms::target::ReplayFirmware& fw, const MeasuredSample& s, un
 // Sample n of a chunk of `fields` doubles per sample (BMSMEAS1: no temperature).
 MeasuredSample sample_at(const double* raw, std::size_t n, std::size_t fields) {
   const double* p = raw + n * fields;
-  return {p[0], p[1], fields > 2u ? p[2] : 0.0};
+  return {p[0], p[1], fields > 2u ? p[2] : 0.0, fields > 3u ? p[3] : 0.0};
 }
 
 void print_summary(const bms::target::ReplayFirmware& fw, const RunTotals& totals, unsigned long done, long count,
@@ -164,12 +187,23 @@ int run(const char* path) {
   bms::target::platform_start();
   const std::uint64_t c0 = bms::target::platform_instructions();
   const std::uint64_t c1 = bms::target::platform_instructions();
-  static bms::target::ReplayFirmware fw;  // static: the firmware's state is RAM, not stack
+  // Static storage: the firmware's state is RAM, not stack; built in place (no heap) once the
+  // header says how (a record: estimate's configuration; else the image's own).
+  alignas(bms::target::ReplayFirmware) static unsigned char storage[sizeof(bms::target::ReplayFirmware)];
+  bms::target::ReplayFirmware& fw =
+      header.fields == 4u ? *new (storage) bms::target::ReplayFirmware(bms::target::record_config(
+                                header.record[0], header.record[1], header.record[2] != 0.0))
+                          : *new (storage) bms::target::ReplayFirmware();
   static double raw[kChunkSamples * kMaxFields];
   std::printf("# scalar %s\n", sizeof(Scalar) == sizeof(double) ? "double" : "float");
   std::printf("# source_hash %s\n", BMS_FW_SOURCE_HASH);
-  std::printf("# format %s\n", header.fields == 3u ? "BMSMEAS2" : "BMSMEAS1");
-  std::printf("# columns tick mode active r_film gain nu z capacity\n");
+  static const char* const kFormat[] = {"", "", "BMSMEAS1", "BMSMEAS2", "BMSMEAS3"};
+  std::printf("# format %s\n", kFormat[header.fields]);
+  std::printf("# cell %s\n", bms::target::Cell::kName);
+  if (header.fields == 4u)
+    std::printf("# record tick_s %.9f sample_step_s %.9f learning %d\n", header.record[0], header.record[1],
+                header.record[2] != 0.0 ? 1 : 0);
+  std::printf("# columns tick mode active r_film gain nu z capacity model_v\n");
   RunTotals totals;
   unsigned long done = 0u;
   while (done < static_cast<unsigned long>(count)) {

@@ -20,9 +20,21 @@ Core::Config firmware_config() {
   return bms::fw::make_config<Core>(bms::fw::nominal_cell_of<Scalar, Cell>(), kProfile);
 }
 
+Core::Config record_config(double dt_s, double sample_step_s, bool learning) {
+  bms::fw::Overrides o;
+  if (!learning) o.learning = false;  // what estimate's --no-learning gives
+  Core::Config cfg = firmware_config();
+  (void)bms::fw::make_config<Core>(bms::fw::nominal_cell_of<Scalar, Cell>(), kProfile, o, cfg);  // learning: used by every profile
+  cfg.dt_s = static_cast<Scalar>(dt_s);
+  bms::fw::adapt_to_sample_step(cfg, sample_step_s);
+  return cfg;
+}
+
 Model initial_firmware_model() { return initial_model(); }
 
 ReplayFirmware::ReplayFirmware() : model(initial_model()), core(firmware_config(), model) {}
+
+ReplayFirmware::ReplayFirmware(const Core::Config& config) : model(initial_model()), core(config, model) {}
 
 TickOutput replay_tick(ReplayFirmware& fw, Scalar voltage_v, Scalar current_a) {
   return fw.core.tick({voltage_v, current_a, true});

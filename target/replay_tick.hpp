@@ -30,6 +30,10 @@ using TickOutput = Core::Output;
 
 /// The board's configuration: make_config over the build cell's nominal cell, profile kProfile.
 Core::Config firmware_config();
+/// The configuration `bmssim estimate` runs a cycler record with (the same make_config and
+/// adapt_to_sample_step): the profile kProfile, the model tick dt_s, the record's sample step
+/// when coarser than the tick (else 0), learning on or off (the control run).
+Core::Config record_config(double dt_s, double sample_step_s, bool learning);
 /// The model at the cell's initial state.
 Model initial_firmware_model();
 
@@ -37,6 +41,7 @@ Model initial_firmware_model();
 /// The build cell's best profile; the model starts from the cell's initial state.
 struct ReplayFirmware {
   ReplayFirmware();
+  explicit ReplayFirmware(const Core::Config& config);
   Model model;
   Core core;
 };

@@ -46,6 +46,7 @@ struct EstimateCli {
   double ic_error_pct = 0.0;
   bool beyond = false;
   bool quiet = false;
+  bool write_stream = false;  // --write-firmware-stream
   std::vector<std::string> model_effects;
 };
 
@@ -184,6 +185,8 @@ int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
   require_accepted_samples(r, input.label);
   const std::filesystem::path dir = folder.staging();
   write_estimates_csv(dir / "estimates.csv", r, data.has_truth());
+  if (c.write_stream)
+    write_file_atomically(dir / "firmware_stream.bin", firmware_stream(data, c.o.overrides.learning.or_else(true)));
   nlohmann::json summary = command_summary(r, c.o, data);
   add_charges(summary, r, input, cell, dir, quiet);
   write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
@@ -313,6 +316,9 @@ Runner add_estimate(CLI::App& app) {
   sub->add_option("--points", c->o.mesh.n_neg, "--model full only: finite volumes per region")->capture_default_str();
   sub->add_option("--out", c->out, "Output folder (estimates.csv, summary.json)")->required();
   sub->add_flag("--quiet", c->quiet, "No progress lines");
+  sub->add_flag("--write-firmware-stream", c->write_stream,
+                "Also write firmware_stream.bin: the measurement stream the firmware ticked on (after the readers, the "
+                "gaps and the model tick), for the board's replay of the same run (target/m4f_blind_main.cpp, BMSMEAS3)");
   sub->footer("Example: bmssim simulate --cycles 5 --out out/sim && bmssim estimate --data out/sim/truth.csv "
               "--model reduced --out out/est");
   return [c, sub]() { return run_estimate_command(*c, *sub); };

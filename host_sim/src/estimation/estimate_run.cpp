@@ -173,23 +173,6 @@ EstimateRow row_of(const Output& out, double t_s, int cycle) {
   return r;
 }
 
-// A record sampled every T s gives the firmware one sample per T s, T / dt_s ticks apart: what
-// the settings count in received samples (the power-up and CV-end re-synchronisation windows,
-// the warm-up, the mode detector's debounce) is converted to the same span of time, and a
-// rest gap of any length is caught up (BmsCore::catch_up, at most catch_up_max_steps model steps).
-template <class Config>
-void adapt_to_sample_step(Config& cfg, const MeasuredSeries& d, double dt_s) {
-  if (!(d.sample_step_s > dt_s)) return;
-  const double per_sample = dt_s / d.sample_step_s;
-  auto samples = [per_sample](double ticks) { return std::max(1.0, std::round(ticks * per_sample)); };
-  cfg.resync_window_ticks = static_cast<std::uint32_t>(samples(cfg.resync_window_ticks));
-  cfg.detector.debounce_ticks = static_cast<std::uint16_t>(samples(cfg.detector.debounce_ticks));
-  cfg.rcsi_warmup_s *= per_sample;
-  cfg.catch_up_max_ticks = 0xFFFFFFFFu;
-  cfg.catch_up_max_steps = 64u;
-  cfg.catch_up_max_voltage_steps = 64u;
-}
-
 // Ticks of dt_s from the record's start to each sample (the firmware's clock); a sample less
 // than half a tick after the previous one shares its tick and is skipped (-1).
 std::vector<long long> sample_ticks(const std::vector<double>& t_s, double dt_s) {
@@ -220,7 +203,7 @@ void run_core_with(Model& model, const MeasuredSeries& d, const EstimateOptions&
   typename Core::Config cfg{};
   const fw::Refusal refused = estimate_config<Core>(cell, o, dt_s, cfg);
   if (refused.option != nullptr) throw InputError(fmt::format("--{}: {}", refused.option, refused.reason));
-  adapt_to_sample_step(cfg, d, dt_s);
+  fw::adapt_to_sample_step(cfg, d.sample_step_s);
   res.config = summarise_config(cfg, Nc);
   Core core(cfg, model);
   const std::size_t n = d.t_s.size();
@@ -438,6 +421,38 @@ void check_estimate_options(const EstimateOptions& o) {
     throw InputError("--r-film-init: must be a finite film resistance in [0, 1] ohm m2");
   if (bad(v.theta0, [&](const fw::Theta0& t) { return t.count == 2 * v.nc.or_else(1); }))
     throw InputError(fmt::format("--theta0: needs 2 n_c = {} values (got {})", 2 * v.nc.or_else(1), v.theta0.value.count));
+}
+
+namespace {
+void append_bytes(std::string& out, const void* p, std::size_t n) { out.append(static_cast<const char*>(p), n); }
+void append_double(std::string& out, double v) { append_bytes(out, &v, sizeof v); }
+}  // namespace
+
+std::string firmware_stream(const EstimateData& d, bool learning) {
+  const double dt_s = model_tick_s(d);
+  const double sample_step_s = d.median_step_s > dt_s ? d.median_step_s : 0.0;
+  const std::vector<long long> ticks = sample_ticks(d.t_s, dt_s);
+  std::uint32_t count = 0;
+  for (const long long k : ticks) count += k >= 0 ? 1u : 0u;
+  std::string out;
+  out.reserve(40 + static_cast<std::size_t>(count) * 4 * sizeof(double));
+  out += "BMSMEAS3";
+  const std::uint32_t words[2] = {count, 0u};
+  append_bytes(out, words, sizeof words);
+  append_double(out, dt_s);
+  append_double(out, sample_step_s);
+  append_double(out, learning ? 1.0 : 0.0);
+  long long last_tick = -1;
+  for (std::size_t i = 0; i < ticks.size(); ++i) {
+    if (ticks[i] < 0) continue;  // shares the previous sample's tick: estimate skips it too
+    const double missed = last_tick >= 0 ? static_cast<double>(ticks[i] - last_tick - 1) : 0.0;
+    last_tick = ticks[i];
+    append_double(out, d.voltage_v[i]);
+    append_double(out, d.current_a[i]);
+    append_double(out, d.temperature_k.empty() ? 0.0 : d.temperature_k[i]);
+    append_double(out, missed);
+  }
+  return out;
 }
 
 EstimateResult run_estimate(const EstimateData& d, const CellParameters& cell, const EstimateOptions& options,

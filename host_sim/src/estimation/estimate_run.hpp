@@ -225,6 +225,14 @@ using EstimateProgress = std::function<void(std::size_t row, std::size_t rows)>;
 EstimateResult run_estimate(const EstimateData& data, const CellParameters& cell, const EstimateOptions& o,
                             const EstimateProgress& progress = {});
 
+// The measurement stream the firmware ticks on in run_estimate, as the board's replay of a record
+// reads it (target/m4f_blind_main.cpp, format BMSMEAS3, little-endian): "BMSMEAS3", uint32 sample
+// count, uint32 0; the doubles model tick [s], the record's sample step when coarser than the
+// tick [s] (else 0), learning (1 or 0); then per sample that reaches the tick the doubles
+// voltage [V], current [A, discharge positive], temperature [K, 0: none] and the ticks missed
+// before it (the core's ticks_missed).
+std::string firmware_stream(const EstimateData& d, bool learning);
+
 // Median and end-of-phase relative errors per cycle over the rows in CC charge (the detected
 // mode, and the true mode when known).
 std::vector<CycleScore> score_cycles(const std::vector<EstimateRow>& rows, bool use_true_mode,

@@ -21,6 +21,11 @@
 #include "bms/fw/model/cell_table.hpp"
 #include "bms/fw/model/reduced_cell.hpp"
 #include "bms/fw/model/reduced_model_bias.hpp"
+#if defined(BMS_CELL_ID) && BMS_CELL_ID == 4
+// A cell given as a BPX file (CMake BMS_CELL_FILE): the build wrote this header with `bmssim
+// cell-config` (target/tools/cell_file.cmake); it defines cells::FileCellTraits and FileCellName.
+#include "bms_cell_file.hpp"
+#endif
 
 namespace bms::fw {
 
@@ -153,8 +158,10 @@ using SelectedCell = LcoCell;
 using SelectedCell = NmcCell;
 #elif BMS_CELL_ID == 3
 using SelectedCell = AboutenergyCell;
+#elif BMS_CELL_ID == 4
+using SelectedCell = GeneratedCell<cells::FileCellTraits, FileCellName>;
 #else
-#error "BMS_CELL_ID: 0 paper, 1 lco, 2 nmc, 3 aboutenergy (CMake: -DBMS_CELL=paper|lco|nmc|aboutenergy)"
+#error "BMS_CELL_ID: 0 paper, 1 lco, 2 nmc, 3 aboutenergy, 4 a BPX file's (CMake: -DBMS_CELL=paper|lco|nmc|aboutenergy, BMS_CELL_FILE)"
 #endif
 
 /// A cell choice as the nominal cell make_config takes: the design state's inventory, the

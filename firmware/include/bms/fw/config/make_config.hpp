@@ -400,6 +400,30 @@ Refusal make_config(const NominalCell& cell, Profile profile, const Overrides& o
   return r;
 }
 
+/// A record sampled every sample_step_s [s], coarser than the tick cfg.dt_s (a cycler's export:
+/// one sample per sample_step_s / dt_s ticks, the ticks between them missed): what the settings
+/// count in received samples (the power-up and CV-end re-synchronisation windows, the warm-up,
+/// the mode detector's debounce) is converted to the same span of time, and a rest gap of any
+/// length is caught up (catch_up, at most 64 model steps). `bmssim estimate` and the board's
+/// replay of a cycler record (target/m4f_blind_main.cpp, BMSMEAS3) both call this.
+template <class Config>
+void adapt_to_sample_step(Config& cfg, double sample_step_s) {
+  using Scalar = decltype(cfg.dt_s);
+  const double dt_s = static_cast<double>(cfg.dt_s);
+  if (!(sample_step_s > dt_s)) return;
+  const double per_sample = dt_s / sample_step_s;
+  auto samples = [per_sample](double ticks) {
+    const double n = static_cast<double>(static_cast<long long>(ticks * per_sample + 0.5));  // round half up
+    return n > 1.0 ? n : 1.0;
+  };
+  cfg.resync_window_ticks = static_cast<std::uint32_t>(samples(static_cast<double>(cfg.resync_window_ticks)));
+  cfg.detector.debounce_ticks = static_cast<std::uint16_t>(samples(static_cast<double>(cfg.detector.debounce_ticks)));
+  cfg.rcsi_warmup_s = static_cast<Scalar>(static_cast<double>(cfg.rcsi_warmup_s) * per_sample);
+  cfg.catch_up_max_ticks = 0xFFFFFFFFu;
+  cfg.catch_up_max_steps = 64u;
+  cfg.catch_up_max_voltage_steps = 64u;
+}
+
 /// The paper cell's profile (the board images, the replays, the tests).
 template <class Core>
 typename Core::Config paper_cell_config(Profile profile) {
