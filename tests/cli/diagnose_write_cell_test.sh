@@ -11,8 +11,8 @@
 # --write-cell; `simulate --cell DIR/cell.bpx.json` on the record's current must then match the
 # measured voltage within 2x the diagnosis's floor (noise and numerical error: the contract's
 # `none` threshold), where the plain cell is more than 10x the floor away, and must give the
-# diagnosis's own fitted RMSE (the file is the model it fitted). `estimate` and `cell-config`
-# take the cell. A current-sensor offset is no property of a cell: refused (exit 1, one line
+# diagnosis's own fitted RMSE (the file is the model it fitted). `estimate --model reduced` takes
+# the cell and its voltage residual z_v falls below 0.8x the plain cell's; `cell-config` takes it. A current-sensor offset is no property of a cell: refused (exit 1, one line
 # naming it, no cell.bpx.json). `none` writes nothing unless --write-cell-partial. Bad options
 # exit 2 before any model run.
 set -u
@@ -73,6 +73,16 @@ check_cell() {
   fi
   "$BMSSIM" estimate --data "$tr/truth.csv" --cell "$cell/cell.bpx.json" --model reduced --quiet --out "est_$name" \
     > /dev/null 2> "err_est_$name" || { fail "$name" "estimate refused the cell: $(head -n 1 "err_est_$name")"; return; }
+  # The firmware's model with the augmented cell: its voltage residual z_v must shrink.
+  "$BMSSIM" estimate --data "$tr/truth.csv" --cell nmc --model reduced --quiet --out "estp_$name" > /dev/null 2>&1 ||
+    { fail "$name" "estimate of the plain cell failed"; return; }
+  local z_aug z_plain
+  z_aug=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "z_v") c = i; next } { s += 1e6 * $c * $c; n++ } END { printf "%.4f\n", sqrt(s / n) }' "est_$name/estimates.csv")
+  z_plain=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "z_v") c = i; next } { s += 1e6 * $c * $c; n++ } END { printf "%.4f\n", sqrt(s / n) }' "estp_$name/estimates.csv")
+  echo "# $name: firmware residual z_v RMS $z_plain mV with the plain cell, $z_aug mV with the augmented one"
+  if ! awk -v a="$z_aug" -v p="$z_plain" 'BEGIN { exit !(a < 0.8 * p) }'; then
+    fail "$name" "the firmware's residual with the augmented cell $z_aug mV is not below 0.8 x the plain cell's $z_plain mV"; return
+  fi
   "$BMSSIM" cell-config --cell "$cell/cell.bpx.json" --out "cfg_$name" > /dev/null 2> "err_cfg_$name" ||
     { fail "$name" "cell-config refused the cell: $(head -n 1 "err_cfg_$name")"; return; }
   pass "$name"

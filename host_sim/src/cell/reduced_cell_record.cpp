@@ -120,9 +120,13 @@ ReducedCellRecord make_reduced_cell_record(const CellParameters& c) {
   // The cell's own effects (BPX User-defined keys) are the truth model's, not the reduced model's.
   const CellEffectParameters& fx = c.effects;
   if (fx.contact_resistance_ohm > 0.0)
-    r.notes += fmt::format("the contact resistance ({:.4g} ohm) is not in the model: the film estimate takes it up; ",
+    r.notes += fmt::format("the contact resistance ({:.4g} ohm) is not in this record (`estimate` adds it as a model "
+                           "effect; a board image built from the record does not have it); ",
                            fx.contact_resistance_ohm);
-  if (fx.hysteresis_v > 0.0) r.notes += fmt::format("the OCP hysteresis ({:.4g} V) is not used; ", fx.hysteresis_v);
+  if (fx.hysteresis_v > 0.0)
+    r.notes += fmt::format("the OCP hysteresis ({:.4g} V) is not in this record (`estimate` adds it as a model "
+                           "effect; a board image does not); ",
+                           fx.hysteresis_v);
   if (fx.thermal_h_w_per_k > 0.0) r.notes += "the lumped thermal model is not used (isothermal); ";
   if (fx.particle_size_sigma > 0.0) r.notes += "the positive particle-size spread is not used (one size); ";
   return r;
