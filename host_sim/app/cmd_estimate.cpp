@@ -75,6 +75,7 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--no-inventory", v.learn_inventory);
   g("--model-bias-ohm", v.model_bias_ohm);
   g("--relinearise", v.relinearise_inventory);
+  g("--no-hold", v.hold_until_settled);
   g("--inventory-error-pct", c.o.inventory_error_pct);
   c.o.points_given = sub.count("--points") > 0;
   if (sub.count("--theta0") > 0) {
@@ -261,6 +262,10 @@ Runner add_estimate(CLI::App& app) {
                   "--settings best with the observer: a re-synchronisation that moves the model's inventory by more "
                   "than this (relative, default 1e-3) restarts the film's learning (1 = never: ablation)")
       ->check(CLI::Range(0.0, 1.0));
+  sub->add_flag("!--no-hold", c->o.overrides.hold_until_settled.value,
+                "--settings best only: report the identifier's film, parameters and capacity from the first "
+                "learning tick after the start or a relinearisation, not the prior's (held, propagated) until the "
+                "restarted fit has settled (ablation: the first seconds swing tens of percent)");
   // RCSI (paper, nominal-growth).
   sub->add_option("--nc", c->o.overrides.nc.value, "RCSI profiles: order n_c of the ARX subsystem model (1..8, default 1)");
   sub->add_option("--p0", c->o.overrides.p0.value,

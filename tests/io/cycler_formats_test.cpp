@@ -94,6 +94,7 @@ TEST(CyclerFormats, ArbinFilesJoinedInTimeOrderWithGapsAndCycles) {
   EXPECT_EQ(r.cycle[cycle.size()], 2);
   EXPECT_EQ(r.cycle.back(), 3);
   EXPECT_EQ(r.step[5], 2);
+  ASSERT_EQ(r.step_time_s.size(), r.t_s.size());  // Step_Time(s) kept for the discharge-onset resistance
   // Segments: the start, the 600 s logging gap (in the second cycle's charge) and the day
   // between the files (the first file ends in a discharge: under current too).
   ASSERT_EQ(r.segment_starts.size(), 3u);
@@ -304,6 +305,8 @@ TEST(CyclerFormats, CalceCs2FolderReadAsItComes) {
   EXPECT_GT(r.cycle.back(), 800);
   EXPECT_GT(r.gaps_under_current, 0u);
   for (std::size_t i = 1; i < r.t_s.size(); ++i) ASSERT_GT(r.t_s[i], r.t_s[i - 1]) << i;
+  ASSERT_EQ(r.step_time_s.size(), r.t_s.size());  // Arbin's Step_Time(s) in every file
+  for (double s : r.step_time_s) ASSERT_GE(s, 0.0);
 }
 
 }  // namespace

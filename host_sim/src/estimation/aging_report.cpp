@@ -47,57 +47,11 @@ LineFit fit_line(const std::vector<double>& x, const std::vector<double>& y) {
   return f;
 }
 
-AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const std::vector<CyclerCycleStat>& cycler) {
-  AgingComparison a;
-  double max_dis = 0.0;
-  std::map<int, const CyclerCycleStat*> by_cycle;
-  for (const auto& s : cycler) {
-    max_dis = std::max(max_dis, s.discharge_ah);
-    by_cycle[s.cycle] = &s;
-  }
-  const ChargeReport* ref = nullptr;
-  const ChargeReport* ref_cap = nullptr;
-  const CyclerCycleStat* ref_meas = nullptr;
-  double ref_ir = std::nan("");
-  double ref_step = std::nan(""), ref_dstep = std::nan("");
-  for (const ChargeReport& c : charges) {
-    const auto it = by_cycle.find(c.cycle);
-    if (it == by_cycle.end() || !(it->second->discharge_ah >= kPartialCycleShare * max_dis)) continue;
-    const CyclerCycleStat& m = *it->second;
-    if (ref == nullptr) ref = &c;
-    // The capacity's reference is the first charge with one (a whole charge where counted);
-    // before it, and in a record with none (another cell's voltage limits), SoH stays empty.
-    if (ref_cap == nullptr && std::isfinite(c.capacity_ah)) {
-      ref_cap = &c;
-      ref_meas = &m;
-    }
-    if (std::isnan(ref_ir) && std::isfinite(m.internal_resistance_ohm)) ref_ir = m.internal_resistance_ohm;
-    if (std::isnan(ref_step) && std::isfinite(c.r_step_ohm)) ref_step = c.r_step_ohm;
-    if (std::isnan(ref_dstep) && std::isfinite(c.r_discharge_step_ohm)) ref_dstep = c.r_discharge_step_ohm;
-    AgingRow r{};
-    r.cycle = c.cycle;
-    r.capacity_est_ah = c.capacity_ah;
-    r.capacity_sd_ah = c.capacity_sd_ah;
-    const double nan = std::nan("");
-    r.soh_est = ref_cap != nullptr ? c.capacity_ah / ref_cap->capacity_ah : nan;
-    r.counted_ah = c.counted_ah;
-    r.soh_counted = ref_cap != nullptr ? c.counted_ah / ref_cap->counted_ah : nan;
-    r.counted_complete = c.counted_complete;
-    if (std::isfinite(c.capacity_ah)) {
-      const std::string source = c.capacity_estimated ? "estimator" : "counted";
-      a.capacity_source = a.capacity_source.empty() || a.capacity_source == source ? source : "mixed";
-    }
-    r.r_growth_est_ohm = c.r_growth_ohm - ref->r_growth_ohm;
-    r.r_step_growth_ohm = c.r_step_ohm - ref_step;
-    r.r_discharge_step_growth_ohm = c.r_discharge_step_ohm - ref_dstep;
-    r.discharge_meas_ah = m.discharge_ah;
-    r.soh_meas = ref_meas != nullptr ? m.discharge_ah / ref_meas->discharge_ah : nan;
-    r.ir_meas_ohm = m.internal_resistance_ohm;
-    r.ir_growth_meas_ohm = m.internal_resistance_ohm - ref_ir;
-    r.learned = c.learned;
-    a.rows.push_back(r);
-  }
-  std::vector<double> ir, film, step, dstep;
+namespace {
+
+// The SoH errors over the rows with a capacity and the resistance growths' lines on the IR growth.
+void score(AgingComparison& a) {
+  std::vector<double> ir, film, step, dstep, onset;
   double sum = 0.0, worst = 0.0, sum_counted = 0.0;
   std::size_t n_est = 0, n_counted = 0;
   for (const AgingRow& r : a.rows) {
@@ -115,6 +69,7 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
     film.push_back(r.r_growth_est_ohm);
     step.push_back(r.r_step_growth_ohm);
     dstep.push_back(r.r_discharge_step_growth_ohm);
+    onset.push_back(r.r_discharge_onset_growth_ohm);
   }
   a.cycles_scored = n_est;
   if (n_est > 0) {
@@ -125,6 +80,64 @@ AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const st
   a.film_vs_ir = fit_line(ir, film);
   a.step_vs_ir = fit_line(ir, step);
   a.discharge_step_vs_ir = fit_line(ir, dstep);
+  a.discharge_onset_vs_ir = fit_line(ir, onset);
+}
+
+}  // namespace
+
+AgingComparison compare_aging(const std::vector<ChargeReport>& charges, const std::vector<CyclerCycleStat>& cycler) {
+  AgingComparison a;
+  double max_dis = 0.0;
+  std::map<int, const CyclerCycleStat*> by_cycle;
+  for (const auto& s : cycler) {
+    max_dis = std::max(max_dis, s.discharge_ah);
+    by_cycle[s.cycle] = &s;
+  }
+  const ChargeReport* ref = nullptr;
+  const ChargeReport* ref_cap = nullptr;
+  const CyclerCycleStat* ref_meas = nullptr;
+  double ref_ir = std::nan("");
+  double ref_step = std::nan(""), ref_dstep = std::nan(""), ref_onset = std::nan("");
+  for (const ChargeReport& c : charges) {
+    const auto it = by_cycle.find(c.cycle);
+    if (it == by_cycle.end() || !(it->second->discharge_ah >= kPartialCycleShare * max_dis)) continue;
+    const CyclerCycleStat& m = *it->second;
+    if (ref == nullptr) ref = &c;
+    // The capacity's reference is the first charge with one (a whole charge where counted);
+    // before it, and in a record with none (another cell's voltage limits), SoH stays empty.
+    if (ref_cap == nullptr && std::isfinite(c.capacity_ah)) {
+      ref_cap = &c;
+      ref_meas = &m;
+    }
+    if (std::isnan(ref_ir) && std::isfinite(m.internal_resistance_ohm)) ref_ir = m.internal_resistance_ohm;
+    if (std::isnan(ref_step) && std::isfinite(c.r_step_ohm)) ref_step = c.r_step_ohm;
+    if (std::isnan(ref_dstep) && std::isfinite(c.r_discharge_step_ohm)) ref_dstep = c.r_discharge_step_ohm;
+    if (std::isnan(ref_onset) && std::isfinite(c.r_discharge_onset_ohm)) ref_onset = c.r_discharge_onset_ohm;
+    AgingRow r{};
+    r.cycle = c.cycle;
+    r.capacity_est_ah = c.capacity_ah;
+    r.capacity_sd_ah = c.capacity_sd_ah;
+    const double nan = std::nan("");
+    r.soh_est = ref_cap != nullptr ? c.capacity_ah / ref_cap->capacity_ah : nan;
+    r.counted_ah = c.counted_ah;
+    r.soh_counted = ref_cap != nullptr ? c.counted_ah / ref_cap->counted_ah : nan;
+    r.counted_complete = c.counted_complete;
+    if (std::isfinite(c.capacity_ah)) {
+      const std::string source = c.capacity_estimated ? "estimator" : "counted";
+      a.capacity_source = a.capacity_source.empty() || a.capacity_source == source ? source : "mixed";
+    }
+    r.r_growth_est_ohm = c.r_growth_ohm - ref->r_growth_ohm;
+    r.r_step_growth_ohm = c.r_step_ohm - ref_step;
+    r.r_discharge_step_growth_ohm = c.r_discharge_step_ohm - ref_dstep;
+    r.r_discharge_onset_growth_ohm = c.r_discharge_onset_ohm - ref_onset;
+    r.discharge_meas_ah = m.discharge_ah;
+    r.soh_meas = ref_meas != nullptr ? m.discharge_ah / ref_meas->discharge_ah : nan;
+    r.ir_meas_ohm = m.internal_resistance_ohm;
+    r.ir_growth_meas_ohm = m.internal_resistance_ohm - ref_ir;
+    r.learned = c.learned;
+    a.rows.push_back(r);
+  }
+  score(a);
   return a;
 }
 
@@ -142,6 +155,7 @@ nlohmann::json aging_json(const AgingComparison& a) {
           {"r_growth_vs_cycler_ir_growth", fit(a.film_vs_ir)},
           {"r_step_growth_vs_cycler_ir_growth", fit(a.step_vs_ir)},
           {"r_discharge_step_growth_vs_cycler_ir_growth", fit(a.discharge_step_vs_ir)},
+          {"r_discharge_onset_growth_vs_cycler_ir_growth", fit(a.discharge_onset_vs_ir)},
           {"note",
            "soh: the charges' capacity_ah / its first (capacity_source: the estimator's open-circuit capacity, or the "
            "counted charge where it identifies none), against the cycler's discharge capacity / its first, same cycle; "
@@ -152,7 +166,7 @@ std::string write_aging_outputs(const std::filesystem::path& dir, const AgingCom
   CsvWriter w(dir / "aging.csv", {"cycle", "capacity_est_ah", "capacity_sd_ah", "soh_est", "discharge_meas_ah",
                                   "soh_meas", "r_growth_est_ohm", "r_step_growth_ohm", "ir_meas_ohm",
                                   "ir_growth_meas_ohm", "learned", "counted_ah", "soh_counted",
-                                  "r_discharge_step_growth_ohm", "counted_complete"});
+                                  "r_discharge_step_growth_ohm", "counted_complete", "r_discharge_onset_growth_ohm"});
   const auto cell = [&w](double v) {
     if (std::isfinite(v)) w.cell(v);
     else w.cell("");
@@ -167,6 +181,7 @@ std::string write_aging_outputs(const std::filesystem::path& dir, const AgingCom
     cell(r.soh_counted);
     cell(r.r_discharge_step_growth_ohm);
     w.cell(r.counted_complete ? 1 : 0);
+    cell(r.r_discharge_onset_growth_ohm);
     w.end_row();
   }
   w.commit();
@@ -190,7 +205,8 @@ std::string write_aging_outputs(const std::filesystem::path& dir, const AgingCom
       "plot 'aging.csv' using 1:10 skip 1 with points pt 7 ps 0.5 title 'cycler: internal resistance', "
       "'' using 1:7 skip 1 with lines lw 2 title 'estimate: r_growth_ohm (film)', "
       "'' using 1:8 skip 1 with points pt 6 ps 0.4 title 'measured: voltage step at the charge onset', "
-      "'' using 1:14 skip 1 with points pt 2 ps 0.4 title 'measured: voltage step at the discharge onset'\n";
+      "'' using 1:14 skip 1 with points pt 2 ps 0.4 title 'measured: voltage step at the discharge onset', "
+      "'' using 1:16 skip 1 with points pt 5 ps 0.4 title 'measured: discharge onset at the step instant'\n";
   AtomicFileWriter script(dir / "plots.gp");
   script.append(gp);
   script.commit();

@@ -16,7 +16,7 @@ namespace bms {
 struct AgingRow {
   int cycle;
   double capacity_est_ah, capacity_sd_ah, soh_est, counted_ah, soh_counted, r_growth_est_ohm, r_step_growth_ohm,
-      r_discharge_step_growth_ohm;
+      r_discharge_step_growth_ohm, r_discharge_onset_growth_ohm;
   double discharge_meas_ah, soh_meas, ir_meas_ohm, ir_growth_meas_ohm;
   bool learned;
   bool counted_complete;  // ChargeReport::counted_complete: the count spans a whole charge
@@ -35,7 +35,7 @@ struct AgingComparison {
   double soh_counted_mae_pp = std::nan("");                           // the counted charge's
   std::size_t cycles_scored = 0;  // rows with a capacity (ChargeReport::capacity_ah not null)
   std::string capacity_source;  // of the compared charges' capacity_ah: estimator, counted or mixed
-  LineFit film_vs_ir, step_vs_ir, discharge_step_vs_ir;  // y = estimate's growth, x = the cycler's IR growth
+  LineFit film_vs_ir, step_vs_ir, discharge_step_vs_ir, discharge_onset_vs_ir;  // y = estimate's growth, x = the cycler's IR growth
 };
 
 // Cycles whose measured discharge is under 5 % of the largest (a cycle cut by the end of a

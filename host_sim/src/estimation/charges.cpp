@@ -25,6 +25,7 @@ double median_step(const std::vector<double>& t) {
 
 struct Counted {
   double ah = 0.0, gap_ah = 0.0, r_step_ohm = std::nan(""), r_discharge_step_ohm = std::nan("");
+  double r_discharge_onset_ohm = std::nan("");
   bool ended = false;         // at a discharge or a long rest: not cut by a power cycle or the record's end
   bool started_empty = false;  // the last discharge before it reached the cell's lower voltage limit
 };
@@ -35,6 +36,23 @@ constexpr double kEmptyBandV = 0.05;  // a discharge that ended this close to th
 bool discharged_to_limit(const EstimateData& d, std::size_t k, double rest_a, double lower_v) {
   while (k > 0 && std::abs(d.current_a[k - 1]) <= rest_a) --k;
   return k > 0 && d.current_a[k - 1] > rest_a && d.voltage_v[k - 1] <= lower_v + kEmptyBandV;
+}
+
+// The resistance at the instant of the discharge step that sample i is the first under: the
+// voltage drop over the current at the first two samples under the step, extrapolated to the
+// step's start on the square root of the time since it (a diffusion polarisation's short-time
+// response), with the cycler's step time; NaN where the step time is not logged or the two
+// samples are not in one step. The drop's size at the first sample depends on when the cycler
+// logged it (0-30 s after the step in CS2_35); at the step's instant it does not.
+double discharge_onset_ohm(const EstimateData& d, std::size_t i, double rest_a, double step_s) {
+  if (d.step_time_s.empty() || i + 1 >= d.t_s.size()) return std::nan("");
+  const double i1 = d.current_a[i], i2 = d.current_a[i + 1];
+  const double tau1 = d.step_time_s[i], tau2 = d.step_time_s[i + 1];
+  if (!(i2 > rest_a) || !(tau2 > tau1) || !(tau1 >= 0.0) || d.t_s[i + 1] - d.t_s[i] > kGapFactor * step_s)
+    return std::nan("");
+  const double r1 = (d.voltage_v[i - 1] - d.voltage_v[i]) / i1, r2 = (d.voltage_v[i - 1] - d.voltage_v[i + 1]) / i2;
+  const double s1 = std::sqrt(tau1), s2 = std::sqrt(tau2);
+  return r1 - (r2 - r1) * s1 / (s2 - s1);
 }
 
 // The charge from the onset of charging that holds sample j0 to the charge's end.
@@ -52,8 +70,10 @@ Counted count_charge(const EstimateData& d, std::size_t j0, double rest_a, doubl
     if (dt > kPowerCycleGapS) break;  // a power cycle: what flowed in it is unknown
     if (i1 > rest_a) {                // a discharge
       c.ended = true;
-      if (std::abs(i0) <= rest_a && dt <= kGapFactor * step_s)
+      if (std::abs(i0) <= rest_a && dt <= kGapFactor * step_s) {
         c.r_discharge_step_ohm = (d.voltage_v[i - 1] - d.voltage_v[i]) / i1;
+        c.r_discharge_onset_ohm = discharge_onset_ohm(d, i, rest_a, step_s);
+      }
       break;
     }
     if (std::abs(i1) <= rest_a) {
@@ -129,6 +149,7 @@ std::vector<ChargeReport> find_charges(const std::vector<EstimateRow>& rows, con
     c.r_growth_ohm = (c.r_film_ohm_m2 - film_ref) / area_m2;
     c.r_step_ohm = q.r_step_ohm;
     c.r_discharge_step_ohm = q.r_discharge_step_ohm;
+    c.r_discharge_onset_ohm = q.r_discharge_onset_ohm;
     c.learned = learned;
     out.push_back(c);
   }
@@ -153,7 +174,8 @@ nlohmann::json charges_json(const std::vector<ChargeReport>& charges) {
                  {"r_film_sd_ohm_m2", num(c.r_film_sd_ohm_m2)},
                  {"r_growth_ohm", num(c.r_growth_ohm)},
                  {"r_step_ohm", num(c.r_step_ohm)},
-                 {"r_discharge_step_ohm", num(c.r_discharge_step_ohm)}});
+                 {"r_discharge_step_ohm", num(c.r_discharge_step_ohm)},
+                 {"r_discharge_onset_ohm", num(c.r_discharge_onset_ohm)}});
   return a;
 }
 

@@ -35,6 +35,11 @@ struct ChargeReport {
   // (V last at rest - V first under discharge) / I, a DC resistance at a repeatable state of
   // charge, which the charge's onset (from wherever the discharge left the cell) is not.
   double r_discharge_step_ohm;
+  // The same step's resistance at the step's instant (ohmic and charge transfer, no diffusion):
+  // extrapolated from the first two samples under the discharge on the square root of the time
+  // since the step began, which the cycler logs (Arbin Step_Time); NaN where it is not logged.
+  // The cycler's pulse resistance is an instantaneous one: this is what compares with it.
+  double r_discharge_onset_ohm;
   bool learned;  // the firmware learned in this CC phase
 };
 

@@ -54,6 +54,7 @@ EstimateInput read_estimate_input(const std::vector<std::string>& paths, Current
   d.current_a = std::move(rec.current_a);
   d.voltage_v = std::move(rec.voltage_v);
   d.cycle = std::move(rec.cycle);
+  d.step_time_s = std::move(rec.step_time_s);
   set_sample_clock(d, in.label);
   return in;
 }

@@ -23,6 +23,7 @@ struct EstimateData {
   std::vector<double> t_s, current_a, voltage_v;  // measured (what the firmware sees)
   std::vector<double> temperature_k;              // measured (temperature_meas_k); empty: none
   std::vector<int> cycle;                         // from the file, or 1
+  std::vector<double> step_time_s;  // a cycler file's time since its step began (NaN: not logged); empty: none
   std::vector<double> r_film_true_ohm_m2;         // empty when the file has no truth
   std::vector<fw::Mode> true_mode;                // empty when the file has no mode column
   // Truth mean stoichiometries (scoring the inventory estimate only); empty when absent.

@@ -148,6 +148,7 @@ int kind_of_name(std::string_view name) {
 // What the read rows hold before the sign is settled.
 struct RawColumns {
   std::vector<double> t_s, current_a, voltage_v, temperature_k, epoch_s;
+  std::vector<double> step_time_s;  // time since the cycler's step began; empty when not logged
   std::vector<int> cycle, step, kind;  // kind empty when the file has no step type
   std::size_t time_col = 0, current_col = 0;
   double start_epoch_s = std::nan("");
@@ -272,6 +273,8 @@ std::size_t temperature_column(const DelimitedTable& t) {
 void read_optional(const DelimitedTable& t, RawColumns& raw, std::size_t cycle_c, std::size_t step_c) {
   raw.cycle = integers(t, cycle_c);
   raw.step = integers(t, step_c);
+  const std::size_t st = column_named(t, {"steptime"});
+  if (st != DelimitedTable::npos) raw.step_time_s = t.durations_s(st, time_scale(t, st, parts_of(t.columns()[st]).unit));
   const std::size_t tc = temperature_column(t);
   if (tc != DelimitedTable::npos) raw.temperature_k = temperature_k(t, tc);
 }
@@ -564,6 +567,7 @@ CyclerFile parse_cycler_file(std::string text, const std::string& name, CurrentS
   f.temperature_k = std::move(raw.temperature_k);
   f.cycle = std::move(raw.cycle);
   f.step = std::move(raw.step);
+  f.step_time_s = std::move(raw.step_time_s);
   return f;
 }
 

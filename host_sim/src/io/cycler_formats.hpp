@@ -50,6 +50,7 @@ struct CyclerFile {
   CyclerLayout layout = CyclerLayout::none;
   double start_epoch_s = std::nan("");  // absolute time of t_s = 0 (seconds since 1970, read as UTC)
   std::vector<double> t_s, current_a, voltage_v, temperature_k;  // current positive = discharge
+  std::vector<double> step_time_s;  // time since the cycler's step began (Step_Time); empty: not logged
   std::vector<int> cycle, step;
   std::vector<std::size_t> line;  // 1-based source line of each row
   std::vector<CyclerCycleStat> cycle_stats;  // cycles numbered as in the file
@@ -65,6 +66,8 @@ struct CyclerRecord {
   std::vector<std::string> files;  // in time order
   double start_epoch_s = std::nan("");
   std::vector<double> t_s, current_a, voltage_v, temperature_k;  // t_s from the first sample
+  // Time since the cycler's step began, NaN in files that do not log it; empty when none does.
+  std::vector<double> step_time_s;
   std::vector<int> cycle, step;
   std::vector<std::size_t> segment_starts;  // first row of each gap-free segment; [0] = 0
   std::vector<std::size_t> file_starts;     // first row of each file

@@ -219,10 +219,11 @@ CyclerRecord read_cycler_record(const std::vector<fs::path>& paths, CurrentSign 
   rec.layout = std::string(cycler_layout_name(files.front().layout));
   rec.start_epoch_s = files.front().start_epoch_s + files.front().t_s.front();
   double imax = 0.0;
-  bool all_temperature = true;
+  bool all_temperature = true, any_step_time = false;
   for (const CyclerFile& f : files) {
     for (double i : f.current_a) imax = std::max(imax, std::abs(i));
     all_temperature = all_temperature && !f.temperature_k.empty();
+    any_step_time = any_step_time || !f.step_time_s.empty();
   }
   std::vector<std::string> signs;
   for (const CyclerFile& f : files)
@@ -233,6 +234,8 @@ CyclerRecord read_cycler_record(const std::vector<fs::path>& paths, CurrentSign 
     const double offset = std::isnan(f.start_epoch_s) ? -f.t_s.front() : f.start_epoch_s - rec.start_epoch_s;
     append(rec, f, offset, imax);
     if (all_temperature) rec.temperature_k.insert(rec.temperature_k.end(), f.temperature_k.begin(), f.temperature_k.end());
+    if (any_step_time && f.step_time_s.empty()) f.step_time_s.assign(f.t_s.size(), std::nan(""));
+    if (any_step_time) rec.step_time_s.insert(rec.step_time_s.end(), f.step_time_s.begin(), f.step_time_s.end());
     f = CyclerFile{};  // free the file's columns
   }
   rec.note = fmt::format("{} layout, {} file(s), {} samples over {:.1f} h, {} cycles; current {}; {} logging gap(s) "

@@ -174,6 +174,7 @@ struct Overrides {
   Given<bool> learn_inventory;         // --no-inventory (false)
   Given<double> model_bias_ohm;        // --model-bias-ohm
   Given<double> relinearise_inventory; // --relinearise
+  Given<bool> hold_until_settled;      // --no-hold (false)
 };
 
 /// An override make_config refused: the option's name (without "--") and why; option nullptr: none.
@@ -229,6 +230,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"no-inventory", o.learn_inventory.given, id, only_best},
       {"model-bias-ohm", o.model_bias_ohm.given, id, only_best},
       {"relinearise", o.relinearise_inventory.given, id && observer, id ? no_observer : only_best},
+      {"no-hold", o.hold_until_settled.given, id, only_best},
   };
   for (const Use& u : uses)
     if (u.given && !u.used) return {u.option, u.reason};
@@ -372,6 +374,7 @@ void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   set_if(o.learn_inventory, cfg.film_path.identifier.learn_inventory);
   set_if(o.model_bias_ohm, cfg.film_path.model_bias_ohm);
   set_if(o.relinearise_inventory, cfg.film_path.relinearise_inventory);
+  set_if(o.hold_until_settled, cfg.film_path.hold_until_settled);
 }
 
 }  // namespace detail

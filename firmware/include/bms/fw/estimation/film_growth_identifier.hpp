@@ -116,6 +116,16 @@ class FilmGrowthIdentifier {
     const Real sd = std::sqrt((v > Real(0) ? v : Real(0)) + m * m);
     return static_cast<Scalar>(sd);
   }
+  // Whether the film's regression variance (what the data since the last relinearise() left
+  // open) is within the stated model bound: the estimate no longer moves by more than the
+  // model's own error as the next samples come in.
+  bool settled() const {
+    const auto& p = rls_.p();
+    const Real g = static_cast<Real>(growth_), su = static_cast<Real>(config_.sigma_u_ohm_m2);
+    const Real v = (p(0, 0) + Real(2) * g * p(0, 1) + g * g * p(1, 1)) * su * su;
+    const Real m = static_cast<Real>(config_.film_model_sd_rel * film_ohm_m2());
+    return v <= m * m;
+  }
   // 1-sigma of the relative inventory deviation nu, in the same way.
   Scalar inventory_sd() const {
     const Real su = static_cast<Real>(config_.sigma_u_ohm_m2), m = static_cast<Real>(config_.inventory_model_sd);

@@ -35,6 +35,12 @@ class IdentifierFilmPath {
     // A re-synchronisation that moves the model's inventory by more than this (relative)
     // restarts the film parameters' learning (FilmGrowthIdentifier::relinearise).
     Scalar relinearise_inventory = Scalar(1e-3);
+    // From the start (the prior) and after a relinearisation the outputs (film, its sd, the
+    // identified parameters, the capacity) stay those of the identifier as it was, propagated
+    // with the film's growth, until the (re)started one has settled (FilmGrowthIdentifier::settled): its first seconds
+    // of data swing the film tens of percent along the film-growth-inventory direction the
+    // prior leaves open. The model keeps the restarted identifier's film (film_in_use).
+    bool hold_until_settled = true;
     // Innovation test of the learning ticks (as PX4 EKF2 gates a fusion): the residual less the
     // design-time bias, averaged over innovation_time_constant_s (an exponential mean restarted
     // at each learning window, so the sensor noise averages out), is compared with
@@ -57,7 +63,9 @@ class IdentifierFilmPath {
     typename Identifier::State identifier;
   };
 
-  IdentifierFilmPath(const Config& c, Scalar /*dt_s*/) : c_(c), identifier_(c.identifier) {}
+  // The prior (the nominal cell's film, law and inventory) is held as a relinearised one is.
+  IdentifierFilmPath(const Config& c, Scalar /*dt_s*/)
+      : c_(c), identifier_(c.identifier), held_(c.identifier), holding_(c.hold_until_settled) {}
 
   Scalar initial_j_side_a_m3() const { return Scalar(0); }
 
@@ -90,7 +98,16 @@ class IdentifierFilmPath {
   // relinearise_inventory restarts the learning of the film's parameters.
   Scalar inventory_deviation() const { return identifier_.inventory_deviation(); }
   Scalar relinearise_inventory() const { return c_.relinearise_inventory; }
-  void relinearise() { identifier_.relinearise(); }
+  void relinearise() {
+    if (c_.hold_until_settled && !holding_) {
+      held_ = identifier_;
+      holding_ = true;
+    }
+    identifier_.relinearise();
+  }
+  // The identifier whose values are reported: the held one until the restarted one settles.
+  const Identifier& reported() const { return holding_ ? held_ : identifier_; }
+  bool holding() const { return holding_; }
   Scalar inventory_limit() const { return c_.identifier.inventory_limit; }
 
   // Step 8: nothing (no reference charge).
@@ -112,21 +129,25 @@ class IdentifierFilmPath {
       l.status |= identifier_.learn(t.u_ohm_m2, t.z_v, t.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
                                     resync.inventory_deviation_model(), -c_.model_bias_ohm * t.current_a);
       l.active = (l.status & kIdentifierRejectMask) == 0u;
+      if (holding_ && identifier_.settled()) holding_ = false;
     }
-    identifier_.propagate(t.r.j_side_a_m3, t.dt_s);
+    propagate(t.r.j_side_a_m3, t.dt_s);
     gate.identified(t.probed);
     update_capacity(model, t.probed, t.nominal_inventory_mol);
     return l;
   }
 
-  void propagate(Scalar j_side_a_m3, Scalar dt_s) { identifier_.propagate(j_side_a_m3, dt_s); }
+  void propagate(Scalar j_side_a_m3, Scalar dt_s) {
+    identifier_.propagate(j_side_a_m3, dt_s);
+    if (holding_) held_.propagate(j_side_a_m3, dt_s);
+  }
   StatusWord model_failed(bool /*open*/, Scalar /*last_j_side_a_m3*/) { return 0u; }
 
-  Scalar r_film_ohm_m2() const { return identifier_.film_ohm_m2(); }
+  Scalar r_film_ohm_m2() const { return reported().film_ohm_m2(); }
   // The film's 1-sigma: the identifier's (regression and model bound) and the temperature
   // sensor's, |dV/dT / H| x temperature_sd_k, in quadrature.
   Scalar film_sd_ohm_m2() const {
-    const Scalar sd = identifier_.film_sd_ohm_m2();
+    const Scalar sd = reported().film_sd_ohm_m2();
     const Scalar t = film_per_kelvin_ohm_m2_ * c_.temperature_sd_k;
     return std::isfinite(t) ? std::sqrt(sd * sd + t * t) : sd;
   }
@@ -141,10 +162,11 @@ class IdentifierFilmPath {
       th = first ? Scalar(1) : Scalar(0);
       first = false;
     }
-    o.film_initial_ohm_m2 = identifier_.initial_film_ohm_m2();
-    o.growth_gain = identifier_.gain();
-    o.inventory_deviation = identifier_.inventory_deviation();
-    o.growth_ohm_m2 = identifier_.growth_ohm_m2();
+    const Identifier& id = reported();
+    o.film_initial_ohm_m2 = id.initial_film_ohm_m2();
+    o.growth_gain = id.gain();
+    o.inventory_deviation = id.inventory_deviation();
+    o.growth_ohm_m2 = id.growth_ohm_m2();
     o.r_film_sd_ohm_m2 = film_sd_ohm_m2;
     o.capacity_ah = capacity_ah_;
     o.capacity_sd_ah = capacity_sd_ah_;
@@ -160,6 +182,7 @@ class IdentifierFilmPath {
     identifier_ = id;
     capacity_ah_ = std::numeric_limits<Scalar>::quiet_NaN();  // recomputed from the restored inventory
     identifying_ = false;
+    holding_ = false;  // not in the image: the restored identifier is reported
     return true;
   }
 
@@ -190,11 +213,11 @@ class IdentifierFilmPath {
       if (!(due || std::isnan(capacity_ah_)) || !(nominal_inventory_mol > Scalar(0))) return;
       capacity_ticks_ = 0u;
       const Scalar n0 = nominal_inventory_mol;
-      const Scalar n = n0 * (Scalar(1) + identifier_.inventory_deviation()) - model.li_loss_mol();
+      const Scalar n = n0 * (Scalar(1) + reported().inventory_deviation()) - model.li_loss_mol();
       capacity_ah_ = Model::open_circuit_capacity_ah(n);
       // The capacity moves with the inventory nearly one to one near the nominal cell (0.98:
       // tests/firmware/test_temperature.cpp): its relative sd is the inventory's.
-      capacity_sd_ah_ = capacity_ah_ * identifier_.inventory_sd() * n0 / n;
+      capacity_sd_ah_ = capacity_ah_ * reported().inventory_sd() * n0 / n;
     }
   }
 
@@ -208,6 +231,8 @@ class IdentifierFilmPath {
 
   Config c_;
   Identifier identifier_;
+  Identifier held_;       // reported while holding_ (Config::hold_until_settled)
+  bool holding_ = false;
   Scalar capacity_ah_ = std::numeric_limits<Scalar>::quiet_NaN();
   Scalar capacity_sd_ah_ = std::numeric_limits<Scalar>::quiet_NaN();
   Scalar innovation_mean_v_ = Scalar(0);
