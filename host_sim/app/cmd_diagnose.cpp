@@ -10,15 +10,20 @@
 #include <vector>
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
 #include "commands.hpp"
 #include "simulate_options.hpp"
+#include "diagnosis/augmented_cell.hpp"
 #include "diagnosis/diagnose.hpp"
 #include "diagnosis/report.hpp"
+#include "io/atomic_file.hpp"
+#include "io/bpx_writer.hpp"
 #include "io/child_process.hpp"
 #include "io/input_error.hpp"
 #include "io/output_folder.hpp"
 #include "io/measured_profile.hpp"
+#include "io/text_file.hpp"
 #include "sim/cell_catalog.hpp"
 
 namespace bms::app {
@@ -42,6 +47,8 @@ struct DiagnoseOptions {
   int threads = 0;
   std::string initial_soc = "auto";
   std::string current_sign = "by-layout";
+  std::string write_cell;
+  bool write_cell_partial = false;
   bool quiet = false;
 };
 
@@ -87,7 +94,83 @@ std::string command_line(const DiagnoseOptions& o) {
   if (o.threads != 0) s += fmt::format(" --threads {}", o.threads);
   if (o.initial_soc != "auto") s += " --initial-soc " + o.initial_soc;
   if (o.current_sign != "by-layout") s += " --current-sign " + o.current_sign;
+  if (!o.write_cell.empty()) s += " --write-cell " + o.write_cell;
+  if (o.write_cell_partial) s += " --write-cell-partial";
   return s + " --out " + o.out;
+}
+
+// --write-cell: the input cell's BPX JSON (the built-in paper cell has none) and where it came from.
+nlohmann::json input_cell_json(const std::string& cell, std::string& source) {
+  std::filesystem::path file;
+  if (cell == "paper")
+    throw InputError("--write-cell: the built-in paper cell has no BPX file to write an augmented cell from; give "
+                     "--cell aboutenergy, lco, nmc or a FILE.bpx.json");
+  if (cell == "aboutenergy") file = shared_dir() / "data/aboutenergy-lfp18650/lfp_18650_cell_BPX.json";
+  else if (cell == "lco" || cell == "nmc") file = cell_template_file(cell);
+  else file = cell;
+  source = file.string();
+  try {
+    return nlohmann::json::parse(read_text_file(file));
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError("--cell " + source + ": not JSON (" + e.what() + ")");
+  }
+}
+
+// What --write-cell writes: the knobs of the answer (explained), or with --write-cell-partial the
+// best partial model (unexplained) or nothing added (none). The cell is not written when the
+// answer is not `explained` and the option does not ask for it, or when a knob is no property of
+// the cell (`refused`, one line naming it).
+struct CellPlan {
+  bool write = false;
+  std::string refused;
+  diagnosis::AugmentedCell cell;
+  nlohmann::json summary;
+};
+
+CellPlan plan_cell(const DiagnoseOptions& o, const diagnosis::DiagnosisResult& r, const nlohmann::json& input,
+                   const CellParameters& input_cell, const std::string& source) {
+  CellPlan p;
+  const bool use = r.explained || o.write_cell_partial;
+  const diagnosis::Hypothesis& h = r.explained ? r.model : r.best_partial;
+  const std::string answer = diagnosis::effect_name(r.answer);
+  std::string note;
+  if (!use) {
+    note = fmt::format("no cell written: the answer is `{}` (not explained); --write-cell-partial writes the best "
+                       "combination reached anyway",
+                       answer);
+  } else {
+    p.cell = diagnosis::augment_cell(input, input_cell, h);
+    if (!p.cell.refused.empty()) {
+      p.refused = p.cell.refused;
+      note = "no cell written: " + p.refused;
+    } else {
+      p.write = true;
+      note = fmt::format("{}/cell.bpx.json: the cell '{}' ({}) with {} ({}; fitted on all the data). Answer `{}`{}.",
+                         o.write_cell, o.cell, source,
+                         p.cell.added.empty() ? std::string("nothing added") : fmt::format("{}", fmt::join(p.cell.added, "; ")),
+                         r.explained ? "the explaining effects" : "the best partial combination, not an explanation",
+                         answer,
+                         r.explained ? fmt::format(": held-out RMSE {:.3f} -> {:.3f} mV", r.heldout_before_mv,
+                                                   r.heldout_after_mv)
+                                     : fmt::format(" (best reached {:.3f} mV of {:.3f} mV held out)",
+                                                   r.best_partial_heldout_mv, r.heldout_before_mv));
+    }
+  }
+  p.summary = {{"dir", o.write_cell},
+               {"written", p.write},
+               {"from", r.explained ? "answer" : (use ? "best_partial" : "none")},
+               {"effects", p.cell.added_json},
+               {"note", note}};
+  if (!p.refused.empty()) p.summary["refused"] = p.refused;
+  return p;
+}
+
+void write_cell_file(const std::filesystem::path& dir, const DiagnoseOptions& o, const CellPlan& p,
+                     const nlohmann::json& input) {
+  write_bpx_cell(dir / "cell.bpx.json", p.cell.bpx, fmt::format("Augmented by bmssim diagnose from cell '{}'", o.cell),
+                 fmt::format("{} Made by `{}`; every other value is the input cell's. Input description: {}",
+                             p.summary.value("note", std::string()), command_line(o),
+                             input.value("/Header/Description"_json_pointer, std::string("(none)"))));
 }
 
 int run_diagnose(const DiagnoseOptions& o) {
@@ -116,18 +199,43 @@ int run_diagnose(const DiagnoseOptions& o) {
                                    d, kRestCurrentA));
     diagnosis::set_initial_state(records.back(), cell, o.initial_soc);
   }
+  if (o.write_cell_partial && o.write_cell.empty()) throw InputError("--write-cell-partial: only with --write-cell DIR");
+  std::string cell_source;
+  const nlohmann::json cell_json = o.write_cell.empty() ? nlohmann::json() : input_cell_json(o.cell, cell_source);
   // Checked before the long work; every file is written under DIR.partial-PID, which replaces
   // DIR only once the report, its plots and summary.json are all written (io/output_folder.hpp).
   OutputFolder folder(o.out);
+  // --write-cell DIR: its own output folder (cell.bpx.json, summary.json), or the --out folder itself.
+  const bool cell_in_out = !o.write_cell.empty() && std::filesystem::weakly_canonical(o.write_cell) ==
+                                                        std::filesystem::weakly_canonical(o.out);
+  std::unique_ptr<OutputFolder> cell_folder;
+  if (!o.write_cell.empty() && !cell_in_out) cell_folder = std::make_unique<OutputFolder>(o.write_cell, "--write-cell");
   auto log = [q = o.quiet](const std::string& s) {
     if (!q) std::fprintf(stderr, "diagnose: %s\n", s.c_str());
   };
   const auto result = diagnosis::diagnose(cell, records, settings, log);
   if (!result.excitation_note.empty())
     std::fprintf(stderr, "diagnose: note: %s\n", result.excitation_note.c_str());
-  const diagnosis::ReportContext ctx{command_line(o), o.cell, settings};
+  diagnosis::ReportContext ctx{command_line(o), o.cell, settings};
+  CellPlan cell_plan;
+  if (!o.write_cell.empty()) {
+    cell_plan = plan_cell(o, result, cell_json, cell, cell_source);
+    ctx.extra["write_cell"] = cell_plan.summary;
+  }
   const auto plots = diagnosis::write_report(folder.staging(), result, ctx);
   throw_if_interrupted();
+  // The cell first: a cell that cannot be written leaves no diagnosis that says it was.
+  if (cell_plan.write) {
+    write_cell_file(cell_in_out ? folder.staging() : cell_folder->staging(), o, cell_plan, cell_json);
+    if (cell_folder) {
+      AtomicFileWriter w(cell_folder->staging() / "summary.json");
+      w.append(nlohmann::json({{"command", command_line(o)}, {"diagnosis", o.out}, {"write_cell", cell_plan.summary}})
+                   .dump(2) +
+               "\n");
+      w.commit();
+      cell_folder->commit();
+    }
+  }
   folder.commit();
   if (plots.empty()) std::fprintf(stderr, "diagnose: warning: no plots (see %s/report.md)\n", o.out.c_str());
   std::fprintf(stderr, "diagnose: %s: held-out RMSE %.3f -> %.3f mV, all %.3f -> %.3f mV (%s) -> %s\n",
@@ -135,6 +243,10 @@ int run_diagnose(const DiagnoseOptions& o) {
                result.explained ? result.heldout_after_mv : result.heldout_before_mv, result.rmse_before_mv,
                result.explained ? result.rmse_after_mv : result.rmse_before_mv, result.reason.c_str(),
                o.out.c_str());
+  if (!o.write_cell.empty()) {
+    std::fprintf(stderr, "diagnose: --write-cell: %s\n", cell_plan.summary.value("note", std::string()).c_str());
+    if (!cell_plan.refused.empty()) return 1;
+  }
   return 0;
 }
 
@@ -191,6 +303,16 @@ Runner add_diagnose(CLI::App& app) {
                   "Candidates and sensitivities on this many threads (0: one per core); the answer and every number "
                   "are the same for any count")
       ->capture_default_str()->check(CLI::Range(0, 64));
+  sub->add_option("--write-cell", o->write_cell,
+                  "Also write DIR/cell.bpx.json: the --cell's BPX file with the effects the answer names, at their "
+                  "sizes fitted on all the data (re-fits scale the BPX fields; contact_resistance, hysteresis, thermal "
+                  "and particle_size go into User-defined keys the BPX reader reads), for any --cell. Written only "
+                  "when the answer is explained, unless --write-cell-partial. A sensor error, time skew, RC branch or "
+                  "start state is not a property of the cell: then no cell is written and the exit code is 1. DIR may "
+                  "be the --out folder; else it gets its own summary.json. Not with --cell paper (no BPX file)");
+  sub->add_flag("--write-cell-partial", o->write_cell_partial,
+                "With --write-cell: write the cell also when the answer is unexplained (the best combination reached, "
+                "best_partial in summary.json: not an explanation) or none (nothing added)");
   sub->add_flag("--quiet", o->quiet, "No progress output");
   sub->footer(
       "Exit codes: 0 diagnosis written (possibly 'none', with the reason), 1 runtime failure, 2 bad input.\n"

@@ -152,6 +152,26 @@ void add_charges(nlohmann::json& summary, const EstimateResult& r, const Estimat
   }
 }
 
+// A cell file's own contact resistance and hysteresis (BPX User-defined keys, e.g. from
+// `diagnose --write-cell`) go into the reduced model as --model-effect puts them there, unless
+// --model-effect names that effect itself. The full model has them already (the truth DFN reads
+// them from the cell).
+void adopt_cell_effects(EstimateCli& c, const CellParameters& cell) {
+  if (c.o.model != "reduced") return;
+  auto given = [&](const char* name) {
+    for (const auto& e : c.model_effects)
+      if (e.rfind(std::string(name) + "=", 0) == 0) return true;
+    return false;
+  };
+  const CellEffectParameters& fx = cell.effects;
+  if (fx.contact_resistance_ohm > 0.0 && !given("contact_resistance"))
+    add_model_effect(c.o, fmt::format("contact_resistance={:.17g}", fx.contact_resistance_ohm));
+  if (fx.hysteresis_v > 0.0 && !given("hysteresis")) {
+    add_model_effect(c.o, fmt::format("hysteresis={:.17g}", fx.hysteresis_v));
+    if (fx.hysteresis_rate_per_soc > 0.0) c.o.model_effects.hysteresis_rate_per_soc = fx.hysteresis_rate_per_soc;
+  }
+}
+
 int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
   c.o.mesh.n_sep = c.o.mesh.n_pos = c.o.mesh.n_neg;
   if (c.beyond && sub.count("--settings") > 0)
@@ -163,6 +183,7 @@ int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
   for (const auto& e : c.model_effects) add_model_effect(c.o, e);
   check_estimate_options(c.o);  // before any long work: an option the settings do not use exits 2
   const CellParameters cell = load_cell(c.cell);
+  adopt_cell_effects(c, cell);
   c.o.ic = perturbed_initial_conditions(cell, c.ic_error_pct);
   if (c.o.model == "reduced" && cell.name != "paper") {
     // A cell other than the paper's: refuse a file the firmware's model cannot use (naming the

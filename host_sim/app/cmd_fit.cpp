@@ -12,6 +12,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -21,6 +22,7 @@
 #include "diagnosis/cell_fit.hpp"
 #include "estimation/cycler_input.hpp"
 #include "io/atomic_file.hpp"
+#include "io/bpx_writer.hpp"
 #include "io/gnuplot.hpp"
 #include "io/input_error.hpp"
 #include "io/measured_profile.hpp"
@@ -372,15 +374,14 @@ void write_cell(const OutputFolder& folder, const FitOptions& o, const nlohmann:
   std::string fitted_list;
   for (const auto& p : fit.parameters)
     if (p.fitted) fitted_list += (fitted_list.empty() ? "" : ", ") + p.name;
-  cell["Header"]["Title"] = fmt::format("Fitted by bmssim fit from template '{}'", o.templ);
-  cell["Header"]["Description"] = fmt::format(
-      "Fitted to measured cycler data by `{}` ({}). Fitted: {}; voltage window and stoichiometry windows from the "
-      "electrode balance at the data's window; every other value is the template's ({}). Template description: {}",
-      command_line(o), split_note, fitted_list.empty() ? "nothing" : fitted_list, template_source,
-      tmpl.value("/Header/Description"_json_pointer, std::string("(none)")));
-  AtomicFileWriter w(folder.staging() / "cell.bpx.json");
-  w.append(cell.dump(1) + "\n");
-  w.commit();
+  write_bpx_cell(
+      folder.staging() / "cell.bpx.json", std::move(cell),
+      fmt::format("Fitted by bmssim fit from template '{}'", o.templ),
+      fmt::format("Fitted to measured cycler data by `{}` ({}). Fitted: {}; voltage window and stoichiometry windows "
+                  "from the electrode balance at the data's window; every other value is the template's ({}). "
+                  "Template description: {}",
+                  command_line(o), split_note, fitted_list.empty() ? "nothing" : fitted_list, template_source,
+                  tmpl.value("/Header/Description"_json_pointer, std::string("(none)"))));
 }
 
 // fit.csv (every scored row; the model voltage NaN where the model did not reach the row) and

@@ -348,6 +348,32 @@ TEST(BpxReader, SideReactionFromUserDefinedKeys) {
             std::string::npos);
 }
 
+// The cell's own effects (diagnose --write-cell) under "User-defined": absent = off; a value out
+// of the truth model's range is refused with its full path.
+TEST(BpxReader, CellEffectsFromUserDefinedKeys) {
+  EXPECT_FALSE(read_bpx_text(lfp_json().dump(), "lfp.json").effects.any());
+  json j = lfp_json();
+  json& u = j["Parameterisation"]["User-defined"];
+  u["Contact resistance [Ohm]"] = 0.003;
+  u["OCP hysteresis half-gap [V]"] = 0.012;
+  u["OCP hysteresis rate per state of charge [-]"] = 30.0;
+  u["Lumped heat transfer coefficient [W.K-1]"] = 0.05;
+  u["Positive particle-size log-normal standard deviation [-]"] = 0.4;
+  const CellParameters p = read_bpx_text(j.dump(), "lfp.json");
+  EXPECT_DOUBLE_EQ(p.effects.contact_resistance_ohm, 0.003);
+  EXPECT_DOUBLE_EQ(p.effects.hysteresis_v, 0.012);
+  EXPECT_DOUBLE_EQ(p.effects.hysteresis_rate_per_soc, 30.0);
+  EXPECT_DOUBLE_EQ(p.effects.thermal_h_w_per_k, 0.05);
+  EXPECT_DOUBLE_EQ(p.effects.particle_size_sigma, 0.4);
+  EXPECT_EQ(p.side.source, SideReactionParameters{}.source);  // no SEI key: the paper's reaction
+  EXPECT_NE(error_after([](json& k) { k["Parameterisation"]["User-defined"]["Contact resistance [Ohm]"] = 2.0; })
+                .find("Parameterisation.User-defined.Contact resistance [Ohm]"),
+            std::string::npos);
+  EXPECT_NE(error_after([](json& k) { k["Parameterisation"]["User-defined"]["OCP hysteresis half-gap [V]"] = -0.01; })
+                .find("OCP hysteresis half-gap"),
+            std::string::npos);
+}
+
 // Byte-level mutations of the real file: every outcome is a CellParameters or an InputError.
 TEST(BpxReader, MutatedFilesFailCleanly) {
   const std::string original = read_text_file(kLfpFile);

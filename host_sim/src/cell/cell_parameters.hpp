@@ -77,6 +77,21 @@ struct ThermalParameters {
   double external_area_m2 = 0.0;
 };
 
+// Effects of the cell itself beyond the plain DFN, read from a BPX file's "User-defined" keys
+// (io/bpx_reader.cpp, docs/parameters.md; `bmssim diagnose --write-cell` writes them). The truth
+// model adds them to the effects a run switches on (DfnModel): the contact resistance adds, the
+// others apply unless the run sets its own. Zero = off: the plain DFN.
+struct CellEffectParameters {
+  double contact_resistance_ohm = 0.0;   // "Contact resistance [Ohm]" (PyBaMM's name)
+  double hysteresis_v = 0.0;             // "OCP hysteresis half-gap [V]"
+  double hysteresis_rate_per_soc = 0.0;  // "OCP hysteresis rate per state of charge [-]"; 0 = the model's
+  double thermal_h_w_per_k = 0.0;        // "Lumped heat transfer coefficient [W.K-1]"
+  double particle_size_sigma = 0.0;      // "Positive particle-size log-normal standard deviation [-]"
+  bool any() const {
+    return contact_resistance_ohm > 0.0 || hysteresis_v > 0.0 || thermal_h_w_per_k > 0.0 || particle_size_sigma > 0.0;
+  }
+};
+
 struct CellParameters {
   std::string name;
   std::string source;  // file or "built-in"
@@ -91,6 +106,7 @@ struct CellParameters {
   ElectrolyteParameters electrolyte;
   SideReactionParameters side;
   ThermalParameters thermal;
+  CellEffectParameters effects;
 };
 
 }  // namespace bms

@@ -117,6 +117,18 @@ ReducedCellRecord make_reduced_cell_record(const CellParameters& c) {
       c.negative.rate_activation_j_mol > 0.0 || c.positive.rate_activation_j_mol > 0.0)
     r.notes += "activation energies are not used (isothermal at the cell's ambient temperature); ";
   if (c.negative.entropic_v_k || c.positive.entropic_v_k) r.notes += "entropic coefficients are not used; ";
+  // The cell's own effects (BPX User-defined keys) are the truth model's, not the reduced model's.
+  const CellEffectParameters& fx = c.effects;
+  if (fx.contact_resistance_ohm > 0.0)
+    r.notes += fmt::format("the contact resistance ({:.4g} ohm) is not in this record (`estimate` adds it as a model "
+                           "effect; a board image built from the record does not have it); ",
+                           fx.contact_resistance_ohm);
+  if (fx.hysteresis_v > 0.0)
+    r.notes += fmt::format("the OCP hysteresis ({:.4g} V) is not in this record (`estimate` adds it as a model "
+                           "effect; a board image does not); ",
+                           fx.hysteresis_v);
+  if (fx.thermal_h_w_per_k > 0.0) r.notes += "the lumped thermal model is not used (isothermal); ";
+  if (fx.particle_size_sigma > 0.0) r.notes += "the positive particle-size spread is not used (one size); ";
   return r;
 }
 

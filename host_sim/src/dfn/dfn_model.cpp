@@ -90,13 +90,23 @@ void check_effects(const CellParameters& cell, const ModelEffects& effects, doub
 
 }  // namespace
 
+ModelEffects with_cell_effects(const CellParameters& cell, ModelEffects effects) {
+  const CellEffectParameters& c = cell.effects;
+  effects.contact_resistance_ohm += c.contact_resistance_ohm;
+  if (effects.hysteresis_v == 0.0) effects.hysteresis_v = c.hysteresis_v;
+  if (c.hysteresis_rate_per_soc > 0.0) effects.hysteresis_rate_per_soc = c.hysteresis_rate_per_soc;
+  if (effects.thermal_h_w_per_k == 0.0) effects.thermal_h_w_per_k = c.thermal_h_w_per_k;
+  if (effects.particle_size_sigma == 0.0) effects.particle_size_sigma = c.particle_size_sigma;
+  return effects;
+}
+
 DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double temperature_k,
                    const ModelEffects& effects)
-    : cell_(cell), mesh_(mesh), temperature_k_(temperature_k), effects_(effects) {
+    : cell_(cell), mesh_(mesh), temperature_k_(temperature_k), effects_(with_cell_effects(cell, effects)) {
   if (mesh.n_neg < 2 || mesh.n_sep < 1 || mesh.n_pos < 2 || mesh.n_r < 3)
     throw std::invalid_argument("DfnMesh: need at least 2 cells per electrode, 1 in the separator, 3 radial");
-  check_effects(cell, effects, temperature_k);
-  if (effects.thermal_on()) {
+  check_effects(cell, effects_, temperature_k);
+  if (effects_.thermal_on()) {
     const auto& th = cell.thermal;
     heat_capacity_j_k_ = th.specific_heat_j_kg_k * th.density_kg_m3 * th.volume_m3;
     if (!(heat_capacity_j_k_ > 0.0))
@@ -104,15 +114,15 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
                        "' has no heat capacity (BPX Cell: 'Specific heat capacity [J.K-1.kg-1]', "
                        "'Density [kg.m-3]', 'Volume [m3]')");
   }
-  temperature_dependent_ = effects.thermal_on() || temperature_k != cell.thermal.reference_temperature_k;
+  temperature_dependent_ = effects_.thermal_on() || temperature_k != cell.thermal.reference_temperature_k;
   f_rt_ = kFaradayC_mol / (kGas_j_mol_k * temperature_k_);
   nx_ = mesh.n_neg + mesh.n_sep + mesh.n_pos;
   ne_ = mesh.n_neg + mesh.n_pos;
   cs_end_ = 2 * nx_ + ne_ * mesh.n_r;
   n_ = cs_end_ + 2 * ne_ + 3;
   // Effect states go after the plain model's, so its layout does not depend on them.
-  if (effects.hysteresis_on()) idx_hyst_ = n_++;
-  if (effects.thermal_on()) {
+  if (effects_.hysteresis_on()) idx_hyst_ = n_++;
+  if (effects_.thermal_on()) {
     idx_heat0_ = n_;
     n_ += nx_;
     idx_temp_ = n_++;

@@ -66,6 +66,11 @@ struct ModelEffects {
   bool particle_size_on() const { return particle_size_sigma > 0.0 || particle_size_negative_sigma > 0.0; }
 };
 
+// The effects a run switches on plus the cell's own (CellParameters::effects): the contact
+// resistances add; the cell's hysteresis half-gap, thermal coefficient and particle-size spread
+// apply where the run leaves them off, its hysteresis rate always. Every DfnModel is built with this.
+ModelEffects with_cell_effects(const CellParameters& cell, ModelEffects effects);
+
 // Heat sources of one state (W, whole cell). joule: electrolyte and solid ohmic heat,
 // current-collector half cells and contact resistance; reaction: j (phi_s - phi_e - U) summed
 // over the electrodes (kinetic overpotential and film drop); reversible: j T dU/dT;

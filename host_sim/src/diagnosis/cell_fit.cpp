@@ -14,6 +14,7 @@
 #include "diagnosis/model_run.hpp"
 #include "diagnosis/normal_equations.hpp"
 #include "io/bpx_reader.hpp"
+#include "io/bpx_writer.hpp"
 #include "io/input_error.hpp"
 #include "io/table_function.hpp"
 
@@ -110,36 +111,6 @@ const KnobInfo& info(Knob k) {
     return t;
   }();
   return table[static_cast<std::size_t>(k)];
-}
-
-// A number, an expression or a table ({"x":..,"y":..}) times f.
-void scale_json_value(nlohmann::json& v, double f, const std::string& where) {
-  if (v.is_number()) {
-    v = v.get<double>() * f;
-  } else if (v.is_string()) {
-    v = fmt::format("{:.12g} * ({})", f, v.get<std::string>());
-  } else if (v.is_object() && v.contains("y") && v["y"].is_array()) {
-    for (auto& y : v["y"]) y = y.get<double>() * f;
-  } else {
-    throw InputError("template: field '" + where + "' is neither a number, an expression nor a table");
-  }
-}
-
-double number_of(const nlohmann::json& v, const std::string& where) {
-  if (v.is_number()) return v.get<double>();
-  if (v.is_string()) {
-    char* end = nullptr;
-    const std::string s = v.get<std::string>();
-    const double d = std::strtod(s.c_str(), &end);
-    if (!s.empty() && *end == '\0') return d;
-  }
-  throw InputError("template: field '" + where + "' must be a number");
-}
-
-nlohmann::json& field(nlohmann::json& bpx, const char* section, const char* key) {
-  auto& p = bpx.at("Parameterisation");
-  if (!p.contains(section)) p[section] = nlohmann::json::object();
-  return p[section][key];
 }
 
 double electrode_capacity_ah(const CellParameters& cell, const ElectrodeParameters& e) {
@@ -267,8 +238,8 @@ class Problem {
         knot_y_.push_back(check.y100 + (check.y0 - check.y100) * i / (s_.ocp_knots - 1));
     }
     template_values_ = {
-        number_of(field(tmpl_, "Cell", "Electrode area [m2]"), "Cell.Electrode area [m2]"),
-        number_of(field(tmpl_, "Positive electrode", "Maximum concentration [mol.m-3]"),
+        bpx_number(bpx_field(tmpl_, "Cell", "Electrode area [m2]"), "Cell.Electrode area [m2]"),
+        bpx_number(bpx_field(tmpl_, "Positive electrode", "Maximum concentration [mol.m-3]"),
                   "Positive electrode.Maximum concentration [mol.m-3]"),
         x100_0_,
         base_.side.initial_film_resistance_ohm_m2,
@@ -309,21 +280,21 @@ class Problem {
   nlohmann::json bpx(const ZVec& z, Balance& b) const {
     nlohmann::json j = tmpl_;
     auto f = [&](Knob k) { return std::exp(z[static_cast<int>(k)]); };
-    scale_json_value(field(j, "Cell", "Electrode area [m2]"), f(Knob::electrode_area), "Cell.Electrode area [m2]");
-    scale_json_value(field(j, "Positive electrode", "Maximum concentration [mol.m-3]"), f(Knob::positive_capacity),
+    scale_bpx_value(bpx_field(j, "Cell", "Electrode area [m2]"), f(Knob::electrode_area), "Cell.Electrode area [m2]");
+    scale_bpx_value(bpx_field(j, "Positive electrode", "Maximum concentration [mol.m-3]"), f(Knob::positive_capacity),
                      "Positive electrode.Maximum concentration [mol.m-3]");
-    scale_json_value(field(j, "Negative electrode", "Diffusivity [m2.s-1]"), f(Knob::diffusivity_negative),
+    scale_bpx_value(bpx_field(j, "Negative electrode", "Diffusivity [m2.s-1]"), f(Knob::diffusivity_negative),
                      "Negative electrode.Diffusivity [m2.s-1]");
-    scale_json_value(field(j, "Positive electrode", "Diffusivity [m2.s-1]"), f(Knob::diffusivity_positive),
+    scale_bpx_value(bpx_field(j, "Positive electrode", "Diffusivity [m2.s-1]"), f(Knob::diffusivity_positive),
                      "Positive electrode.Diffusivity [m2.s-1]");
-    scale_json_value(field(j, "Negative electrode", "Reaction rate constant [mol.m-2.s-1]"), f(Knob::rate_negative),
+    scale_bpx_value(bpx_field(j, "Negative electrode", "Reaction rate constant [mol.m-2.s-1]"), f(Knob::rate_negative),
                      "Negative electrode.Reaction rate constant");
-    scale_json_value(field(j, "Positive electrode", "Reaction rate constant [mol.m-2.s-1]"), f(Knob::rate_positive),
+    scale_bpx_value(bpx_field(j, "Positive electrode", "Reaction rate constant [mol.m-2.s-1]"), f(Knob::rate_positive),
                      "Positive electrode.Reaction rate constant");
-    scale_json_value(field(j, "Electrolyte", "Conductivity [S.m-1]"), f(Knob::conductivity),
+    scale_bpx_value(bpx_field(j, "Electrolyte", "Conductivity [S.m-1]"), f(Knob::conductivity),
                      "Electrolyte.Conductivity [S.m-1]");
     if (has_film())
-      field(j, "User-defined", "Initial SEI resistance [Ohm.m2]") =
+      bpx_field(j, "User-defined", "Initial SEI resistance [Ohm.m2]") =
           base_.side.initial_film_resistance_ohm_m2 * f(Knob::series_film);
     const double qn = qn0_ * f(Knob::electrode_area);
     const double qp = qp0_ * f(Knob::electrode_area) * f(Knob::positive_capacity);
@@ -337,18 +308,18 @@ class Problem {
     std::unique_ptr<TableFunction> correction;
     if (any) {
       correction = std::make_unique<TableFunction>(knot_y_, knots, "the open-circuit correction");
-      add_ocp_correction(field(j, "Positive electrode", "OCP [V]"), *correction);
+      add_ocp_correction(bpx_field(j, "Positive electrode", "OCP [V]"), *correction);
     }
     b = balance(base_, qn, qp, z[static_cast<int>(Knob::negative_stoich_full)], s_.v_min, s_.v_max,
                 correction.get());
     if (!b.ok) return j;
-    field(j, "Negative electrode", "Minimum stoichiometry") = b.x0;
-    field(j, "Negative electrode", "Maximum stoichiometry") = b.x100;
-    field(j, "Positive electrode", "Minimum stoichiometry") = b.y100;
-    field(j, "Positive electrode", "Maximum stoichiometry") = b.y0;
-    field(j, "Cell", "Nominal cell capacity [A.h]") = b.capacity_ah;
-    field(j, "Cell", "Lower voltage cut-off [V]") = s_.v_min;
-    field(j, "Cell", "Upper voltage cut-off [V]") = s_.v_max;
+    bpx_field(j, "Negative electrode", "Minimum stoichiometry") = b.x0;
+    bpx_field(j, "Negative electrode", "Maximum stoichiometry") = b.x100;
+    bpx_field(j, "Positive electrode", "Minimum stoichiometry") = b.y100;
+    bpx_field(j, "Positive electrode", "Maximum stoichiometry") = b.y0;
+    bpx_field(j, "Cell", "Nominal cell capacity [A.h]") = b.capacity_ah;
+    bpx_field(j, "Cell", "Lower voltage cut-off [V]") = s_.v_min;
+    bpx_field(j, "Cell", "Upper voltage cut-off [V]") = s_.v_max;
     return j;
   }
 

@@ -995,10 +995,36 @@ void decide(DiagnosisResult& out, const DiagnoseSettings& s) {
   out.model.clear();
 }
 
+// Candidates the cell cannot take (the lumped thermal model needs a heat capacity, hysteresis a
+// nominal capacity) are reported as unavailable instead of failing every run that tries them.
+std::vector<CandidateResult> drop_unusable(const CellParameters& cell, std::vector<Effect>& candidates) {
+  std::vector<CandidateResult> dropped;
+  const auto& th = cell.thermal;
+  for (auto it = candidates.begin(); it != candidates.end();) {
+    std::string why;
+    if (*it == Effect::thermal && !(th.specific_heat_j_kg_k * th.density_kg_m3 * th.volume_m3 > 0.0))
+      why = "the cell has no heat capacity (BPX Cell: specific heat capacity, density, volume)";
+    if (*it == Effect::hysteresis && !(cell.nominal_capacity_ah > 0.0)) why = "the cell has no nominal capacity";
+    if (why.empty()) {
+      ++it;
+      continue;
+    }
+    CandidateResult c;
+    c.effect = *it;
+    c.available = false;
+    c.note = why;
+    dropped.push_back(c);
+    it = candidates.erase(it);
+  }
+  return dropped;
+}
+
 }  // namespace
 
 DiagnosisResult diagnose(const CellParameters& cell, const std::vector<Record>& records,
-                         const DiagnoseSettings& settings, const LogFn& log) {
+                         const DiagnoseSettings& settings_in, const LogFn& log) {
+  DiagnoseSettings settings = settings_in;
+  const std::vector<CandidateResult> unusable = drop_unusable(cell, settings.candidates);
   const auto wall0 = std::chrono::steady_clock::now();
   auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count(); };
   auto say = [&](const std::string& s) {
@@ -1017,6 +1043,10 @@ DiagnosisResult diagnose(const CellParameters& cell, const std::vector<Record>& 
   none.rmse_after_mv = out.rmse_before_mv;
   none.max_abs_after_mv = out.max_abs_before_mv;
   out.candidates.push_back(none);
+  for (const auto& c : unusable) {
+    say(fmt::format("candidate {}: not available: {}", effect_name(c.effect), c.note));
+    out.candidates.push_back(c);
+  }
   if (st.all_rest || out.at_floor_before) {
     // At the floor no candidate can bring the held-out RMSE to 20 % of it (the noise stays):
     // the answer is none whatever the candidates do, so none is run.

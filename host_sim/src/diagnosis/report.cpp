@@ -205,6 +205,7 @@ nlohmann::json summary_json(const DiagnosisResult& r, const ReportContext& ctx) 
   j["rtol"] = s.rtol;
   j["runs"] = r.runs;
   j["wall_s"] = r.wall_s;
+  for (const auto& [k, v] : ctx.extra.items()) j[k] = v;
   return j;
 }
 
@@ -338,6 +339,12 @@ std::vector<std::string> write_report(const std::filesystem::path& dir, const Di
     if (!c.record->initial_state_note.empty()) md << " Initial state: " << c.record->initial_state_note << ".";
     md << "\n\nBefore: " << c.adequacy_before.verdict << ".\n\nFitted model: " << c.adequacy_after.verdict << ".\n\n";
     characterisation_md(md, c.char_before, c.char_after);
+    md << "\n";
+  }
+  if (ctx.extra.contains("write_cell")) {
+    const auto& w = ctx.extra["write_cell"];
+    md << "## The augmented cell (--write-cell)\n\n" << w.value("note", std::string()) << "\n\n";
+    for (const auto& a : w.value("effects", nlohmann::json::array())) md << "- " << a.value("line", std::string()) << "\n";
     md << "\n";
   }
   md << "## Plots\n\n";

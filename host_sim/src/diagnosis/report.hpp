@@ -14,6 +14,7 @@ struct ReportContext {
   std::string command_line;  // how to reproduce, quoted in report.md
   std::string cell;          // as given on the command line
   DiagnoseSettings settings;
+  nlohmann::json extra = nlohmann::json::object();  // further summary.json keys (e.g. write_cell)
 };
 
 nlohmann::json summary_json(const DiagnosisResult& r, const ReportContext& ctx);

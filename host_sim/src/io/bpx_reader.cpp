@@ -91,6 +91,12 @@ constexpr Range kSeiMolarVolume{1e-7, 1e3, false, false};        // m3/mol; 9.6e
 constexpr Range kSeiResistivity{1e-6, 1e9, false, false};        // ohm m; 2e5 (PyBaMM), 1 (the paper's 1/K_p)
 constexpr Range kSeiThickness{0.0, 1e-5, false, false};          // m; 5e-9
 constexpr Range kSeiResistance{0.0, 1.0, false, false};          // ohm m2; 3.4e-3 (the paper)
+// The cell's own effects (User-defined keys; the truth model's ranges, dfn_model.cpp).
+constexpr Range kContactResistance{0.0, 1.0, false, false};     // ohm; milliohms
+constexpr Range kHysteresisHalfGap{0.0, 0.5, false, false};     // V; 5-20 mV for LFP
+constexpr Range kHysteresisRate{0.0, 1e4, true, false};         // per unit of state of charge; 50
+constexpr Range kHeatTransfer{0.0, 1e3, false, false};          // W/K; 0.01-1 for an 18650
+constexpr Range kParticleSizeSigma{0.0, 1.5, false, false};     // log-space standard deviation; 0.2-0.6
 
 // A unit written another way than the schema's: spellings of the same unit (factor 1) and
 // scaled ones, per schema unit. Compared without spaces, '^' and '*' ("kJ mol^-1" = "kJ.mol-1").
@@ -477,6 +483,19 @@ void read_side_reaction(const Section& params, CellParameters& p) {
   s.initial_film_resistance_ohm_m2 = u.number_or(keys[6], kSeiResistance, s.initial_film_resistance_ohm_m2);
 }
 
+// Effects of the cell beyond the plain DFN, from the optional "User-defined" section (this
+// project's keys, PyBaMM's name for the contact resistance; docs/parameters.md). Absent = off.
+void read_cell_effects(const Section& params, CellParameters& p) {
+  if (params.find("User-defined") == nullptr) return;
+  const Section u = params.section("User-defined");
+  CellEffectParameters& e = p.effects;
+  e.contact_resistance_ohm = u.number_or("Contact resistance [Ohm]", kContactResistance, 0.0);
+  e.hysteresis_v = u.number_or("OCP hysteresis half-gap [V]", kHysteresisHalfGap, 0.0);
+  e.hysteresis_rate_per_soc = u.number_or("OCP hysteresis rate per state of charge [-]", kHysteresisRate, 0.0);
+  e.thermal_h_w_per_k = u.number_or("Lumped heat transfer coefficient [W.K-1]", kHeatTransfer, 0.0);
+  e.particle_size_sigma = u.number_or("Positive particle-size log-normal standard deviation [-]", kParticleSizeSigma, 0.0);
+}
+
 }  // namespace
 
 CellParameters read_bpx_text(std::string_view text, std::string_view name) {
@@ -511,6 +530,7 @@ CellParameters read_bpx_text(std::string_view text, std::string_view name) {
   separator.refuse_unknown({"Density [kg.m-3]", "Specific heat capacity [J.K-1.kg-1]", "Thermal conductivity [W.m-1.K-1]"});
 
   read_side_reaction(params, p);
+  read_cell_effects(params, p);
   return p;
 }
 
