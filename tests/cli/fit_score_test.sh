@@ -20,6 +20,7 @@
 #   than one search piece) or not (rests: one).
 set -u
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+export PYTHONPATH="$HERE${PYTHONPATH:+:$PYTHONPATH}"  # checks.py
 [ "$#" -eq 1 ] && [ -x "$1" ] || { echo "usage: $0 BMSSIM" >&2; exit 2; }
 BMSSIM=$(realpath "$1")
 TEMPLATE="$HERE/../../host_sim/cells/lco.bpx.json"
@@ -41,11 +42,7 @@ python3 - sc <<'PY' && pass "restarted at every full charge, no drift over the c
 import csv, json, math, sys
 d = sys.argv[1]
 s = json.load(open(d + "/summary.json"))
-ok = True
-def check(cond, what):
-    global ok
-    print(("  ok: " if cond else "  FAILED: ") + what)
-    ok = ok and cond
+from checks import check, passed
 check(len(s["pieces"]) == 5, f"one piece per full charge plus the first: {len(s['pieces'])} pieces for 5 cycles")
 check(all("rest voltage" in n for n in s["piece_initial_states"][1:]),
       "every restarted piece starts from its measured rest voltage")
@@ -59,7 +56,7 @@ check(max(r) / min(r) < 1.3, "no growth over the cycles (max/min < 1.3)")
 rows = [row for row in csv.DictReader(open(d + "/fit.csv")) if row["role"] == "2" and row["scored"] == "1"]
 rms = math.sqrt(sum(float(x["residual_fitted_mv"]) ** 2 for x in rows) / len(rows))
 check(abs(rms - s["rmse_heldout_mv"]) < 0.01, f"held-out RMSE {s['rmse_heldout_mv']:.3f} = RMS of fit.csv's scored rows {rms:.3f}")
-sys.exit(0 if ok else 1)
+sys.exit(0 if passed() else 1)
 PY
 for p in voltage_heldout_cycles.png rmse_cycles.png; do
   [ -s "sc/$p" ] && pass "plot $p" || fail "plot $p" "missing (gnuplot installed?)"
@@ -78,11 +75,7 @@ python3 - small <<'PY' && pass "early stops listed, not scored, coverage < 1" ||
 import csv, json, math, sys
 d = sys.argv[1]
 s = json.load(open(d + "/summary.json"))
-ok = True
-def check(cond, what):
-    global ok
-    print(("  ok: " if cond else "  FAILED: ") + what)
-    ok = ok and cond
+from checks import check, passed
 check(len(s["stops"]) >= 3, f"{len(s['stops'])} stops listed")
 for st in s["stops"]:
     check(all(k in st for k in ("cycle", "row", "rows", "t_s", "why")) and "lower voltage" in st["why"],
@@ -97,7 +90,7 @@ rms = math.sqrt(sum(float(x["residual_fitted_mv"]) ** 2 for x in scored) / len(s
 check(abs(rms - s["rmse_heldout_mv"]) < 0.01, f"RMSE {s['rmse_heldout_mv']:.2f} mV over the scored rows only ({rms:.2f})")
 check(any(c["scored"] < c["samples"] for c in s["cycles"] if c["role"] == "heldout"), "per cycle: scored < samples")
 check(any("not scored" in n for n in s["notes"]), "notes say the rows after a stop are not scored")
-sys.exit(0 if ok else 1)
+sys.exit(0 if passed() else 1)
 PY
 
 # The fit's search: restarted where the score is, or only at long rests.

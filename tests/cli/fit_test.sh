@@ -25,6 +25,7 @@
 # fit's cell, whose knots are written too).
 set -u
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+export PYTHONPATH="$HERE${PYTHONPATH:+:$PYTHONPATH}"  # checks.py
 # MODE all (default) or ocp: the open-circuit case only (the sanitizer build: the same code paths
 # in half the time, the DFN's inner loops run instrumented).
 [ "$#" -ge 1 ] && [ "$#" -le 2 ] && [ -x "$1" ] || { echo "usage: $0 BMSSIM [all|ocp]" >&2; exit 2; }
@@ -48,11 +49,7 @@ grep -q "iteration 1" fit.log && pass "progress on stderr" || fail "progress on 
 python3 - fit/summary.json <<'PY' && pass "film recovered within 3 sd, RMSE small" || fail "summary" "see above"
 import json, math, sys
 s = json.load(open(sys.argv[1]))
-ok = True
-def check(cond, what):
-    global ok
-    print(("  ok: " if cond else "  FAILED: ") + what)
-    ok = ok and cond
+from checks import check, passed
 for k in ("rmse_train_mv", "rmse_heldout_mv", "parameters"):
     check(k in s, "summary has " + k)
 for name, p in s["parameters"].items():
@@ -73,7 +70,7 @@ check(oc is not None, "the open-circuit correction is fitted by default")
 if oc:
     for y, c, sd in zip(oc["positive_stoichiometry"], oc["correction_v"], oc["sd_v"]):
         check(abs(c) <= 3 * (sd or 0) + 3e-3, f"knot at {y:.4f}: {1e3 * c:.2f} mV (sd {sd}) within 3 sd + 3 mV of zero")
-sys.exit(0 if ok else 1)
+sys.exit(0 if passed() else 1)
 PY
 for p in voltage_train.png voltage_heldout.png residual.png; do
   [ -s "fit/$p" ] && pass "plot $p" || fail "plot $p" "missing (gnuplot installed?)"
@@ -103,11 +100,7 @@ python3 - fitocp/summary.json fitocp/cell.bpx.json "$HERE/../../host_sim/cells/l
   && pass "OCP bump recovered, written exactly" || fail "OCP correction" "see above"
 import json, math, sys
 s = json.load(open(sys.argv[1]))
-ok = True
-def check(cond, what):
-    global ok
-    print(("  ok: " if cond else "  FAILED: ") + what)
-    ok = ok and cond
+from checks import check, passed
 bump = lambda y: 0.025 * math.exp(-((y - 0.74) / 0.075) ** 2)
 oc = s["derived"]["ocp_correction"]
 ys, cs, sds = oc["positive_stoichiometry"], oc["correction_v"], oc["sd_v"]
@@ -135,7 +128,7 @@ def pl(y):
 worst = max(abs(eval(written, dict(env, x=y)) - eval(template, dict(env, x=y)) - pl(y))
             for y in [0.3 + 0.0007 * i for i in range(1000)])
 check(worst < 1e-9, f"the written OCP = template + correction (worst difference {worst:.2e} V over y 0.3-1.0)")
-sys.exit(0 if ok else 1)
+sys.exit(0 if passed() else 1)
 PY
 if "$BMSSIM" simulate --cell fitocp/cell.bpx.json --protocol "Discharge at 0.5 A for 10 minutes; Rest for 5 minutes" \
      --dt 10 --quiet --out sim-ocp 2> simocp.log; then pass "simulate --cell (corrected OCP)"
