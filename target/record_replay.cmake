@@ -18,12 +18,12 @@ set(bms_cell_file_gen ${CMAKE_CURRENT_BINARY_DIR}/generated/cell_file)
 set(bms_cell_file_id 4)  # bms/fw/config/cell_choice.hpp: a BPX file's cell
 
 function(bms_cell_file_header bmssim bmssim_dep)
-  add_custom_command(OUTPUT ${bms_cell_file_gen}/bms_cell_file.hpp
+  add_custom_command(OUTPUT ${bms_cell_file_gen}/bms/fw/cells/file_cell.hpp
     COMMAND ${CMAKE_COMMAND} -DBMSSIM=${bmssim} -DCELL_FILE=${BMS_CELL_FILE} -DOUT_DIR=${bms_cell_file_gen}
             -P ${BMS_TARGET_TOOLS}/cell_file.cmake
     DEPENDS ${BMS_CELL_FILE} ${BMS_TARGET_TOOLS}/cell_file.cmake ${bmssim_dep}
     COMMENT "Cell configuration from ${BMS_CELL_FILE} (bmssim cell-config)" VERBATIM)
-  add_custom_target(bms_cell_file_header DEPENDS ${bms_cell_file_gen}/bms_cell_file.hpp)
+  add_custom_target(bms_cell_file_header DEPENDS ${bms_cell_file_gen}/bms/fw/cells/file_cell.hpp)
 endfunction()
 
 # The firmware with the file's cell: replay_tick.cpp built with BMS_CELL_ID 4.

@@ -1,6 +1,7 @@
 # The firmware's cell configuration from a BPX file, at build time (CMake BMS_CELL_FILE; no
 # fitted numbers committed as C++): runs `bmssim cell-config --cell FILE` (the header, the
-# design-time bias from the cell's nominal DFN) and writes OUT_DIR/bms_cell_file.hpp, which
+# design-time bias from the cell's nominal DFN) and writes OUT_DIR/bms/fw/cells/file_cell.hpp (a firmware cell header
+# like the committed ones, so the core includes it by its bms/fw path), which
 # includes that header and names its traits cells::FileCellTraits and the cell FileCellName
 # (bms/fw/config/cell_choice.hpp, BMS_CELL_ID 4).
 #   cmake -DBMSSIM=path/to/bmssim -DCELL_FILE=cell.bpx.json -DOUT_DIR=dir -P cell_file.cmake
@@ -25,7 +26,8 @@ string(JSON traits GET "${summary}" traits)
 string(JSON name GET "${summary}" cell)
 string(JSON crc GET "${summary}" record_crc32)
 string(JSON bias GET "${summary}" model_bias_ohm)
-file(WRITE "${OUT_DIR}/bms_cell_file.hpp.tmp"
+file(MAKE_DIRECTORY "${OUT_DIR}/bms/fw/cells")
+file(WRITE "${OUT_DIR}/bms/fw/cells/file_cell.hpp.tmp"
 "#pragma once
 // Written by target/tools/cell_file.cmake from ${CELL_FILE}: `bmssim cell-config` (${header},
 // record CRC-32 ${crc}, design-time bias ${bias} ohm). Do not edit; the build regenerates it.
@@ -40,4 +42,4 @@ struct FileCellName {
 };
 }  // namespace bms::fw
 ")
-file(RENAME "${OUT_DIR}/bms_cell_file.hpp.tmp" "${OUT_DIR}/bms_cell_file.hpp")
+file(RENAME "${OUT_DIR}/bms/fw/cells/file_cell.hpp.tmp" "${OUT_DIR}/bms/fw/cells/file_cell.hpp")

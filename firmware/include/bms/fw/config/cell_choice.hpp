@@ -24,7 +24,7 @@
 #if defined(BMS_CELL_ID) && BMS_CELL_ID == 4
 // A cell given as a BPX file (CMake BMS_CELL_FILE): the build wrote this header with `bmssim
 // cell-config` (target/tools/cell_file.cmake); it defines cells::FileCellTraits and FileCellName.
-#include "bms_cell_file.hpp"
+#include "bms/fw/cells/file_cell.hpp"
 #endif
 
 namespace bms::fw {
