@@ -24,6 +24,7 @@
 // the core is built for that path: CoreFor<profile, ...> at build time (the board images),
 // with_core_for(profile, f) at start (bms-firmware, bmssim estimate and hil). make_config
 // refuses a profile whose path is not the core's.
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 
@@ -413,7 +414,7 @@ void adapt_to_sample_step(Config& cfg, double sample_step_s) {
   if (!(sample_step_s > dt_s)) return;
   const double per_sample = dt_s / sample_step_s;
   auto samples = [per_sample](double ticks) {
-    const double n = static_cast<double>(static_cast<long long>(ticks * per_sample + 0.5));  // round half up
+    const double n = std::round(ticks * per_sample);
     return n > 1.0 ? n : 1.0;
   };
   cfg.resync_window_ticks = static_cast<std::uint32_t>(samples(static_cast<double>(cfg.resync_window_ticks)));
