@@ -250,7 +250,7 @@ void apply_voltage_window(const NominalCell& cell, Config& cfg) {
 
 // A gap without samples longer than this [s] is a power cycle (BmsCore::Config::power_cycle_after_s):
 // an hour of a cycler's current is half to all of a cell's capacity, so a record that stops under
-// current and resumes later (a stopped test, a new file, the BMS off) is not credibly interpolated
+// current and resumes later (a stopped test, the next file, the BMS off) is not credibly interpolated
 // over it; shorter gaps are lost samples, caught up on the interpolated current.
 constexpr double kPowerCycleGapS = 3600.0;
 
