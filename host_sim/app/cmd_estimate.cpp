@@ -273,7 +273,7 @@ Runner add_estimate(CLI::App& app) {
   sub->add_flag("!--no-current-offset", c->o.overrides.current_offset.value,
                 "Do not remove the current sensor's offset (default with --settings best: measured between two CV "
                 "end points of the same kind, where the cell is in the same state, as the counted charge over the "
-                "span's duration, when the samples are at most 2 s apart; ablation)");
+                "span's duration, when no two samples are more than 0.5 s apart; ablation)");
   // RCSI (paper, nominal-growth).
   sub->add_option("--nc", c->o.overrides.nc.value, "RCSI profiles: order n_c of the ARX subsystem model (1..8, default 1)");
   sub->add_option("--p0", c->o.overrides.p0.value,
