@@ -238,7 +238,7 @@ void score_ticks(const EstimateResult& r, const std::vector<fw::Mode>& true_mode
   std::vector<double> sd, err;
   std::size_t inside = 0;
   double worst_tick = 0.0;
-  bool learned_in_charge = false;
+  bool learned_in_charge = false, scored_learning = false;
   std::map<int, std::size_t> learning;
   for (std::size_t i = 0; i < r.rows.size(); ++i) {
     const auto& row = r.rows[i];
@@ -252,7 +252,10 @@ void score_ticks(const EstimateResult& r, const std::vector<fw::Mode>& true_mode
     if (row.cycle < 3 || !std::isfinite(row.r_film_true_ohm_m2) || row.r_film_true_ohm_m2 == 0.0) continue;
     const double e = std::abs(row.r_film_est_ohm_m2 - row.r_film_true_ohm_m2);
     err.push_back(e / row.r_film_true_ohm_m2 * 100.0);
-    if (learned_in_charge) worst_tick = std::max(worst_tick, err.back());
+    if (learned_in_charge) {
+      worst_tick = std::max(worst_tick, err.back());
+      scored_learning = true;
+    }
     if (std::isfinite(row.r_film_sd_ohm_m2)) {
       sd.push_back(row.r_film_sd_ohm_m2 / row.r_film_true_ohm_m2 * 100.0);
       if (e <= 2.0 * row.r_film_sd_ohm_m2) ++inside;
@@ -262,7 +265,7 @@ void score_ticks(const EstimateResult& r, const std::vector<fw::Mode>& true_mode
                                                                        static_cast<double>(sd.size()));
   j["sd_median_pct_cycles_3_on"] = finite_or_null(median_of(sd));
   j["err_median_pct_cycles_3_on"] = finite_or_null(median_of(err));
-  j["worst_tick_err_pct_after_learning_cycles_3_on"] = worst_tick;
+  j["worst_tick_err_pct_after_learning_cycles_3_on"] = scored_learning ? json(worst_tick) : json(nullptr);
   json by = json::array();
   for (const auto& c : r.cycles) by.push_back(learning.count(c.cycle) ? learning[c.cycle] : 0u);
   j["learning_ticks_by_cycle"] = by;
@@ -559,9 +562,14 @@ void write_group_table(std::ostringstream& r, const std::string& group, const js
   for (const auto& [arm, m] : by_arm.items()) {
     if (arm == "crlb") continue;
     r << "| " << arm;
+    // A metric some truths have no value of (e.g. a capacity the equilibrium cannot define): n shown.
+    const std::size_t n = m.contains("film_worst_pct") ? m["film_worst_pct"].value("n", 0u) : 0u;
     for (const char* k : {"film_worst_pct", "growth_err_pct", "inventory_worst_pct", "capacity_worst_pct",
-                          "film_worst_tick_pct", "within_2sd_pct", "sd_median_pct", "err_median_pct"})
-      r << " | " << fmt_dist(m.value(k, json()));
+                          "film_worst_tick_pct", "within_2sd_pct", "sd_median_pct", "err_median_pct"}) {
+      const json d = m.value(k, json());
+      r << " | " << fmt_dist(d);
+      if (!d.is_null() && d.value("n", 0u) != n) r << fmt::format(" (n = {} of {})", d.value("n", 0u), n);
+    }
     r << " |\n";
   }
   if (by_arm.contains("crlb")) {
