@@ -239,12 +239,14 @@ void score_ticks(const EstimateResult& r, const std::vector<fw::Mode>& true_mode
   std::size_t inside = 0;
   double worst_tick = 0.0;
   bool learned_in_charge = false, scored_learning = false;
+  std::size_t ref_end = 0, last_end = 0;  // the ends of the first and the last CC charge learned in
   std::map<int, std::size_t> learning;
   for (std::size_t i = 0; i < r.rows.size(); ++i) {
     const auto& row = r.rows[i];
     if (row.rcsi_active) ++learning[row.cycle];
     const bool cc = use_true ? true_mode[i] == fw::Mode::cc_charge : row.mode == fw::Mode::cc_charge;
     if (!cc) {
+      if (learned_in_charge && i > 0) (ref_end == 0 ? ref_end : last_end) = i - 1;  // a learned charge ended
       learned_in_charge = false;
       continue;
     }
@@ -266,6 +268,10 @@ void score_ticks(const EstimateResult& r, const std::vector<fw::Mode>& true_mode
   j["sd_median_pct_cycles_3_on"] = finite_or_null(median_of(sd));
   j["err_median_pct_cycles_3_on"] = finite_or_null(median_of(err));
   j["worst_tick_err_pct_after_learning_cycles_3_on"] = scored_learning ? json(worst_tick) : json(nullptr);
+  // The truth's own film growth between the two (growth_err_pct's denominator), % of the film.
+  const auto true_at = [&r](std::size_t i) { return r.rows[i].r_film_true_ohm_m2; };
+  j["true_growth_pct"] = last_end > ref_end ? json((true_at(last_end) - true_at(ref_end)) / true_at(ref_end) * 100.0)
+                                            : json(nullptr);
   json by = json::array();
   for (const auto& c : r.cycles) by.push_back(learning.count(c.cycle) ? learning[c.cycle] : 0u);
   j["learning_ticks_by_cycle"] = by;
@@ -583,7 +589,7 @@ void write_group_table(std::ostringstream& r, const std::string& group, const js
 
 // Sets 4-6, one row per case: what was drawn beside set 1's unknowns and the best arm's numbers.
 void write_case_table(std::ostringstream& r, const std::vector<json>& cases) {
-  r << "## Per case (sets 4-6, best arm)\n\n| case | drawn | film % | growth % | capacity % | inside 2 sd % | "
+  r << "## Per case (sets 4-6, best arm)\n\n| case | drawn | film % | growth_err_pct (true growth %) | capacity % | inside 2 sd % | "
        "median sd % / median error % | learning ticks by cycle |\n|---|---|---|---|---|---|---|---|\n";
   auto num = [](const json& s, const char* k) {
     return s.contains(k) && s[k].is_number() ? fmt::format("{:.2f}", s[k].get<double>()) : std::string("-");
@@ -610,7 +616,8 @@ void write_case_table(std::ostringstream& r, const std::vector<json>& cases) {
     }
     const json& s = c["arms"]["best"];
     r << "| " << c["case"].get<std::string>() << " | " << drawn << " | " << num(s, "worst_err_pct_cycles_3_on") << " | "
-      << num(s, "growth_err_pct") << " | " << num(s, "capacity_worst_abs_pct_cycles_3_on") << " | "
+      << num(s, "growth_err_pct") << " (" << num(s, "true_growth_pct") << ") | "
+      << num(s, "capacity_worst_abs_pct_cycles_3_on") << " | "
       << num(s, "within_2sd_pct_cycles_3_on") << " | " << num(s, "sd_median_pct_cycles_3_on") << " / "
       << num(s, "err_median_pct_cycles_3_on") << " | " << s.value("learning_ticks_by_cycle", json::array()).dump()
       << " |\n";
