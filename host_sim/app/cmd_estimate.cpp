@@ -77,6 +77,7 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--model-bias-ohm", v.model_bias_ohm);
   g("--relinearise", v.relinearise_inventory);
   g("--no-hold", v.hold_until_settled);
+  g("--no-current-offset", v.current_offset);
   g("--inventory-error-pct", c.o.inventory_error_pct);
   c.o.points_given = sub.count("--points") > 0;
   if (sub.count("--theta0") > 0) {
@@ -269,6 +270,10 @@ Runner add_estimate(CLI::App& app) {
                 "--settings best only: report the identifier's film, parameters and capacity from the first "
                 "learning tick after the start or a relinearisation, not the prior's (held, propagated) until the "
                 "restarted fit has settled (ablation: the first seconds swing tens of percent)");
+  sub->add_flag("!--no-current-offset", c->o.overrides.current_offset.value,
+                "Do not remove the current sensor's offset (default with --settings best: measured between two CV "
+                "end points of the same kind, where the cell is in the same state, as the counted charge over the "
+                "span's duration; ablation)");
   // RCSI (paper, nominal-growth).
   sub->add_option("--nc", c->o.overrides.nc.value, "RCSI profiles: order n_c of the ARX subsystem model (1..8, default 1)");
   sub->add_option("--p0", c->o.overrides.p0.value,

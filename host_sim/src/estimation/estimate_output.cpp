@@ -47,7 +47,7 @@ void write_estimates_csv(const std::filesystem::path& file, const EstimateResult
                                    "film_initial_est_ohm_m2", "growth_gain_est", "inventory_deviation_est"};
   if (with_truth) cols.push_back("inventory_err_pct");
   for (const char* c : {"r_film_sd_ohm_m2", "capacity_est_ah", "capacity_sd_ah", "capacity_true_ah",
-                        "innovation_test_ratio"})
+                        "innovation_test_ratio", "current_offset_est_a"})
     cols.push_back(c);
   const std::size_t n_theta = r.theta.size();
   for (std::size_t i = 0; i < n_theta / 2; ++i) cols.push_back("theta_m" + std::to_string(i + 1));
@@ -66,7 +66,7 @@ void write_estimates_csv(const std::filesystem::path& file, const EstimateResult
       else w.cell("");
     }
     for (double v : {row.r_film_sd_ohm_m2, row.capacity_est_ah, row.capacity_sd_ah, row.capacity_true_ah,
-                     row.innovation_test_ratio}) {
+                     row.innovation_test_ratio, row.current_offset_a}) {
       if (std::isfinite(v)) w.cell(v);
       else w.cell("");
     }
@@ -99,6 +99,7 @@ nlohmann::json estimate_summary_json(const EstimateResult& r, const EstimateOpti
                        {"growth_gain", last.growth_gain},
                        {"inventory_deviation", last.inventory_deviation}};
   }
+  if (!r.rows.empty()) j["current_offset_a"] = r.rows.back().current_offset_a;
   j["status_bits_seen"] = r.status;
   j["newton_cap_hits"] = r.newton_cap_hits;
   j["wall_s"] = r.wall_s;

@@ -169,6 +169,7 @@ EstimateRow row_of(const Output& out, double t_s, int cycle) {
   r.capacity_sd_ah = out.capacity_sd_ah;
   r.capacity_true_ah = std::nan("");
   r.innovation_test_ratio = out.innovation_test_ratio;
+  r.current_offset_a = out.current_offset_a;
   r.status = out.status;
   return r;
 }

@@ -161,6 +161,7 @@ struct EstimateRow {
   // The identifier's 1-sigma of the film, the open-circuit capacity and its 1-sigma (NaN without
   // the identifier), the truth's capacity (NaN without), the innovation test ratio (> 1: misfit).
   double r_film_sd_ohm_m2, capacity_est_ah, capacity_sd_ah, capacity_true_ah, innovation_test_ratio;
+  double current_offset_a;  // the current sensor offset the firmware subtracts (CurrentOffset)
   std::uint32_t status;
 };
 

@@ -171,6 +171,7 @@ struct Overrides {
   Given<bool> resync_at_start;         // --no-start-resync (false): with the observer
   Given<unsigned> resync_window_ticks; // --resync-window: with the observer
   Given<double> resync_current_a;      // --resync-current: with the observer
+  Given<bool> current_offset;          // --no-current-offset (false): the sensor offset from CV end points
   // best: the FilmGrowthIdentifier.
   Given<bool> learn_inventory;         // --no-inventory (false)
   Given<double> model_bias_ohm;        // --model-bias-ohm
@@ -228,6 +229,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"no-start-resync", o.resync_at_start.given, observer, no_observer},
       {"resync-window", o.resync_window_ticks.given, observer, no_observer},
       {"resync-current", o.resync_current_a.given, observer, no_observer},
+      {"no-current-offset", o.current_offset.given, true, ""},
       {"no-inventory", o.learn_inventory.given, id, only_best},
       {"model-bias-ohm", o.model_bias_ohm.given, id, only_best},
       {"relinearise", o.relinearise_inventory.given, id && observer, id ? no_observer : only_best},
@@ -269,12 +271,13 @@ void observer(Config& c) {
 }
 
 // best: the film, its growth gain and the inventory identified together; 900 s warm-up (the
-// reduced model's error settles: 0.1-0.3 mV before).
+// reduced model's error settles: 0.1-0.3 mV before); the current sensor's offset removed.
 template <class Config>
 void best(const NominalCell& cell, Config& c) {
   using Scalar = decltype(Config::dt_s);
   observer(c);
   c.rcsi_warmup_s = Scalar(900);
+  c.current_offset = true;
   if constexpr (decltype(c.film_path)::kKind == FilmPathKind::identifier) {
     c.film_path.identifier.r_film_nominal_ohm_m2 = Scalar(cell.initial_film_ohm_m2);
     c.film_path.identifier.growth_nominal_ohm_m2_per_a_m3_s = Scalar(cell.growth_ohm_m2_per_a_m3_s);
@@ -395,6 +398,7 @@ Refusal make_config(const NominalCell& cell, Profile profile, const Overrides& o
   }
   if (r.option != nullptr) return r;
   detail::set_if(o.learning, cfg.learning);
+  detail::set_if(o.current_offset, cfg.current_offset);
   detail::set_if(o.warmup_s, cfg.rcsi_warmup_s);
   detail::apply_observer(o, cfg);
   out = cfg;

@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <limits>
 
+#include "bms/fw/estimation/current_offset.hpp"
 #include "bms/fw/estimation/film_path.hpp"
 #include "bms/fw/estimation/fw_status.hpp"
 #include "bms/fw/estimation/learning_gate.hpp"
@@ -75,6 +76,7 @@ struct TickOutput {
   Scalar capacity_ah;
   Scalar capacity_sd_ah;
   Scalar innovation_test_ratio;
+  Scalar current_offset_a;     // the current sensor's offset subtracted from the samples (CurrentOffset)
   StatusWord status;           // bits raised in this tick (estimator bits 0..7, tick 8..15)
   std::uint32_t tick;          // committed ticks
   std::uint8_t newton_iterations;
@@ -145,6 +147,9 @@ class BmsCore {
     Scalar rcsi_warmup_s = Scalar(0);
     // LearningGate. The control run: every RCSI / RLS update switched off (the model and its observers run).
     bool learning = true;
+    // CurrentOffset. Beyond the paper: the current sensor's offset, measured between two CV end
+    // points of the same kind (their |I| at resync_current_a), is subtracted from every sample.
+    bool current_offset = false;
   };
 
   // The profiles (paper, best, nominal-growth) are built from the nominal cell in one place,
@@ -160,6 +165,7 @@ class BmsCore {
     Scalar last_j_side_a_m3;
     typename LearningGate<Scalar>::State learning;
     typename StateResync<Scalar>::State resync;
+    typename CurrentOffset<Scalar>::State offset;
     typename Detector::State detector;
     ModelState model;
   };
@@ -169,7 +175,8 @@ class BmsCore {
 
   BmsCore(const Config& config, MainModel& model)
       : config_(config), model_(model), detector_(config.detector), path_(config.film_path, config.dt_s),
-        gate_(gate_config(config)), resync_(resync_config(config)) {
+        gate_(gate_config(config)), resync_(resync_config(config)),
+        offset_(offset_config(config)) {
     last_j_side_ = path_.initial_j_side_a_m3();
   }
 
@@ -177,7 +184,8 @@ class BmsCore {
     // One tick, in this order (the numbering docs/architecture.md uses):
     //   1 validate       validate(): finite, voltage and current plausible, no impossible step; a
     //                    rejected or missing sample keeps every state and counts towards staleness
-    //   2 catch-up       accept_sample(): the measured temperature to the model (take_temperature());
+    //   2 catch-up       accept_sample(): the current sensor's offset removed and the measured
+    //                    current counted (CurrentOffset); the measured temperature to the model (take_temperature());
     //                    the model steps over the ticks missed since the last accepted sample
     //                    (catch_up(); a gap over power_cycle_after_s at rest); the power-up
     //                    re-synchronisation window opens (also after such a gap)
@@ -189,7 +197,8 @@ class BmsCore {
     //                    else the held FilmLevel, or the FilmGrowthIdentifier's film
     //   6 model step     step_model(): voltage-driven in CV (debounced and confirmed by this
     //                    sample's class), current-driven otherwise
-    //   7 resync         resync_step(): StateResync's window at the end of a CV phase or at power-up
+    //   7 resync         resync_step(): StateResync's window at the end of a CV phase or at power-up;
+    //                    CurrentOffset's end points
     //   8 residual       z = y_hat - y; BiasCalibration::collect() over the reference charge
     //                    (FilmPath::collect_reference)
     //   9 learning       learn(): FilmPath::learn, RcsiEstimator::update (or the identifier) from z
@@ -199,18 +208,19 @@ class BmsCore {
     if (!in.present) return held_output(raise_stale(st));                        // 1
     st |= validate(in);
     if ((st & kTickRejectMask) != 0u) return held_output(raise_stale(st));
-    st |= accept_sample(in);                                                      // 2
-    const Mode mode = detector_.update(in.voltage_v, in.current_a);               // 3
+    const TickInput<Scalar> c = accept_sample(in, st);                           // 2
+    const Mode mode = detector_.update(c.voltage_v, c.current_a);                 // 3
     const Gate gate = open_gate(mode);                                            // 4
     const Scalar u = path_.film_in_use(gate.open);                                // 5
-    const ModelStep step = step_model(in, mode, u, gate.open);                    // 6
+    const ModelStep step = step_model(c, mode, u, gate.open);                     // 6
     last_voltage_driven_ = step.voltage_driven;
     if (!step.r.valid) return model_failed(st, gate.open);
     if (!step.r.converged) st |= bit(FwStatus::kModelNotConverged);
-    st |= resync_step(in, u, step.voltage_driven);                                // 7
+    st |= resync_step(c, u, step.voltage_driven);                                 // 7
+    offset_.follow_phase(step.voltage_driven, mode == Mode::cv_charge, in.voltage_v, in.current_a);
     const Scalar z = step.r.voltage_v - in.voltage_v;
     if (gate.reference) path_.collect_reference(z);                               // 8
-    const Learned learned = learn(in, u, z, step, gate.open);                     // 9
+    const Learned learned = learn(c, u, z, step, gate.open);                      // 9
     return finish_tick(mode, gate, step, z, learned, st | learned.status);        // 10
   }
 
@@ -225,6 +235,7 @@ class BmsCore {
     s.last_j_side_a_m3 = last_j_side_;
     s.learning = gate_.save();
     s.resync = resync_.save();
+    s.offset = offset_.save();
     s.detector = detector_.state();
     s.model = model_.state();
     return s;
@@ -245,9 +256,11 @@ class BmsCore {
     FilmPath p = path_;
     LearningGate<Scalar> g = gate_;
     StateResync<Scalar> rs = resync_;
+    CurrentOffset<Scalar> off = offset_;
     const ModelState model_backup = model_.state();
     const bool ok = header_ok && d.restore(s.detector) && p.restore(s.film_path) && g.restore(s.learning) &&
-                    rs.restore(s.resync, path_.inventory_limit()) && model_.restore(s.model);
+                    rs.restore(s.resync, path_.inventory_limit()) && off.restore(s.offset) &&
+                    model_.restore(s.model);
     if (!ok) {
       model_.restore(model_backup);
       status_ |= bit(FwStatus::kRestoreRejected);
@@ -257,6 +270,7 @@ class BmsCore {
     path_ = p;
     gate_ = g;
     resync_ = rs;
+    offset_ = off;
     ticks_ = s.ticks;
     stale_ticks_ = s.stale_ticks;
     have_sample_ = (s.flags & 1u) != 0u;
@@ -275,6 +289,7 @@ class BmsCore {
   // growth predicted since it was set (RcsiFilmPath).
   Scalar r_film_ohm_m2() const { return path_.r_film_ohm_m2(); }
   std::uint32_t resync_count() const { return resync_.count(); }
+  const CurrentOffset<Scalar>& current_offset() const { return offset_; }
   // Ticks that passed without reaching tick() at all (the application's clock or the bus's
   // sequence numbers say how many): counted as ticks without a sample, as `tick` would, without
   // building an output for each.
@@ -304,6 +319,13 @@ class BmsCore {
   static typename StateResync<Scalar>::Config resync_config(const Config& c) {
     return {c.resync_at_start, c.resync_at_cv_end, c.resync_current_a, c.resync_window_ticks};
   }
+  static typename CurrentOffset<Scalar>::Config offset_config(const Config& c) {
+    typename CurrentOffset<Scalar>::Config o{};
+    o.enabled = c.current_offset;
+    o.anchor_current_a = c.resync_current_a;
+    o.dt_s = c.dt_s;
+    return o;
+  }
 
   // Step 1.
   StatusWord validate(const TickInput<Scalar>& in) const {
@@ -319,19 +341,22 @@ class BmsCore {
     return st;
   }
 
-  // Step 2.
-  StatusWord accept_sample(const TickInput<Scalar>& in) {
-    const StatusWord st = take_temperature(in.temperature_k);
+  // Step 2: the sample with the current sensor's offset removed (what every later step sees).
+  TickInput<Scalar> accept_sample(const TickInput<Scalar>& measured, StatusWord& st) {
+    st |= take_temperature(measured.temperature_k);
     const bool first_sample = !have_sample_;
     const bool power_cycle = !first_sample && config_.power_cycle_after_s > Scalar(0) &&
                              static_cast<Scalar>(stale_ticks_) * config_.dt_s > config_.power_cycle_after_s;
+    offset_.count(measured.current_a, first_sample ? 0u : stale_ticks_, first_sample, power_cycle);
+    TickInput<Scalar> in = measured;
+    in.current_a = offset_.corrected(measured.current_a);
     if (!first_sample && stale_ticks_ > 0u) catch_up(stale_ticks_, in, power_cycle);
     stale_ticks_ = 0;
     have_sample_ = true;
     last_current_ = in.current_a;
     last_voltage_ = in.voltage_v;
     if (resync_.should_start_at_power_up(first_sample || power_cycle)) resync_.start_at_power_up();
-    return st;
+    return in;
   }
 
   // The model's properties follow the measured temperature (a model that takes none ignores it).
@@ -471,6 +496,7 @@ class BmsCore {
     o.markov_v_per_ohm_m2 = Scalar(0);
     o.inventory_sensitivity_v = Scalar(0);
     o.innovation_test_ratio = Scalar(0);
+    o.current_offset_a = offset_.offset_a();
     o.tick = ticks_;
     o.newton_iterations = 0;
     o.status = 0u;
@@ -489,6 +515,7 @@ class BmsCore {
   FilmPath path_;
   LearningGate<Scalar> gate_;
   StateResync<Scalar> resync_;
+  CurrentOffset<Scalar> offset_;
   Scalar last_current_ = Scalar(0);
   Scalar last_voltage_ = Scalar(0);   // the last accepted sample's (catch-up in CV; not persisted)
   bool last_voltage_driven_ = false;  // the last tick's model step was voltage-driven

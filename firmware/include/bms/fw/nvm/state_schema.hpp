@@ -23,6 +23,7 @@
 
 #include "bms/fw/estimation/bias_calibration.hpp"
 #include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/estimation/current_offset.hpp"
 #include "bms/fw/model/cell_effects.hpp"
 #include "bms/fw/estimation/film_growth_identifier.hpp"
 #include "bms/fw/estimation/film_level.hpp"
@@ -197,6 +198,17 @@ constexpr std::uint32_t state_schema(Type<StateResync<S>> /*tag*/) {
   return hash("StateResync.State", f, sizeof(St));
 }
 
+template <class S>
+constexpr std::uint32_t state_schema(Type<CurrentOffset<S>> /*tag*/) {
+  using St = typename CurrentOffset<S>::State;
+  constexpr Field f[] = {BMS_SCHEMA_FIELD(St, charge_as),      BMS_SCHEMA_FIELD(St, span_s),
+                         BMS_SCHEMA_FIELD(St, anchor_voltage_v), BMS_SCHEMA_FIELD(St, offset_a),
+                         BMS_SCHEMA_FIELD(St, last_current_a), BMS_SCHEMA_FIELD(St, fused),
+                         BMS_SCHEMA_FIELD(St, flags)};
+  static_assert(covers(f, sizeof(St), alignof(St)), "CurrentOffset::State changed: update its schema table");
+  return hash("CurrentOffset.State", f, sizeof(St));
+}
+
 /// A generated cell configuration (bms/fw/cells/) carries its record's CRC: the state of a model
 /// of that cell is tagged with it, so that a state saved under one cell is refused under another
 /// (same layout, other numbers). The paper cell's traits carry none: its tag is unchanged.
@@ -271,6 +283,7 @@ constexpr std::uint32_t state_schema(Type<BmsCore<S, M, Nc, D, P>> /*tag*/) {
                          BMS_SCHEMA_FIELD(St, last_j_side_a_m3),
                          BMS_SCHEMA_NESTED(St, learning, LearningGate<S>),
                          BMS_SCHEMA_NESTED(St, resync, StateResync<S>),
+                         BMS_SCHEMA_NESTED(St, offset, CurrentOffset<S>),
                          BMS_SCHEMA_NESTED(St, detector, typename C::Detector),
                          BMS_SCHEMA_NESTED(St, model, M)};
   static_assert(covers(f, sizeof(St), alignof(St)), "BmsCore::State changed: update its schema table");
