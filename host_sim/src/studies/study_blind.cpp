@@ -282,7 +282,7 @@ void score_ticks(const EstimateResult& r, const std::vector<fw::Mode>& true_mode
 json score(const EstimateResult& r, const std::vector<fw::Mode>& true_mode) {
   json j;
   double worst = 0.0, inv_worst = 0.0, cap_worst = 0.0;
-  bool inv_any = false, cap_any = false;
+  bool inv_any = false, cap_all = !r.cycles.empty();
   json medians = json::array(), inventory = json::array(), capacity = json::array(), within = json::array();
   for (const auto& c : r.cycles) {
     medians.push_back(c.r_film_err_median_pct);
@@ -295,10 +295,9 @@ json score(const EstimateResult& r, const std::vector<fw::Mode>& true_mode) {
         inv_worst = std::max(inv_worst, std::abs(c.inventory_err_end_pct));
         inv_any = true;
       }
-      if (std::isfinite(c.capacity_err_pct)) {
-        cap_worst = std::max(cap_worst, std::abs(c.capacity_err_pct));
-        cap_any = true;
-      }
+      // A cycle without a capacity (NaN: no equilibrium window) leaves the truth without one.
+      if (std::isfinite(c.capacity_err_pct)) cap_worst = std::max(cap_worst, std::abs(c.capacity_err_pct));
+      else cap_all = false;
     }
   }
   j["median_err_pct_by_cycle"] = medians;
@@ -306,7 +305,7 @@ json score(const EstimateResult& r, const std::vector<fw::Mode>& true_mode) {
   j["inventory_err_end_pct_by_cycle"] = inventory;
   j["inventory_worst_abs_pct_cycles_3_on"] = inv_any ? json(inv_worst) : json(nullptr);
   j["capacity_err_pct_by_cycle"] = capacity;
-  j["capacity_worst_abs_pct_cycles_3_on"] = cap_any ? json(cap_worst) : json(nullptr);
+  j["capacity_worst_abs_pct_cycles_3_on"] = cap_all ? json(cap_worst) : json(nullptr);
   j["film_within_2sd_pct_by_cycle"] = within;
   j["growth_err_pct"] = finite_or_null(r.growth_err_pct);
   score_ticks(r, true_mode, j);
