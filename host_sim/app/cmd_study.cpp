@@ -78,8 +78,11 @@ int run_blind(const StudyCli& c, const CLI::App& sub) {
   b.sets = c.o.quick && sub.count("--sets") == 0 ? "1" : c.blind_sets;
   b.jobs = c.jobs > 0 ? c.jobs : static_cast<int>(std::max(1L, sysconf(_SC_NPROCESSORS_ONLN)));
   b.out = c.out;
-  const std::string command = fmt::format("bmssim study blind --seeds {} --cycles {} --sets {} --out {}", b.seeds,
-                                          b.cycles, b.sets, c.out);
+  b.arms = c.o.arms;
+  b.list_cases = c.list_cases;
+  const std::string command =
+      fmt::format("bmssim study blind --seeds {} --cycles {} --sets {}{} --out {}", b.seeds, b.cycles, b.sets,
+                  b.arms.empty() ? std::string() : " --arms " + join(b.arms, ","), c.out);
   const int failed = study::run_blind_study(b, command);
   if (failed > 0) std::fprintf(stderr, "study blind: %d truth(s) could not be simulated (summary.json: truth_failures)\n", failed);
   return failed > 0 ? 1 : 0;
@@ -145,8 +148,8 @@ int run_study(StudyCli& c, const CLI::App& sub, CLI::App& root) {
     if (!fs::is_directory(dir)) throw InputError("--collect: " + dir.string() + " is not a folder");
     return collect_and_report(dir, {{"collected_only", true}}, "bmssim study " + c.o.mode + " --collect " + c.collect_dir);
   }
-  if (c.out.empty()) throw InputError("--out: required (or --collect DIR)");
   if (c.o.mode == "blind") return run_blind(c, sub);
+  if (c.out.empty()) throw InputError("--out: required (or --collect DIR)");
   apply_plan_defaults(c, sub, root);
   const std::vector<study::CaseSpec> cases = study::plan_cases(c.o);
   // Children run /proc/self/exe: the same image even if the file is rebuilt during a long study.
@@ -181,7 +184,10 @@ Runner add_study(CLI::App& app) {
       ->check(CLI::IsMember({"noise", "ic", "all", "blind"}));
   sub->add_option("--sets", c->blind_sets,
                   "blind: truth sets, comma-separated: 1 (film, growth law, side i0, inventory), 2 (and conductivity, "
-                  "solid diffusivities), 3 (set 1 at 5-45 C, every third truth self-heating)")
+                  "solid diffusivities), 3 (set 1 at 5-45 C, every third truth self-heating), 4 (set 1 and "
+                  "cell-to-cell spread: transport, kinetics, particle sizes, capacity), 5 (set 1 measured by a BMS "
+                  "front end: both noises, current offset and gain, voltage offset, temperature sensor 0.5 K off), "
+                  "6 (set 1 under a protocol drawn per truth: partial charges at 0.3-1C, rests)")
       ->capture_default_str();
   sub->add_option("--cycles", c->blind_cycles, "blind: CCCV cycles per truth")->capture_default_str();
   sub->add_option("--seeds", c->o.seeds, "Noise seeds per noise level (default 10; 2 with --quick)")
@@ -195,12 +201,12 @@ Runner add_study(CLI::App& app) {
       ->delimiter(',');
   sub->add_option("--arms", c->o.arms, "Only these arms, comma-separated: reduced-paper, reduced-best, reduced-beyond, "
                   "full-paper, full-best, ekf, batch, crlb (default: all arms of --models, and the baselines when "
-                  "'bmssim baseline' exists)")
+                  "'bmssim baseline' exists); blind: best, best-no-learning, ... (docs/results/blind.md), ekf, batch")
       ->delimiter(',');
   sub->add_option("--out", c->out, "Output folder: cases/<case>/, figures/, summary.json, report.md");
   sub->add_flag("--list-cases", c->list_cases,
                 "Print one self-contained command line per case (for GNU parallel or a job array) and exit; "
-                "then merge with --collect");
+                "then merge with --collect (blind: each case's name and the simulate line of its truth)");
   sub->add_option("--collect", c->collect_dir,
                   "Merge the case outputs already in DIR into summary.json, figures and report.md; runs nothing");
   sub->add_option("--case", c->one_case, "Run only this case (what --list-cases prints)");

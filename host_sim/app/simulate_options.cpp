@@ -38,7 +38,7 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
   sub.add_option("--effect", o.effects,
                  "Undeclared effect NAME=VALUE (repeatable): contact_resistance (ohm), hysteresis (V, half the "
                  "gap between the charge and discharge OCV branches; starts on the charge branch), current_offset "
-                 "(A), current_gain (relative), temperature_offset (K: the temperature sensor reads this much high), thermal (lumped thermal model with Arrhenius properties; VALUE = "
+                 "(A), current_gain (relative), temperature_offset (K: the temperature sensor reads this much high), voltage_offset (V: the voltage sensor reads this much high), thermal (lumped thermal model with Arrhenius properties; VALUE = "
                  "heat-transfer coefficient to ambient in W/K, e.g. 0.05 for an 18650 in still air), particle_size (cathode "
                  "particle-size distribution: VALUE = log-space standard deviation sigma of a lognormal of radii, "
                  "3 populations, same surface area), particle_size_negative (the same for the anode; not with the side "

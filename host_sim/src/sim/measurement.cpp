@@ -13,7 +13,7 @@ MeasuredSample Measurer::next(const SampleRecord& s) {
   const double nv = unit_(rng_v_), ni = unit_(rng_i_);
   const double nt = m_.noise_t_k > 0.0 ? unit_t_(rng_t_) : 0.0;
   return {(1.0 + m_.current_gain) * s.current_a + m_.current_offset_a + 1e-3 * m_.noise_i_ma * ni,
-          s.voltage_v + 1e-3 * m_.noise_v_mv * nv, s.temperature_k + m_.temperature_offset_k + m_.noise_t_k * nt};
+          s.voltage_v + m_.voltage_offset_v + 1e-3 * m_.noise_v_mv * nv, s.temperature_k + m_.temperature_offset_k + m_.noise_t_k * nt};
 }
 
 Measured measure(const std::vector<SampleRecord>& truth, const MeasurementModel& m) {

@@ -17,6 +17,7 @@ struct MeasurementModel {
   double current_gain = 0.0;  // relative: 0.01 = reads 1 % high
   double noise_t_k = 0.0;         // temperature sensor noise, standard deviation (K)
   double temperature_offset_k = 0.0;  // temperature sensor offset (K): reads this much high
+  double voltage_offset_v = 0.0;      // voltage sensor offset (V): reads this much high
 };
 
 struct Measured {

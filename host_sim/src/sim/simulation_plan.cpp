@@ -69,7 +69,8 @@ void check_experiment(const Experiment& e, const CellParameters& cell, double v_
     if (step.kind == ControlKind::current && c_rate > kMaxCRate)
       throw InputError(fmt::format("--protocol step '{}': {:g} A is {:.3g}C; at most {:g}C for this cell's {:g} Ah",
                                    step.text, std::abs(step.value), c_rate, kMaxCRate, cell.nominal_capacity_ah));
-    if (step.duration_s > e.max_step_s)
+    // A step ending only on a voltage or current has no duration; the cycler bounds it at max_step_s.
+    if (std::isfinite(step.duration_s) && step.duration_s > e.max_step_s)
       throw InputError(fmt::format("--protocol step '{}': {:g} s is longer than a step may run ({:g} s); split it "
                                    "into shorter steps",
                                    step.text, step.duration_s, e.max_step_s));
@@ -118,6 +119,9 @@ void apply_effect(const std::string& e, ModelEffects& effects, MeasurementModel&
   } else if (name == "temperature_offset") {
     if (!(std::abs(value) <= 50.0)) throw InputError("--effect temperature_offset: must be within +-50 K");
     meas.temperature_offset_k = value;
+  } else if (name == "voltage_offset") {
+    if (!(std::abs(value) <= 0.1)) throw InputError("--effect voltage_offset: must be within +-0.1 V");
+    meas.voltage_offset_v = value;
   } else if (name == "hysteresis") {
     if (!(value >= 0.0 && value <= 0.5))
       throw InputError("--effect hysteresis: must be in [0, 0.5] V (half the gap between the branches)");
@@ -133,7 +137,7 @@ void apply_effect(const std::string& e, ModelEffects& effects, MeasurementModel&
     (anode ? effects.particle_size_negative_sigma : effects.particle_size_sigma) = value;
   } else if (name != "none") {
     throw InputError("--effect '" + name +
-                     "': unknown; use contact_resistance, hysteresis, current_offset, current_gain, temperature_offset, thermal, "
+                     "': unknown; use contact_resistance, hysteresis, current_offset, current_gain, temperature_offset, voltage_offset, thermal, "
                      "particle_size, particle_size_negative or none");
   }
 }

@@ -79,6 +79,11 @@ const std::vector<Entry>& entries() {
         "factor on the cathode's intercalation exchange current density"},
        factor_nominal,
        [](CellParameters& c, double v) { c.positive.i0_coefficient *= v; }},
+      // Cell-to-cell capacity spread: the same design with a little more or less electrode.
+      {{"electrode_area_scale", "-", 0.5, 2.0, false, false,
+        "factor on the electrode area: both electrodes' capacity, and every current density at a given current"},
+       factor_nominal,
+       [](CellParameters& c, double v) { c.electrode_area_m2 *= v; }},
   };
   return table;
 }

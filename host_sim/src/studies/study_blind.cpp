@@ -7,11 +7,13 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <map>
 #include <mutex>
 #include <random>
 #include <sstream>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -43,6 +45,13 @@ struct TruthDraw {
   double conductivity_scale = 1, diffusivity_neg = 1, diffusivity_pos = 1;
   double temperature_k = 298.15;  // set 3: ambient (and, self-heating, initial) temperature
   bool self_heating = false;      // set 3: the lumped thermal model at kSelfHeatingWPerK
+  // Set 4, cell-to-cell spread: electrolyte diffusivity, both electrodes' exchange currents, the
+  // cathode's particle-size spread (log-normal sigma; 0 = one size), the electrode area (capacity).
+  double electrolyte_diffusivity = 1, i0_neg = 1, i0_pos = 1, particle_size_sigma = 0, area_scale = 1;
+  // Set 5, the sensors of a BMS front end: offsets and gain, the temperature sensor's noise.
+  double current_offset_a = 0, current_gain = 0, voltage_offset_v = 0, temperature_offset_k = 0, noise_t_k = 0;
+  // Set 6: the cycle as an experiment written as PyBaMM writes one ("" = cccv).
+  std::string protocol;
 
   // The film's growth rate relative to the nominal law: the law's factor times the side current's.
   double true_gain() const { return growth_scale * i0_scale; }
@@ -53,17 +62,60 @@ struct TruthDraw {
         fmt::format("film_growth_scale={}", growth_scale), fmt::format("side_i0_scale={}", i0_scale),
         fmt::format("inventory_scale={}", inventory_scale)};
     if (set == 3) a.push_back(fmt::format("temperature_k={}", temperature_k));
-    if (set == 2) {
+    if (set == 2 || set == 4) {
       a.push_back(fmt::format("conductivity_scale={}", conductivity_scale));
       a.push_back(fmt::format("diffusivity_scale_negative={}", diffusivity_neg));
       a.push_back(fmt::format("diffusivity_scale_positive={}", diffusivity_pos));
     }
+    if (set == 4) {
+      a.push_back(fmt::format("electrolyte_diffusivity_scale={}", electrolyte_diffusivity));
+      a.push_back(fmt::format("i0_scale_negative={}", i0_neg));
+      a.push_back(fmt::format("i0_scale_positive={}", i0_pos));
+      a.push_back(fmt::format("electrode_area_scale={}", area_scale));
+    }
     return a;
   }
+
+  std::vector<std::string> effect_args() const;
 };
 
-// Uniform draws from the ranges; the estimator sees none of them.
-TruthDraw draw_truth(int set, int seed) {
+// Set 3's self-heating truths: the lumped thermal model's heat-transfer coefficient (an 18650-size
+// cell in still air; 298-302 K over a cycle at 25 C).
+constexpr double kSelfHeatingWPerK = 0.05;
+
+std::vector<std::string> TruthDraw::effect_args() const {
+  std::vector<std::string> e;
+  if (self_heating) e.push_back(fmt::format("thermal={}", kSelfHeatingWPerK));
+  if (particle_size_sigma > 0.0) e.push_back(fmt::format("particle_size={}", particle_size_sigma));
+  if (set == 5) {
+    e.push_back(fmt::format("current_offset={}", current_offset_a));
+    e.push_back(fmt::format("current_gain={}", current_gain));
+    e.push_back(fmt::format("voltage_offset={}", voltage_offset_v));
+    e.push_back(fmt::format("temperature_offset={}", temperature_offset_k));
+  }
+  return e;
+}
+
+// Set 6's cycle: a partial discharge to a drawn state of charge, a rest, a CC charge at a drawn
+// rate from there, the CV hold, a second rest. Rests log-uniform (minutes to hours).
+template <class Uniform>
+std::string draw_protocol(Uniform& u, const CellParameters& nominal) {
+  const double discharge_c = u(0.5, 1.0);
+  const double depth = u(0.2, 0.9);  // of the nominal capacity: the charge starts from 10-80 % SoC
+  const double discharge_min = std::round(depth * 60.0 / discharge_c);
+  const double rest1_min = std::round(std::exp(u(std::log(5.0), std::log(120.0))));
+  const double charge_c = u(0.3, 1.0);
+  const double rest2_min = std::round(std::exp(u(std::log(2.0), std::log(60.0))));
+  return fmt::format(
+      "Discharge at {:.2f}C for {:g} minutes or until {:g} V; Rest for {:g} minutes; Charge at {:.2f}C until {:g} V; "
+      "Hold at {:g} V until 125 mA; Rest for {:g} minutes",
+      discharge_c, discharge_min, nominal.lower_voltage_v, rest1_min, charge_c, nominal.upper_voltage_v,
+      nominal.upper_voltage_v, rest2_min);
+}
+
+// Uniform draws from the ranges; the estimator sees none of them. Sets 1-3 draw exactly
+// as before (the later sets' draws come after theirs, in sets of their own).
+TruthDraw draw_truth(int set, int seed, const CellParameters& nominal) {
   std::mt19937_64 rng(0xB11DULL * 1000003ULL + static_cast<unsigned long long>(set) * 10007ULL +
                       static_cast<unsigned long long>(seed));
   auto u = [&rng](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); };
@@ -84,18 +136,42 @@ TruthDraw draw_truth(int set, int seed) {
     d.temperature_k = u(278.15, 318.15);
     d.self_heating = seed % 3 == 0;
   }
+  if (set == 4) {
+    // Cell-to-cell spread: transport +-20 %, kinetics +-30 %, particle sizes, capacity +-3 %.
+    d.conductivity_scale = u(0.8, 1.2);
+    d.electrolyte_diffusivity = u(0.8, 1.2);
+    d.diffusivity_neg = u(0.8, 1.2);
+    d.diffusivity_pos = u(0.8, 1.2);
+    d.i0_neg = u(0.7, 1.3);
+    d.i0_pos = u(0.7, 1.3);
+    d.particle_size_sigma = u(0.05, 0.3);
+    d.area_scale = u(0.97, 1.03);
+  }
+  if (set == 5) {
+    // A BMS front end: current offset +-10 mA and gain +-0.5 %, voltage offset +-0.5 mV, a
+    // temperature sensor 0.5 K off (either way) with 0.2 K noise; with both noises (kSensorNoise).
+    d.current_offset_a = u(-0.010, 0.010);
+    d.current_gain = u(-0.005, 0.005);
+    d.voltage_offset_v = u(-0.5e-3, 0.5e-3);
+    d.temperature_offset_k = u(0.0, 1.0) < 0.5 ? -0.5 : 0.5;
+    d.noise_t_k = 0.2;
+  }
+  if (set == 6) d.protocol = draw_protocol(u, nominal);
   return d;
 }
-
-// Set 3's self-heating truths: the lumped thermal model's heat-transfer coefficient (an 18650-size
-// cell in still air; 298-302 K over a cycle at 25 C).
-constexpr double kSelfHeatingWPerK = 0.05;
 
 struct Noise {
   const char* name;
   double v_mv, i_ma;
 };
 constexpr Noise kNoises[] = {{"v0.2mV", 0.2, 0.0}, {"i5mA", 0.0, 5.0}};
+// Set 5's sensors have both noises at once: one case per truth.
+constexpr Noise kSensorNoise[] = {{"v0.2mV+i5mA", 0.2, 5.0}};
+
+std::vector<Noise> noises_of(int set) {
+  if (set == 5) return {std::begin(kSensorNoise), std::end(kSensorNoise)};
+  return {std::begin(kNoises), std::end(kNoises)};
+}
 
 // ---- the estimator arms ------------------------------------------------------------------
 
@@ -149,28 +225,90 @@ EstimateData estimate_data_of(const SimulateRun& run) {
 
 json finite_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
+double median_of(std::vector<double> v) {
+  if (v.empty()) return std::nan("");
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+// Over the CC-charge ticks of cycles 3.. (the truth's mode where the rows are the truth's): the
+// share with the truth inside 2 sd, the median sd and the median |error| (% of the true film), the
+// worst tick error once learning has opened in that charge; and the learning ticks per cycle.
+void score_ticks(const EstimateResult& r, const std::vector<fw::Mode>& true_mode, json& j) {
+  const bool use_true = true_mode.size() == r.rows.size();
+  std::vector<double> sd, err;
+  std::size_t inside = 0;
+  double worst_tick = 0.0;
+  bool learned_in_charge = false, scored_learning = false;
+  std::size_t ref_end = 0, last_end = 0;  // the ends of the first and the last CC charge learned in
+  std::map<int, std::size_t> learning;
+  for (std::size_t i = 0; i < r.rows.size(); ++i) {
+    const auto& row = r.rows[i];
+    if (row.rcsi_active) ++learning[row.cycle];
+    const bool cc = use_true ? true_mode[i] == fw::Mode::cc_charge : row.mode == fw::Mode::cc_charge;
+    if (!cc) {
+      if (learned_in_charge && i > 0) (ref_end == 0 ? ref_end : last_end) = i - 1;  // a learned charge ended
+      learned_in_charge = false;
+      continue;
+    }
+    learned_in_charge = learned_in_charge || row.rcsi_active;
+    if (row.cycle < 3 || !std::isfinite(row.r_film_true_ohm_m2) || row.r_film_true_ohm_m2 == 0.0) continue;
+    const double e = std::abs(row.r_film_est_ohm_m2 - row.r_film_true_ohm_m2);
+    err.push_back(e / row.r_film_true_ohm_m2 * 100.0);
+    if (learned_in_charge) {
+      worst_tick = std::max(worst_tick, err.back());
+      scored_learning = true;
+    }
+    if (std::isfinite(row.r_film_sd_ohm_m2)) {
+      sd.push_back(row.r_film_sd_ohm_m2 / row.r_film_true_ohm_m2 * 100.0);
+      if (e <= 2.0 * row.r_film_sd_ohm_m2) ++inside;
+    }
+  }
+  j["within_2sd_pct_cycles_3_on"] = sd.empty() ? json(nullptr) : json(100.0 * static_cast<double>(inside) /
+                                                                       static_cast<double>(sd.size()));
+  j["sd_median_pct_cycles_3_on"] = finite_or_null(median_of(sd));
+  j["err_median_pct_cycles_3_on"] = finite_or_null(median_of(err));
+  j["worst_tick_err_pct_after_learning_cycles_3_on"] = scored_learning ? json(worst_tick) : json(nullptr);
+  // The truth's own film growth between the two (growth_err_pct's denominator), % of the film.
+  const auto true_at = [&r](std::size_t i) { return r.rows[i].r_film_true_ohm_m2; };
+  j["true_growth_pct"] = last_end > ref_end ? json((true_at(last_end) - true_at(ref_end)) / true_at(ref_end) * 100.0)
+                                            : json(nullptr);
+  json by = json::array();
+  for (const auto& c : r.cycles) by.push_back(learning.count(c.cycle) ? learning[c.cycle] : 0u);
+  j["learning_ticks_by_cycle"] = by;
+}
+
 // Worst of the per-cycle medians over cycles 3.. (the measure), or of all when fewer.
-json score(const EstimateResult& r) {
+json score(const EstimateResult& r, const std::vector<fw::Mode>& true_mode) {
   json j;
-  double worst = 0.0, inv_worst = 0.0;
-  bool inv_any = false;
-  json medians = json::array(), inventory = json::array();
+  double worst = 0.0, inv_worst = 0.0, cap_worst = 0.0;
+  bool inv_any = false, cap_all = !r.cycles.empty();
+  json medians = json::array(), inventory = json::array(), capacity = json::array(), within = json::array();
   for (const auto& c : r.cycles) {
     medians.push_back(c.r_film_err_median_pct);
     inventory.push_back(finite_or_null(c.inventory_err_end_pct));
+    capacity.push_back(finite_or_null(c.capacity_err_pct));
+    within.push_back(finite_or_null(c.film_within_2sd_pct));
     if (c.cycle >= 3 || r.cycles.size() < 3) {
       worst = std::max(worst, c.r_film_err_median_pct);
       if (std::isfinite(c.inventory_err_end_pct)) {
         inv_worst = std::max(inv_worst, std::abs(c.inventory_err_end_pct));
         inv_any = true;
       }
+      // A cycle without a capacity (NaN: no equilibrium window) leaves the truth without one.
+      if (std::isfinite(c.capacity_err_pct)) cap_worst = std::max(cap_worst, std::abs(c.capacity_err_pct));
+      else cap_all = false;
     }
   }
   j["median_err_pct_by_cycle"] = medians;
   j["worst_err_pct_cycles_3_on"] = worst;
   j["inventory_err_end_pct_by_cycle"] = inventory;
   j["inventory_worst_abs_pct_cycles_3_on"] = inv_any ? json(inv_worst) : json(nullptr);
+  j["capacity_err_pct_by_cycle"] = capacity;
+  j["capacity_worst_abs_pct_cycles_3_on"] = cap_all ? json(cap_worst) : json(nullptr);
+  j["film_within_2sd_pct_by_cycle"] = within;
   j["growth_err_pct"] = finite_or_null(r.growth_err_pct);
+  score_ticks(r, true_mode, j);
   if (!r.rows.empty()) {
     const auto& last = r.rows.back();
     j["gain"] = last.growth_gain;
@@ -199,51 +337,75 @@ json bound_json(const FilmBound& b) {
 
 std::string case_name(const TruthDraw& t, const Noise& n) { return fmt::format("set{}-seed{:02d}-{}", t.set, t.seed, n.name); }
 
-json run_case(const TruthDraw& t, const Noise& n, int cycles, const CellParameters& nominal) {
+// Single quotes unless the word is plainly safe, so printed command lines paste into a shell.
+std::string shell_word(const std::string& w) {
+  if (!w.empty() && w.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-+=.,/:") ==
+                        std::string::npos)
+    return w;
+  std::string q = "'";
+  for (char ch : w) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+  return q + "'";
+}
+
+SimulateOptions simulate_options(const TruthDraw& t, const Noise& n, int cycles, const CellParameters& nominal) {
   SimulateOptions so;
   so.cycles = cycles;
   so.noise_v_mv = n.v_mv;
   so.noise_i_ma = n.i_ma;
+  so.noise_t_k = t.noise_t_k;
   so.seed = static_cast<std::uint64_t>(t.seed);
   so.set = t.set_args(nominal);
-  if (t.self_heating) so.effects.push_back(fmt::format("thermal={}", kSelfHeatingWPerK));
+  so.effects = t.effect_args();
+  if (!t.protocol.empty()) so.protocol = t.protocol;
   so.quiet = true;
-  json j;
-  j["case"] = case_name(t, n);
-  j["set"] = t.set;
-  j["seed"] = t.seed;
-  j["noise"] = {{"v_mv", n.v_mv}, {"i_ma", n.i_ma}};
-  j["truth"] = {{"r0_scale", t.r0_scale},           {"growth_scale", t.growth_scale},
-                {"side_i0_scale", t.i0_scale},      {"inventory_scale", t.inventory_scale},
-                {"conductivity_scale", t.conductivity_scale}, {"diffusivity_scale_negative", t.diffusivity_neg},
-                {"diffusivity_scale_positive", t.diffusivity_pos}, {"true_gain", t.true_gain()},
-                {"temperature_k", t.temperature_k}, {"self_heating", t.self_heating}};
-  std::string sim_cmd = fmt::format("bmssim simulate --cycles {} --noise-v-mv {} --noise-i-ma {} --seed {}", cycles,
-                                    n.v_mv, n.i_ma, t.seed);
-  for (const auto& a : so.set) sim_cmd += " --set " + a;
-  for (const auto& e : so.effects) sim_cmd += " --effect " + e;
-  j["commands"] = {{"simulate", sim_cmd + " --out TRUTH"},
-                   {"estimate", "bmssim estimate --data TRUTH/truth.csv --model reduced ARM_OPTIONS --out EST"}};
-  SimulateRun run;
-  try {
-    run = run_simulation(so, {});
-  } catch (const std::exception& e) {
-    j["truth_failed"] = e.what();
-    return j;
-  }
-  const EstimateData data = estimate_data_of(run);
-  const double sigma_eff = effective_voltage_noise_v(n.v_mv * 1e-3, n.i_ma * 1e-3, so.current_a);
-  for (const auto& arm : arms()) {
-    EstimateOptions o;
-    o.profile = arm.profile;
-    arm.set(o.overrides);
-    const EstimateResult r = run_estimate(data, nominal, o);
-    j["arms"][arm.name] = score(r);
-    if (std::string(arm.name) == "best") j["crlb"] = bound_json(film_cramer_rao(r.rows, sigma_eff));
-  }
-  // The reference estimators with the same information (nominal cell, measured columns, the
-  // sensor's noise from its data sheet).
+  return so;
+}
+
+// The `bmssim simulate` line that makes the case's truth (what --list-cases prints).
+std::string simulate_command(const SimulateOptions& so) {
+  std::string c = fmt::format("bmssim simulate --cell paper --protocol {} --cycles {} --noise-v-mv {} --noise-i-ma {}",
+                              shell_word(so.protocol), so.cycles, so.noise_v_mv, so.noise_i_ma);
+  if (so.noise_t_k > 0.0) c += fmt::format(" --noise-t-k {}", so.noise_t_k);
+  c += fmt::format(" --seed {}", so.seed);
+  for (const auto& a : so.set) c += " --set " + a;
+  for (const auto& e : so.effects) c += " --effect " + e;
+  return c + " --out TRUTH";
+}
+
+bool wanted(const std::vector<std::string>& only, const std::string& arm) {
+  return only.empty() || std::find(only.begin(), only.end(), arm) != only.end();
+}
+
+json truth_json(const TruthDraw& t) {
+  return {{"r0_scale", t.r0_scale},
+          {"growth_scale", t.growth_scale},
+          {"side_i0_scale", t.i0_scale},
+          {"inventory_scale", t.inventory_scale},
+          {"conductivity_scale", t.conductivity_scale},
+          {"diffusivity_scale_negative", t.diffusivity_neg},
+          {"diffusivity_scale_positive", t.diffusivity_pos},
+          {"electrolyte_diffusivity_scale", t.electrolyte_diffusivity},
+          {"i0_scale_negative", t.i0_neg},
+          {"i0_scale_positive", t.i0_pos},
+          {"particle_size_sigma", t.particle_size_sigma},
+          {"electrode_area_scale", t.area_scale},
+          {"current_offset_a", t.current_offset_a},
+          {"current_gain", t.current_gain},
+          {"voltage_offset_v", t.voltage_offset_v},
+          {"temperature_offset_k", t.temperature_offset_k},
+          {"noise_t_k", t.noise_t_k},
+          {"protocol", t.protocol.empty() ? std::string("cccv") : t.protocol},
+          {"true_gain", t.true_gain()},
+          {"temperature_k", t.temperature_k},
+          {"self_heating", t.self_heating}};
+}
+
+// The reference estimators with the same information (nominal cell, measured columns, the
+// sensor's noise from its data sheet).
+void run_baselines(const EstimateData& data, const Noise& n, const CellParameters& nominal,
+                   const std::vector<std::string>& only, json& j) {
   for (const char* method : {"ekf", "batch"}) {
+    if (!wanted(only, method)) continue;
     baselines::BaselineOptions bo;
     bo.method = method;
     if (n.v_mv > 0.0) bo.sigma_v_v = n.v_mv * 1e-3;
@@ -256,22 +418,57 @@ json run_case(const TruthDraw& t, const Noise& n, int cycles, const CellParamete
       r.cycles = b.scores;
       for (auto& c : r.cycles) c.inventory_err_end_pct = std::nan("");  // it estimates no inventory
       r.growth_err_pct = growth_error_pct(b.rows);
-      json sj = score(r);
+      json sj = score(r, data.true_mode);
       for (const char* k : {"gain", "film_initial_ohm_m2", "inventory_deviation"}) sj.erase(k);
       j["arms"][method] = sj;
     } catch (const std::exception& e) {
       j["baseline_failed"][method] = e.what();
     }
   }
-  j["crlb"]["sigma_v_effective_mv"] = sigma_eff * 1e3;
+}
+
+json run_case(const TruthDraw& t, const Noise& n, int cycles, const CellParameters& nominal,
+              const std::vector<std::string>& only) {
+  const SimulateOptions so = simulate_options(t, n, cycles, nominal);
+  json j;
+  j["case"] = case_name(t, n);
+  j["set"] = t.set;
+  j["seed"] = t.seed;
+  j["noise"] = {{"v_mv", n.v_mv}, {"i_ma", n.i_ma}};
+  j["truth"] = truth_json(t);
+  j["commands"] = {{"simulate", simulate_command(so)},
+                   {"estimate", "bmssim estimate --data TRUTH/truth.csv --model reduced ARM_OPTIONS --out EST"}};
+  SimulateRun run;
+  try {
+    run = run_simulation(so, {});
+  } catch (const std::exception& e) {
+    j["truth_failed"] = e.what();
+    return j;
+  }
+  const EstimateData data = estimate_data_of(run);
+  const double sigma_eff = effective_voltage_noise_v(n.v_mv * 1e-3, n.i_ma * 1e-3, so.current_a);
+  for (const auto& arm : arms()) {
+    if (!wanted(only, arm.name)) continue;
+    EstimateOptions o;
+    o.profile = arm.profile;
+    arm.set(o.overrides);
+    const EstimateResult r = run_estimate(data, nominal, o);
+    j["arms"][arm.name] = score(r, data.true_mode);
+    if (std::string(arm.name) == "best") j["crlb"] = bound_json(film_cramer_rao(r.rows, sigma_eff));
+  }
+  run_baselines(data, n, nominal, only, j);
+  if (j.contains("crlb")) j["crlb"]["sigma_v_effective_mv"] = sigma_eff * 1e3;
   return j;
 }
 
 // ---- aggregation -------------------------------------------------------------------------
 
-json distribution(std::vector<double> v) {
+// median / 90th percentile / worst; where higher is better (inside 2 sd), the 10th percentile and
+// the lowest.
+json distribution(std::vector<double> v, bool higher_is_better = false) {
   if (v.empty()) return json(nullptr);
   std::sort(v.begin(), v.end());
+  if (higher_is_better) std::reverse(v.begin(), v.end());
   auto q = [&v](double p) {
     const double x = p * static_cast<double>(v.size() - 1);
     const auto i = static_cast<std::size_t>(x);
@@ -283,17 +480,25 @@ json distribution(std::vector<double> v) {
 json aggregate(const std::vector<json>& cases) {
   json agg;
   std::map<std::string, std::map<std::string, std::map<std::string, std::vector<double>>>> acc;
+  // Per arm: the metric in the case's score -> its name in the aggregate (absent or null: skipped).
+  const std::pair<const char*, const char*> metrics[] = {
+      {"worst_err_pct_cycles_3_on", "film_worst_pct"},
+      {"growth_err_pct", "growth_err_pct"},
+      {"inventory_worst_abs_pct_cycles_3_on", "inventory_worst_pct"},
+      {"capacity_worst_abs_pct_cycles_3_on", "capacity_worst_pct"},
+      {"worst_tick_err_pct_after_learning_cycles_3_on", "film_worst_tick_pct"},
+      {"within_2sd_pct_cycles_3_on", "within_2sd_pct"},
+      {"sd_median_pct_cycles_3_on", "sd_median_pct"},
+      {"err_median_pct_cycles_3_on", "err_median_pct"}};
   for (const auto& c : cases) {
     if (!c.contains("arms")) continue;
-    const std::string group = fmt::format("set{}/{}", c["set"].get<int>(), c["case"].get<std::string>().substr(
-                                                                               c["case"].get<std::string>().rfind('-') + 1));
-    for (const auto& [arm, s] : c["arms"].items()) {
-      acc[group][arm]["film_worst_pct"].push_back(s["worst_err_pct_cycles_3_on"].get<double>());
-      if (!s["growth_err_pct"].is_null()) acc[group][arm]["growth_err_pct"].push_back(s["growth_err_pct"].get<double>());
-      if (!s["inventory_worst_abs_pct_cycles_3_on"].is_null())
-        acc[group][arm]["inventory_worst_pct"].push_back(s["inventory_worst_abs_pct_cycles_3_on"].get<double>());
-    }
-    acc[group]["crlb"]["film_sd_pct"].push_back(c["crlb"].value("film_sd_pct_worst_cycles_3_on", 0.0));
+    const std::string name = c["case"].get<std::string>();
+    const std::string group = fmt::format("set{}/{}", c["set"].get<int>(), name.substr(name.rfind('-') + 1));
+    for (const auto& [arm, s] : c["arms"].items())
+      for (const auto& [from, to] : metrics)
+        if (s.contains(from) && s[from].is_number()) acc[group][arm][to].push_back(s[from].get<double>());
+    if (!c.contains("crlb") || !c["crlb"].contains("film_sd_pct_worst_cycles_3_on")) continue;
+    acc[group]["crlb"]["film_sd_pct"].push_back(c["crlb"]["film_sd_pct_worst_cycles_3_on"].get<double>());
     if (!c["crlb"]["inventory_sd_pct"].is_null())
       acc[group]["crlb"]["inventory_sd_pct"].push_back(c["crlb"]["inventory_sd_pct"].get<double>());
     if (!c["crlb"]["gain_sd"].is_null())
@@ -301,8 +506,8 @@ json aggregate(const std::vector<json>& cases) {
                                                            c["truth"]["true_gain"].get<double>() * 100.0);
   }
   for (auto& [group, by_arm] : acc)
-    for (auto& [arm, metrics] : by_arm)
-      for (auto& [metric, values] : metrics) agg[group][arm][metric] = distribution(values);
+    for (auto& [arm, metrics_of_arm] : by_arm)
+      for (auto& [metric, values] : metrics_of_arm) agg[group][arm][metric] = distribution(values, metric == "within_2sd_pct");
   return agg;
 }
 
@@ -321,14 +526,14 @@ int draw_figures(const fs::path& dir, const std::vector<json>& cases) {
   std::ofstream gain(fig / "gain.dat"), err(fig / "film_error.dat");
   for (int set : {1, 2}) {
     for (const auto& c : cases) {
-      if (!c.contains("arms") || c["set"].get<int>() != set) continue;
+      if (!c.contains("arms") || c["set"].get<int>() != set || !c["arms"].contains("best")) continue;
       gain << c["truth"]["true_gain"].get<double>() << ' ' << c["arms"]["best"].value("gain", 0.0) << '\n';
     }
     gain << "\n\n";
   }
   for (const char* arm : {"best", "best-no-learning", "paper"}) {
     for (const auto& c : cases) {
-      if (!c.contains("arms") || c["set"].get<int>() != 1) continue;
+      if (!c.contains("arms") || c["set"].get<int>() != 1 || !c["arms"].contains(arm)) continue;
       const auto& m = c["arms"][arm]["median_err_pct_by_cycle"];
       for (std::size_t k = 0; k < m.size(); ++k) err << k + 1 << ' ' << m[k].get<double>() << '\n';
       err << '\n';
@@ -359,6 +564,70 @@ int draw_figures(const fs::path& dir, const std::vector<json>& cases) {
   return run_gnuplot(fig / "figures.gp", gnuplot) == 0 ? 2 : 0;
 }
 
+void write_group_table(std::ostringstream& r, const std::string& group, const json& by_arm) {
+  r << "## " << group << "\n\n| arm | film error % | growth_err_pct | inventory error % | capacity error % | "
+       "worst tick after learning % | inside 2 sd % | median sd % | median error % |\n"
+       "|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& [arm, m] : by_arm.items()) {
+    if (arm == "crlb") continue;
+    r << "| " << arm;
+    // A metric some truths have no value of (e.g. a capacity the equilibrium cannot define): n shown.
+    const std::size_t n = m.contains("film_worst_pct") ? m["film_worst_pct"].value("n", 0u) : 0u;
+    for (const char* k : {"film_worst_pct", "growth_err_pct", "inventory_worst_pct", "capacity_worst_pct",
+                          "film_worst_tick_pct", "within_2sd_pct", "sd_median_pct", "err_median_pct"}) {
+      const json d = m.value(k, json());
+      r << " | " << fmt_dist(d);
+      if (!d.is_null() && d.value("n", 0u) != n) r << fmt::format(" (n = {} of {})", d.value("n", 0u), n);
+    }
+    r << " |\n";
+  }
+  if (by_arm.contains("crlb")) {
+    const auto& b = by_arm["crlb"];
+    r << "| CRLB (1 sd) | " << fmt_dist(b.value("film_sd_pct", json())) << " | gain sd % of true: "
+      << fmt_dist(b.value("gain_sd_pct_of_true", json())) << " | " << fmt_dist(b.value("inventory_sd_pct", json()))
+      << " | | | | | |\n";
+  }
+  r << "\n";
+}
+
+// Sets 4-6, one row per case: what was drawn beside set 1's unknowns and the best arm's numbers.
+void write_case_table(std::ostringstream& r, const std::vector<json>& cases) {
+  r << "## Per case (sets 4-6, best arm)\n\n| case | drawn | film % | growth_err_pct (true growth %) | capacity % | inside 2 sd % | "
+       "median sd % / median error % | learning ticks by cycle |\n|---|---|---|---|---|---|---|---|\n";
+  auto num = [](const json& s, const char* k) {
+    return s.contains(k) && s[k].is_number() ? fmt::format("{:.2f}", s[k].get<double>()) : std::string("-");
+  };
+  for (const auto& c : cases) {
+    if (c["set"].get<int>() < 4) continue;
+    const json& t = c["truth"];
+    std::string drawn;
+    if (c["set"] == 4)
+      drawn = fmt::format("kappa {:.2f}, D_e {:.2f}, D_s -/+ {:.2f}/{:.2f}, i0 -/+ {:.2f}/{:.2f}, psd {:.2f}, area {:.3f}",
+                          t["conductivity_scale"].get<double>(), t["electrolyte_diffusivity_scale"].get<double>(),
+                          t["diffusivity_scale_negative"].get<double>(), t["diffusivity_scale_positive"].get<double>(),
+                          t["i0_scale_negative"].get<double>(), t["i0_scale_positive"].get<double>(),
+                          t["particle_size_sigma"].get<double>(), t["electrode_area_scale"].get<double>());
+    if (c["set"] == 5)
+      drawn = fmt::format("I offset {:+.1f} mA, gain {:+.2f} %, V offset {:+.3f} mV, T offset {:+.1f} K",
+                          t["current_offset_a"].get<double>() * 1e3, t["current_gain"].get<double>() * 100.0,
+                          t["voltage_offset_v"].get<double>() * 1e3, t["temperature_offset_k"].get<double>());
+    if (c["set"] == 6) drawn = "`" + t["protocol"].get<std::string>() + "`";
+    if (!c.contains("arms") || !c["arms"].contains("best")) {
+      r << "| " << c["case"].get<std::string>() << " | " << drawn << " | "
+        << (c.contains("truth_failed") ? "truth failed" : "best not run") << " | | | | | |\n";
+      continue;
+    }
+    const json& s = c["arms"]["best"];
+    r << "| " << c["case"].get<std::string>() << " | " << drawn << " | " << num(s, "worst_err_pct_cycles_3_on") << " | "
+      << num(s, "growth_err_pct") << " (" << num(s, "true_growth_pct") << ") | "
+      << num(s, "capacity_worst_abs_pct_cycles_3_on") << " | "
+      << num(s, "within_2sd_pct_cycles_3_on") << " | " << num(s, "sd_median_pct_cycles_3_on") << " / "
+      << num(s, "err_median_pct_cycles_3_on") << " | " << s.value("learning_ticks_by_cycle", json::array()).dump()
+      << " |\n";
+  }
+  r << "\n";
+}
+
 void write_report(const fs::path& dir, const json& summary, int drawn) {
   std::ostringstream r;
   r << "# Blind identification study\n\n"
@@ -366,26 +635,28 @@ void write_report(const fs::path& dir, const json& summary, int drawn) {
     << "Truths drawn uniformly (seeded) from ranges the estimator never sees: set 1 initial film +-20 %, "
        "film-growth law x0.3..3, side-reaction i0 x0.5..2, lithium inventory +-1 %; set 2 adds electrolyte "
        "conductivity +-10 % and solid diffusivities +-20 %; set 3 is set 1 at a temperature drawn from 5-45 C, every "
-       "third truth self-heating (lumped thermal model, 0.05 W/K), the estimator reading the measured temperature "
-       "(no set-3 truth was used to choose anything: every set-3 seed is held out). Each truth with sigma_v = 0.2 mV and with sigma_i = 5 mA. "
-       "Film error = median over each CC charge; the table shows median / 90th percentile / worst over the truths "
-       "of the worst such error in cycles 3 on. CRLB: the Cramer-Rao bound of the joint unknowns (initial film, "
-       "growth gain, inventory) for the same data and noise.\n\n";
-  for (const auto& [group, by_arm] : summary["aggregate"].items()) {
-    r << "## " << group << "\n\n| arm | film error % | growth_err_pct | inventory error % |\n|---|---|---|---|\n";
-    for (const auto& [arm, m] : by_arm.items()) {
-      if (arm == "crlb") continue;
-      r << "| " << arm << " | " << fmt_dist(m.value("film_worst_pct", json())) << " | "
-        << fmt_dist(m.value("growth_err_pct", json())) << " | " << fmt_dist(m.value("inventory_worst_pct", json()))
-        << " |\n";
-    }
-    const auto& b = by_arm["crlb"];
-    r << "| CRLB (1 sd) | " << fmt_dist(b.value("film_sd_pct", json())) << " | gain sd % of true: "
-      << fmt_dist(b.value("gain_sd_pct_of_true", json())) << " | " << fmt_dist(b.value("inventory_sd_pct", json()))
-      << " |\n\n";
-  }
+       "third truth self-heating (lumped thermal model, 0.05 W/K), the estimator reading the measured temperature. "
+       "Set 4 (spread) adds cell-to-cell spread to set 1: electrolyte conductivity and diffusivity and both solid "
+       "diffusivities +-20 %, both electrodes' exchange currents +-30 %, a cathode particle-size spread (log-normal "
+       "sigma 0.05-0.3) and the electrode area (capacity) +-3 %. Set 5 (sensors) is set 1 measured by a BMS front "
+       "end: both noises at once (one case per truth), a current offset U(-10, 10) mA and gain U(-0.5, 0.5) %, a "
+       "voltage offset U(-0.5, 0.5) mV, a temperature sensor 0.5 K off (sign drawn) with 0.2 K noise. Set 6 "
+       "(protocols) is set 1 under a cycle drawn per truth: a partial discharge (0.5-1C, 20-90 % of the nominal "
+       "capacity), a rest of 5 min-2 h, a CC charge at 0.3-1C from there, the CV hold, a rest of 2 min-1 h. "
+       "No truth of sets 3-6 was used to choose anything: every seed of these sets is held out. Sets 1-4 and 6: "
+       "each truth with sigma_v = 0.2 mV and with sigma_i = 5 mA. "
+       "Film error = median over each CC charge; the tables show median / 90th percentile / worst over the truths "
+       "of the worst such error in cycles 3 on; capacity error = the worst |capacity_err_pct| of cycles 3 on; "
+       "worst tick = the largest CC-charge tick error in cycles 3 on once learning has opened in that charge; "
+       "inside 2 sd, median sd and median error over the CC-charge ticks of cycles 3 on (% of the true film); for "
+       "inside 2 sd the columns are median / 10th percentile / lowest. "
+       "CRLB: the Cramer-Rao bound of the joint unknowns (initial film, growth gain, inventory) for the same data "
+       "and noise.\n\n";
+  for (const auto& [group, by_arm] : summary["aggregate"].items()) write_group_table(r, group, by_arm);
+  write_case_table(r, summary["cases"].get<std::vector<json>>());
   r << "Arms: ";
   for (const auto& a : arms()) r << "`" << a.name << "` (" << a.cli << "); ";
+  r << "`ekf`, `batch` (baselines)";
   r << "\n\nFailed truths: " << summary["truth_failures"].dump() << "\n\n";
   if (drawn > 0) r << "![gain](figures/gain.png)\n\n![film error](figures/film_error.png)\n";
   else r << "Figures not drawn (gnuplot missing): `gnuplot figures/figures.gp`.\n";
@@ -397,20 +668,48 @@ std::vector<int> parse_sets(const std::string& s) {
   std::stringstream ss(s);
   std::string item;
   while (std::getline(ss, item, ',')) {
-    if (item != "1" && item != "2" && item != "3") throw InputError("--sets: '" + item + "' is not a set (1, 2 or 3)");
-    out.push_back(std::stoi(item));
+    if (item.size() != 1 || item[0] < '1' || item[0] > '6')
+      throw InputError("--sets: '" + item + "' is not a set (1 to 6)");
+    out.push_back(item[0] - '0');
   }
-  if (out.empty()) throw InputError("--sets: give 1, 2, 3 or a list such as 1,2");
+  if (out.empty()) throw InputError("--sets: give a set 1 to 6 or a list such as 1,2");
   return out;
+}
+
+std::vector<std::string> parse_arms(const std::vector<std::string>& only) {
+  for (const auto& a : only) {
+    const bool known = a == "ekf" || a == "batch" ||
+                       std::any_of(arms().begin(), arms().end(), [&](const Arm& x) { return a == x.name; });
+    if (known) continue;
+    std::string names = "ekf, batch";
+    for (const auto& x : arms()) names += std::string(", ") + x.name;
+    throw InputError("--arms: unknown arm '" + a + "' for study blind (use " + names + ")");
+  }
+  return only;
+}
+
+// A stored case is reused when it has every arm this run asks for.
+bool has_arms(const json& j, const std::vector<std::string>& only) {
+  if (j.contains("truth_failed")) return true;
+  if (!j.contains("arms")) return false;
+  std::vector<std::string> need = only;
+  if (need.empty()) {
+    for (const auto& a : arms()) need.push_back(a.name);
+    need.insert(need.end(), {"ekf", "batch"});
+  }
+  for (const auto& a : need)
+    if (!j["arms"].contains(a) && !(j.contains("baseline_failed") && j["baseline_failed"].contains(a))) return false;
+  return true;
 }
 
 }  // namespace
 
 int run_blind_study(const BlindStudyOptions& o, const std::string& command) {
   const std::vector<int> sets = parse_sets(o.sets);
+  const std::vector<std::string> only = parse_arms(o.arms);
   if (o.seeds < 1 || o.seeds > 1000) throw InputError("--seeds: must be 1..1000");
   if (o.cycles < 2 || o.cycles > 100) throw InputError("--cycles: must be 2..100");
-  if (o.out.empty()) throw InputError("--out: required");
+  if (o.out.empty() && !o.list_cases) throw InputError("--out: required");
   const CellParameters nominal = load_cell("paper");
   struct Job {
     TruthDraw truth;
@@ -419,7 +718,13 @@ int run_blind_study(const BlindStudyOptions& o, const std::string& command) {
   std::vector<Job> jobs;
   for (int set : sets)
     for (int seed = 1; seed <= o.seeds; ++seed)
-      for (const auto& n : kNoises) jobs.push_back({draw_truth(set, seed), n});
+      for (const auto& n : noises_of(set)) jobs.push_back({draw_truth(set, seed, nominal), n});
+  if (o.list_cases) {
+    for (const auto& job : jobs)
+      std::printf("%s: %s\n", case_name(job.truth, job.noise).c_str(),
+                  simulate_command(simulate_options(job.truth, job.noise, o.cycles, nominal)).c_str());
+    return 0;
+  }
   const fs::path dir = fs::absolute(o.out);
   fs::create_directories(dir / "cases");
   std::vector<json> results(jobs.size());
@@ -429,10 +734,9 @@ int run_blind_study(const BlindStudyOptions& o, const std::string& command) {
     for (std::size_t k = next++; k < jobs.size(); k = next++) {
       const fs::path file = dir / "cases" / (case_name(jobs[k].truth, jobs[k].noise) + ".json");
       json j;
-      if (fs::exists(file)) {
-        j = json::parse(read_text_file(file.string()));
-      } else {
-        j = run_case(jobs[k].truth, jobs[k].noise, o.cycles, nominal);
+      if (fs::exists(file)) j = json::parse(read_text_file(file.string()));
+      if (!has_arms(j, only)) {
+        j = run_case(jobs[k].truth, jobs[k].noise, o.cycles, nominal, only);
         j["cycles"] = o.cycles;
         write_file_atomically(file, j.dump(2) + "\n");
       }
@@ -440,10 +744,11 @@ int run_blind_study(const BlindStudyOptions& o, const std::string& command) {
       const std::size_t d = ++done;
       if (!o.quiet) {
         const std::lock_guard<std::mutex> lock(io);
-        const std::string best = j.contains("arms") ? fmt::format("{:.2f} %", j["arms"]["best"]["worst_err_pct_cycles_3_on"].get<double>())
-                                                    : "truth failed";
-        std::fprintf(stderr, "study blind: %zu / %zu %s: best %s\n", d, jobs.size(), j["case"].get<std::string>().c_str(),
-                     best.c_str());
+        const bool best = j.contains("arms") && j["arms"].contains("best");
+        const std::string line = best ? fmt::format("best {:.2f} %", j["arms"]["best"]["worst_err_pct_cycles_3_on"].get<double>())
+                                      : (j.contains("truth_failed") ? "truth failed" : "done");
+        std::fprintf(stderr, "study blind: %zu / %zu %s: %s\n", d, jobs.size(), j["case"].get<std::string>().c_str(),
+                     line.c_str());
       }
     }
   };
@@ -452,7 +757,7 @@ int run_blind_study(const BlindStudyOptions& o, const std::string& command) {
   for (auto& t : pool) t.join();
   json summary;
   summary["command"] = command;
-  summary["options"] = {{"seeds", o.seeds}, {"cycles", o.cycles}, {"sets", sets}};
+  summary["options"] = {{"seeds", o.seeds}, {"cycles", o.cycles}, {"sets", sets}, {"arms", only}};
   summary["cases"] = results;
   json failures = json::array();
   for (const auto& c : results)

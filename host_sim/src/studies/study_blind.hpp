@@ -5,6 +5,7 @@
 // of its features switched off, learning off (the control), the paper's RCSI and the
 // nominal-growth profile. Beside them: the Cramer-Rao bound of the joint unknowns for the same data.
 #include <string>
+#include <vector>
 
 namespace bms::study {
 
@@ -12,7 +13,11 @@ struct BlindStudyOptions {
   int seeds = 10;
   int cycles = 5;
   int jobs = 2;
-  std::string sets = "1,2";  // 1: film, growth law, side i0, inventory; 2: + conductivity, diffusivities
+  // 1: film, growth law, side i0, inventory; 2: + conductivity, diffusivities; 3: set 1 at 5-45 C;
+  // 4: set 1 + cell-to-cell spread; 5: set 1 + a BMS front end's sensors; 6: set 1 + drawn protocols.
+  std::string sets = "1,2";
+  std::vector<std::string> arms;  // only these arms (empty: all)
+  bool list_cases = false;        // print each case's truth command and run nothing
   std::string out;
   bool quiet = false;
 };
