@@ -352,7 +352,7 @@ ElectrodeParameters read_electrode(const Section& s, double c_e0, bool negative)
   // the `--set` scales), and the truth's particles take D(x) / D(0.5) as a factor on it.
   constexpr double kDiffusivityStoichiometry = 0.5;
   const ScalarFunctionPtr diffusivity = s.function("Diffusivity [m2.s-1]");
-  for (const double x : {e.stoich_min, kDiffusivityStoichiometry, e.stoich_max})
+  for (const double x : {kDiffusivityStoichiometry, e.stoich_min, e.stoich_max})
     s.check_function("Diffusivity [m2.s-1]", *diffusivity, x, kSolidDiffusivity);
   e.solid_diffusivity_m2_s = diffusivity->value(kDiffusivityStoichiometry);
   if (!s.get("Diffusivity [m2.s-1]").is_number())
