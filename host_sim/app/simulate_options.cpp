@@ -42,7 +42,9 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
                  "heat-transfer coefficient to ambient in W/K, e.g. 0.05 for an 18650 in still air), particle_size (cathode "
                  "particle-size distribution: VALUE = log-space standard deviation sigma of a lognormal of radii, "
                  "3 populations, same surface area), particle_size_negative (the same for the anode; not with the side "
-                 "reaction), none");
+                 "reaction), diffusivity_profile_positive (cathode solid diffusivity falling towards full lithiation: "
+                 "VALUE = log10 of the factor on D at stoichiometry 1, log-linear from the knee, e.g. -2), "
+                 "diffusivity_profile_positive_knee (the knee stoichiometry, default 0.5), none");
   sub.add_option("--set", o.set,
                  "Hidden truth parameter NAME=VALUE (repeatable; the truth only, never the estimator), e.g. "
                  "film_growth_scale=2, inventory_scale=0.97, temperature_k=288.15; `bmssim simulate --list-params` "

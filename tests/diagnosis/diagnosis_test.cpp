@@ -438,6 +438,33 @@ TEST_F(Synthetic, OffListAnodeParticleSizeSpreadIsExplainedOrUnexplained) {
   expect_honest(r);
 }
 
+// A cathode whose diffusivity falls towards full lithiation (About:Energy cell, 100x slower at
+// x = 1 from a knee at 0.6), a record deep in the discharge where the cathode is past its knee:
+// the profile candidate explains the residual and a constant diffusivity factor does not.
+TEST_F(Synthetic, DiffusivityProfileIsFoundAndAConstantFactorIsNotEnough) {
+  bms::CellParameters cell = bms::load_cell("aboutenergy");
+  bms::ModelEffects fx;
+  fx.diffusivity_profile_positive = -2.0;
+  fx.diffusivity_profile_positive_knee = 0.6;
+  const Record data = make_data(fx, false, cell, 2.0, 1.2);
+  const auto r = diagnose(cell, {data}, settings({Effect::diffusivity_profile_positive, Effect::diffusivity_positive}));
+  std::printf("answer %s, held-out %.3f -> %.3f mV, profile %.3f knee %.3f: %s\n", effect_name(r.answer),
+              r.heldout_before_mv, r.heldout_after_mv, knob_value(r.model, Effect::diffusivity_profile_positive),
+              knob_value(r.model, Effect::diffusivity_profile_knee), r.reason.substr(0, 300).c_str());
+  double profile_mv = 0.0, constant_mv = 0.0;
+  for (const auto& c : r.candidates) {
+    std::printf("  %s %.3f mV\n", effect_name(c.effect), c.heldout_rmse_mv);
+    if (c.effect == Effect::diffusivity_profile_positive) profile_mv = c.heldout_rmse_mv;
+    if (c.effect == Effect::diffusivity_positive) constant_mv = c.heldout_rmse_mv;
+  }
+  EXPECT_GT(r.heldout_before_mv, 1.0);
+  EXPECT_LT(profile_mv, 0.75 * constant_mv);  // alone, the profile leaves less than a constant factor
+  EXPECT_EQ(r.answer, Effect::diffusivity_profile_positive) << r.reason;
+  EXPECT_TRUE(r.explained) << r.reason;
+  EXPECT_LE(r.heldout_after_mv, 0.2 * r.heldout_before_mv);
+  EXPECT_NEAR(knob_value(r.model, Effect::diffusivity_profile_knee), 0.6, 0.05);
+}
+
 TEST_F(Synthetic, OffListHysteresisAndContactTogetherAreNotOneName) {
   // Two listed effects at once, only one candidate allowed: the single name would leave a
   // large part of the residual.

@@ -442,3 +442,29 @@ TEST(BpxReader, UnitSpellingsConvertedUnknownKeysRefused) {
 
 }  // namespace
 }  // namespace bms
+
+namespace bms {
+namespace {
+
+// An electrode's diffusivity as an expression in the stoichiometry x: its value at x = 0.5 is
+// the constant, the truth takes D(x) / D(0.5) as a factor; a number leaves no factor (the plain
+// model bit for bit); the knee profile's User-defined keys are read with their ranges.
+TEST(BpxReader, StoichiometryDependentDiffusivityAndItsProfileKeys) {
+  json j = lfp_json();
+  EXPECT_EQ(read_bpx_text(j.dump(), "lfp.json").positive.solid_diffusivity_factor, nullptr);
+  positive(j)["Diffusivity [m2.s-1]"] = "6.873e-17 * 10 ** (-2 * (x - 0.5))";
+  j["Parameterisation"]["User-defined"]["Positive diffusivity profile log10 factor at full lithiation [-]"] = -1.0;
+  j["Parameterisation"]["User-defined"]["Positive diffusivity profile knee stoichiometry [-]"] = 0.7;
+  const CellParameters p = read_bpx_text(j.dump(), "lfp.json");
+  EXPECT_DOUBLE_EQ(p.positive.solid_diffusivity_m2_s, 6.873e-17);
+  ASSERT_NE(p.positive.solid_diffusivity_factor, nullptr);
+  EXPECT_NEAR(p.positive.solid_diffusivity_factor->value(0.5), 1.0, 1e-12);
+  EXPECT_NEAR(p.positive.solid_diffusivity_factor->value(1.0), 0.1, 1e-12);
+  EXPECT_EQ(p.effects.diffusivity_profile_positive, -1.0);
+  EXPECT_EQ(p.effects.diffusivity_profile_positive_knee, 0.7);
+  j["Parameterisation"]["User-defined"]["Positive diffusivity profile knee stoichiometry [-]"] = 1.5;
+  EXPECT_THROW(read_bpx_text(j.dump(), "lfp.json"), InputError);
+}
+
+}  // namespace
+}  // namespace bms

@@ -14,6 +14,10 @@ struct ElectrodeParameters {
   double porosity = 0.0;                // electrolyte volume fraction eps_e
   double transport_efficiency = 0.0;    // eps_e^b: multiplies D_e and kappa
   double solid_diffusivity_m2_s = 0.0;  // at the reference temperature
+  // D(x) = solid_diffusivity_m2_s * solid_diffusivity_factor(x), x = c_s / c_max the local
+  // stoichiometry (a BPX expression in x relative to its value at x = 0.5, and/or a knee
+  // profile: cell/diffusivity_profile.hpp). Null = constant D, the plain model.
+  ScalarFunctionPtr solid_diffusivity_factor;
   double max_concentration_mol_m3 = 0.0;
   double conductivity_eff_s_m = 0.0;    // effective solid conductivity (already corrected)
   // Exchange current density i0 = i0_coefficient * sqrt(c_e * c_s * (c_max - c_s)) [A/m2],
@@ -87,8 +91,12 @@ struct CellEffectParameters {
   double hysteresis_rate_per_soc = 0.0;  // "OCP hysteresis rate per state of charge [-]"; 0 = the model's
   double thermal_h_w_per_k = 0.0;        // "Lumped heat transfer coefficient [W.K-1]"
   double particle_size_sigma = 0.0;      // "Positive particle-size log-normal standard deviation [-]"
+  // The cathode's knee diffusivity profile (cell/diffusivity_profile.hpp):
+  double diffusivity_profile_positive = 0.0;       // "Positive diffusivity profile log10 factor at full lithiation [-]"
+  double diffusivity_profile_positive_knee = 0.5;  // "Positive diffusivity profile knee stoichiometry [-]"
   bool any() const {
-    return contact_resistance_ohm > 0.0 || hysteresis_v > 0.0 || thermal_h_w_per_k > 0.0 || particle_size_sigma > 0.0;
+    return contact_resistance_ohm > 0.0 || hysteresis_v > 0.0 || thermal_h_w_per_k > 0.0 || particle_size_sigma > 0.0 ||
+           diffusivity_profile_positive != 0.0;
   }
 };
 

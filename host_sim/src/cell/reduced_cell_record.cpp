@@ -129,6 +129,9 @@ ReducedCellRecord make_reduced_cell_record(const CellParameters& c) {
                            fx.hysteresis_v);
   if (fx.thermal_h_w_per_k > 0.0) r.notes += "the lumped thermal model is not used (isothermal); ";
   if (fx.particle_size_sigma > 0.0) r.notes += "the positive particle-size spread is not used (one size); ";
+  if (fx.diffusivity_profile_positive != 0.0 || c.positive.solid_diffusivity_factor || c.negative.solid_diffusivity_factor)
+    r.notes += "the solid diffusivities are constant (their values at x = 0.5; the dependence on stoichiometry is the "
+               "truth model's only); ";
   return r;
 }
 

@@ -49,4 +49,32 @@ class ScaledFunction final : public ScalarFunction {
   double factor_;
 };
 
+// f(x) g(x), derivative included: a property's own function times a profile laid over it.
+class ProductFunction final : public ScalarFunction {
+ public:
+  ProductFunction(ScalarFunctionPtr f, ScalarFunctionPtr g) : f_(std::move(f)), g_(std::move(g)) {}
+  double value(double x) const override { return f_->value(x) * g_->value(x); }
+  double derivative(double x) const override {
+    double v = 0.0, d = 0.0;
+    value_and_derivative(x, v, d);
+    return d;
+  }
+  void value_and_derivative(double x, double& v, double& d) const override {
+    double fv = 0.0, fd = 0.0, gv = 0.0, gd = 0.0;
+    f_->value_and_derivative(x, fv, fd);
+    g_->value_and_derivative(x, gv, gd);
+    v = fv * gv;
+    d = fd * gv + fv * gd;
+  }
+
+ private:
+  ScalarFunctionPtr f_, g_;
+};
+
+// f(x) / f(x0): a function relative to its value at one point (a BPX expression for a
+// diffusivity, D(x) / D(0.5), around the constant the rest of the host uses).
+inline ScalarFunctionPtr relative_to(const ScalarFunctionPtr& f, double x0) {
+  return std::make_shared<ScaledFunction>(f, 1.0 / f->value(x0));
+}
+
 }  // namespace bms

@@ -4,6 +4,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "cell/diffusivity_profile.hpp"
 #include "dfn/multi_dual.hpp"
 #include "dfn/sparsity_tracer.hpp"
 #include "io/input_error.hpp"
@@ -79,6 +80,11 @@ void check_effects(const CellParameters& cell, const ModelEffects& effects, doub
     bad("particle_size_negative: not available together with the side reaction");
   if (effects.particle_size_populations != 3 && effects.particle_size_populations != 5)
     bad("particle_size populations: must be 3 or 5");
+  // Four decades slower to two faster at full lithiation; a knee inside the stoichiometry range.
+  if (!(effects.diffusivity_profile_positive >= -4.0 && effects.diffusivity_profile_positive <= 2.0))
+    bad("diffusivity_profile_positive: log10 of the factor at full lithiation must be in [-4, 2]");
+  if (!(effects.diffusivity_profile_positive_knee >= 0.0 && effects.diffusivity_profile_positive_knee <= 0.99))
+    bad("diffusivity_profile_positive_knee: the knee stoichiometry must be in [0, 0.99]");
   // The lithium loss is read back from the film through the growth factor: it must not be 0.
   if (!(std::isfinite(cell.side.film_growth_scale) && cell.side.film_growth_scale > 0.0))
     throw InputError("film_growth_scale: must be a finite value > 0");
@@ -97,6 +103,10 @@ ModelEffects with_cell_effects(const CellParameters& cell, ModelEffects effects)
   if (c.hysteresis_rate_per_soc > 0.0) effects.hysteresis_rate_per_soc = c.hysteresis_rate_per_soc;
   if (effects.thermal_h_w_per_k == 0.0) effects.thermal_h_w_per_k = c.thermal_h_w_per_k;
   if (effects.particle_size_sigma == 0.0) effects.particle_size_sigma = c.particle_size_sigma;
+  if (effects.diffusivity_profile_positive == 0.0) {
+    effects.diffusivity_profile_positive = c.diffusivity_profile_positive;
+    effects.diffusivity_profile_positive_knee = c.diffusivity_profile_positive_knee;
+  }
   return effects;
 }
 
@@ -106,6 +116,9 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
   if (mesh.n_neg < 2 || mesh.n_sep < 1 || mesh.n_pos < 2 || mesh.n_r < 3)
     throw std::invalid_argument("DfnMesh: need at least 2 cells per electrode, 1 in the separator, 3 radial");
   check_effects(cell, effects_, temperature_k);
+  cell_.positive.solid_diffusivity_factor =
+      with_knee_profile(cell_.positive.solid_diffusivity_factor, effects_.diffusivity_profile_positive,
+                        effects_.diffusivity_profile_positive_knee);
   if (effects_.thermal_on()) {
     const auto& th = cell.thermal;
     heat_capacity_j_k_ = th.specific_heat_j_kg_k * th.density_kg_m3 * th.volume_m3;
@@ -386,6 +399,10 @@ struct DfnResidual {
     const T kap = apply(*m.cell_.electrolyte.conductivity_s_m, ce) * m.te_[k];
     return temp_dep ? kap * arr_ke : kap;
   }
+  // The solid diffusivity's factor on a face between shells of concentrations a and b.
+  static T diffusivity_factor(const ScalarFunction& f, const T& a, const T& b, double cmax) {
+    return apply(f, clamp_between((0.5 / cmax) * (a + b), 0.0, 1.0));
+  }
   void add_heat(int k, const T& q, T& total) {
     if (thermal) g[m.idx_heat_sum(k)] = g[m.idx_heat_sum(k)] - q;
     if (report_heat) total = total + q;
@@ -400,6 +417,7 @@ struct DfnResidual {
   void electrolyte();
   void electrode(int e);
   void particle(int e, int pop, const T& j, const T& phis, const T& phie, const T& ce, const T& arr_ds);
+  T shells(int e, int pop, const ElectrodeParameters& p, const T& flux_out, const T& arr_ds);
   void closing_rows(double t, HeatRates* heat);
 };
 
@@ -486,6 +504,49 @@ void DfnResidual<T>::electrode(int e) {
   for (int pop = 0; pop < m.n_populations(e); ++pop) particle(e, pop, j, phis, phie, ce, arr_ds);
 }
 
+// The radial finite volumes of one particle (rows of its shells); returns the drop of
+// concentration from the last shell's centre to the surface.
+template <typename T>
+T DfnResidual<T>::shells(int e, int pop, const ElectrodeParameters& p, const T& flux_out, const T& arr_ds) {
+  const int nr = m.mesh_.n_r;
+  const int side = m.geom(e, pop);
+  const double ds = p.solid_diffusivity_m2_s;
+  const auto& face_r2 = m.face_r2_;
+  const auto& center_dist = m.center_dist_;
+  const double cmax = p.max_concentration_mol_m3;
+  // A stoichiometry-dependent D is taken on each face, at the mean concentration of its two
+  // shells (flux form: both shells see the same flux, so lithium is conserved exactly).
+  const ScalarFunction* d_factor = p.solid_diffusivity_factor.get();
+  T factor_left = T(1.0);
+  for (int r = 0; r < nr; ++r) {
+    const T c = y[m.idx_cs_pop(e, pop, r)];
+    T in_right = r + 1 < nr ? face_r2[side * (nr + 1) + r + 1] * ds * (y[m.idx_cs_pop(e, pop, r + 1)] - c) /
+                                  center_dist[side * (nr - 1) + r]
+                            : -face_r2[side * (nr + 1) + nr] * flux_out;
+    T in_left = r > 0 ? face_r2[side * (nr + 1) + r] * ds * (c - y[m.idx_cs_pop(e, pop, r - 1)]) /
+                            center_dist[side * (nr - 1) + r - 1]
+                      : T(0.0);
+    if (d_factor) {
+      const T factor_right = r + 1 < nr ? diffusivity_factor(*d_factor, c, y[m.idx_cs_pop(e, pop, r + 1)], cmax) : T(1.0);
+      if (r + 1 < nr) in_right = in_right * factor_right;
+      if (r > 0) in_left = in_left * factor_left;
+      factor_left = factor_right;
+    }
+    if (temp_dep) {  // diffusive faces only: the surface flux is set by the reaction
+      if (r + 1 < nr) in_right = in_right * arr_ds;
+      if (r > 0) in_left = in_left * arr_ds;
+    }
+    g[m.idx_cs_pop(e, pop, r)] = in_right - in_left;
+  }
+  const double surface_half = m.surface_half_[side];
+  T surface_drop = temp_dep ? surface_half * flux_out / (ds * arr_ds) : surface_half * flux_out / ds;
+  if (d_factor) {  // the outer half shell at the last shell's D
+    const T c_last = y[m.idx_cs_pop(e, pop, nr - 1)];
+    surface_drop = surface_drop / diffusivity_factor(*d_factor, c_last, c_last, cmax);
+  }
+  return surface_drop;
+}
+
 // Population pop of node e's particles: finite volumes in r, the molar flux out of the surface
 // from the intercalation part, and the kinetics at the surface.
 template <typename T>
@@ -496,31 +557,12 @@ void DfnResidual<T>::particle(int e, int pop, const T& j, const T& phis, const T
   const int k = neg ? e : e + m.mesh_.n_sep;
   const ElectrodeParameters& p = neg ? m.cell_.negative : m.cell_.positive;
   const double h = m.dx_[k];
-  const double ds = p.solid_diffusivity_m2_s;
-  const int side = m.geom(e, pop);
   const T jp = pop == 0 ? j : y[m.idx_j_pop(e, pop)];
   T js = T(0.0);
   if (neg && side_on) js = m.side_current(phis, phie, jp, r_film, minus_alpha_f_side);
   const T flux_out = (jp - js) / kFaradayC_mol;
-  const auto& face_r2 = m.face_r2_;
-  const auto& center_dist = m.center_dist_;
-  for (int r = 0; r < nr; ++r) {
-    const T c = y[m.idx_cs_pop(e, pop, r)];
-    T in_right = r + 1 < nr ? face_r2[side * (nr + 1) + r + 1] * ds * (y[m.idx_cs_pop(e, pop, r + 1)] - c) /
-                                  center_dist[side * (nr - 1) + r]
-                            : -face_r2[side * (nr + 1) + nr] * flux_out;
-    T in_left = r > 0 ? face_r2[side * (nr + 1) + r] * ds * (c - y[m.idx_cs_pop(e, pop, r - 1)]) /
-                            center_dist[side * (nr - 1) + r - 1]
-                      : T(0.0);
-    if (temp_dep) {  // diffusive faces only: the surface flux is set by the reaction
-      if (r + 1 < nr) in_right = in_right * arr_ds;
-      if (r > 0) in_left = in_left * arr_ds;
-    }
-    g[m.idx_cs_pop(e, pop, r)] = in_right - in_left;
-  }
   const double cmax = p.max_concentration_mol_m3;
-  const double surface_half = m.surface_half_[side];
-  const T surface_drop = temp_dep ? surface_half * flux_out / (ds * arr_ds) : surface_half * flux_out / ds;
+  const T surface_drop = shells(e, pop, p, flux_out, arr_ds);
   const T c_surf = clamp_between(y[m.idx_cs_pop(e, pop, nr - 1)] - surface_drop, 1e-6 * cmax, (1.0 - 1e-6) * cmax);
   T i0 = p.i0_coefficient * sqrt(ce * c_surf * (cmax - c_surf));
   if (temp_dep) i0 = i0 * m.arrhenius(p.rate_activation_j_mol, temp);

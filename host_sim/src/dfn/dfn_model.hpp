@@ -60,15 +60,21 @@ struct ModelEffects {
   double particle_size_sigma = 0.0;           // cathode; 0 = one size (off)
   double particle_size_negative_sigma = 0.0;  // the same for the anode (not with the side reaction)
   int particle_size_populations = 3;          // quadrature nodes per electrode: 3 or 5
+  // Cathode solid diffusivity as a function of the local stoichiometry (a knee profile over the
+  // cell's own D(x); cell/diffusivity_profile.hpp): log10 of the factor at x = 1, 0 = off; the
+  // knee stoichiometry below which the factor is 1. The radial flux takes D on each shell face.
+  double diffusivity_profile_positive = 0.0;
+  double diffusivity_profile_positive_knee = 0.5;
 
   bool hysteresis_on() const { return hysteresis_v > 0.0; }
   bool thermal_on() const { return thermal_h_w_per_k > 0.0; }
   bool particle_size_on() const { return particle_size_sigma > 0.0 || particle_size_negative_sigma > 0.0; }
+  bool diffusivity_profile_on() const { return diffusivity_profile_positive != 0.0; }
 };
 
 // The effects a run switches on plus the cell's own (CellParameters::effects): the contact
-// resistances add; the cell's hysteresis half-gap, thermal coefficient and particle-size spread
-// apply where the run leaves them off, its hysteresis rate always. Every DfnModel is built with this.
+// resistances add; the cell's hysteresis half-gap, thermal coefficient, particle-size spread and
+// diffusivity profile apply where the run leaves them off, its hysteresis rate always. Every DfnModel is built with this.
 ModelEffects with_cell_effects(const CellParameters& cell, ModelEffects effects);
 
 // Heat sources of one state (W, whole cell). joule: electrolyte and solid ohmic heat,

@@ -30,6 +30,8 @@ const char* user_key(Effect e) {
     case Effect::hysteresis: return "OCP hysteresis half-gap [V]";
     case Effect::thermal: return "Lumped heat transfer coefficient [W.K-1]";
     case Effect::particle_size: return "Positive particle-size log-normal standard deviation [-]";
+    case Effect::diffusivity_profile_positive: return "Positive diffusivity profile log10 factor at full lithiation [-]";
+    case Effect::diffusivity_profile_knee: return "Positive diffusivity profile knee stoichiometry [-]";
     default: return nullptr;
   }
 }

@@ -40,6 +40,10 @@ constexpr KnobInfo kKnobs[] = {
     {Effect::i0_positive, "i0_positive", "i0_scale_positive", KnobKind::parameter, "i0_scale_positive"},
     {Effect::i0_negative, "i0_negative", "i0_scale_negative", KnobKind::parameter, "i0_scale_negative"},
     {Effect::initial_soc, "initial_soc", "initial_soc_offset", KnobKind::drive, ""},
+    {Effect::diffusivity_profile_positive, "diffusivity_profile_positive", "diffusivity_profile_positive_log10",
+     KnobKind::model_switch, ""},
+    {Effect::diffusivity_profile_knee, "diffusivity_profile_knee", "diffusivity_profile_positive_knee",
+     KnobKind::model_switch, ""},
     {Effect::unexplained, "unexplained", "", KnobKind::model_switch, ""},
 };
 
@@ -58,7 +62,8 @@ const char* truth_parameter_of(Effect e) { return info(e).truth_name; }
 
 bool parse_effect(std::string_view name, Effect& out) {
   for (const auto& k : kKnobs) {
-    if (name == k.name && k.effect != Effect::rc_time_constant && k.effect != Effect::unexplained) {
+    if (name == k.name && k.effect != Effect::rc_time_constant && k.effect != Effect::diffusivity_profile_knee &&
+        k.effect != Effect::unexplained) {
       out = k.effect;
       return true;
     }
@@ -68,6 +73,8 @@ bool parse_effect(std::string_view name, Effect& out) {
 
 std::vector<Effect> knobs_of(Effect candidate) {
   if (candidate == Effect::rc_branch) return {Effect::rc_time_constant, Effect::rc_branch};
+  if (candidate == Effect::diffusivity_profile_positive)
+    return {Effect::diffusivity_profile_positive, Effect::diffusivity_profile_knee};
   return {candidate};
 }
 
@@ -91,6 +98,8 @@ std::string format_value(Effect e, double v) {
     case Effect::rc_time_constant: return fmt::format("{:.4g} s", v);
     case Effect::time_skew: return fmt::format("{:.4g} s", v);
     case Effect::initial_soc: return fmt::format("{:+.4g} % SOC", 100.0 * v);
+    case Effect::diffusivity_profile_positive: return fmt::format("D x {:.4g} at full lithiation", std::pow(10.0, v));
+    case Effect::diffusivity_profile_knee: return fmt::format("knee at x = {:.4g}", v);
     case Effect::none: return "-";
     default: return fmt::format("x {:.4g}", v);
   }
@@ -112,6 +121,9 @@ std::string plausibility_note(Effect e, double v) {
     case Effect::rc_time_constant: return "a relaxation the DFN does not carry (a lumped, non-physical correction)";
     case Effect::time_skew: return std::abs(v) <= 1.0 ? "within one sample" : "more than one sample: a logging lag";
     case Effect::initial_soc: return "the start state differs from the first-rest-voltage estimate";
+    case Effect::diffusivity_profile_positive:
+    case Effect::diffusivity_profile_knee:
+      return "a cathode diffusivity that changes with lithiation (LFP's varies by decades across x)";
     default: break;
   }
   if (truth_parameter_of(e)[0] != '\0')

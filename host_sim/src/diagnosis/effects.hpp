@@ -7,7 +7,8 @@
 //  - measurement structure applied to the model's voltage after the run, no re-run needed:
 //    voltage-sensor offset and gain, an extra RC relaxation branch, a time skew between the
 //    voltage and the current samples.
-// A candidate is one knob, except `rc_branch` (resistance and time constant together).
+// A candidate is one knob, except `rc_branch` (resistance and time constant together) and
+// `diffusivity_profile_positive` (the profile's size and its knee).
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -38,6 +39,10 @@ enum class Effect {
   i0_positive,
   i0_negative,
   initial_soc,
+  // The cathode's solid diffusivity as a function of stoichiometry (a knee profile: log10 of the
+  // factor at full lithiation; its knee is the knob diffusivity_profile_knee).
+  diffusivity_profile_positive,
+  diffusivity_profile_knee,
   unexplained,  // an answer, not a knob: a residual remains that no candidate explains
 };
 
@@ -48,7 +53,8 @@ inline constexpr Effect kAllCandidates[] = {
     Effect::contact_resistance,   Effect::hysteresis,   Effect::current_offset,          Effect::current_gain,
     Effect::thermal,              Effect::voltage_offset, Effect::voltage_gain,          Effect::rc_branch,
     Effect::time_skew,            Effect::diffusivity_positive, Effect::diffusivity_negative, Effect::conductivity,
-    Effect::electrolyte_diffusivity, Effect::i0_positive, Effect::i0_negative,            Effect::initial_soc};
+    Effect::electrolyte_diffusivity, Effect::i0_positive, Effect::i0_negative,            Effect::initial_soc,
+    Effect::diffusivity_profile_positive};
 // The five listed effects (`--candidates listed`).
 inline constexpr Effect kListedCandidates[] = {Effect::contact_resistance, Effect::hysteresis, Effect::current_offset,
                                                Effect::current_gain, Effect::thermal};
@@ -105,6 +111,8 @@ bool set_model_effect(E& effects, const EffectSetting& s) {
         return false;
       }
     case Effect::particle_size: effects.particle_size_sigma = s.value; return true;
+    case Effect::diffusivity_profile_positive: effects.diffusivity_profile_positive = s.value; return true;
+    case Effect::diffusivity_profile_knee: effects.diffusivity_profile_positive_knee = s.value; return true;
     default: return true;  // not a model switch
   }
 }

@@ -97,6 +97,8 @@ constexpr Range kHysteresisHalfGap{0.0, 0.5, false, false};     // V; 5-20 mV fo
 constexpr Range kHysteresisRate{0.0, 1e4, true, false};         // per unit of state of charge; 50
 constexpr Range kHeatTransfer{0.0, 1e3, false, false};          // W/K; 0.01-1 for an 18650
 constexpr Range kParticleSizeSigma{0.0, 1.5, false, false};     // log-space standard deviation; 0.2-0.6
+constexpr Range kProfileLog10{-4.0, 2.0, false, false};         // log10 of D(x = 1) / D(knee)
+constexpr Range kProfileKnee{0.0, 0.99, false, false};          // stoichiometry
 
 // A unit written another way than the schema's: spellings of the same unit (factor 1) and
 // scaled ones, per schema unit. Compared without spaces, '^' and '*' ("kJ mol^-1" = "kJ.mol-1").
@@ -345,12 +347,16 @@ ElectrodeParameters read_electrode(const Section& s, double c_e0, bool negative)
   e.rate_activation_j_mol =
       s.number_or("Reaction rate constant activation energy [J.mol-1]", kActivation, 0.0);
 
-  // Our particle model has a constant diffusivity: a stoichiometry-dependent one is taken at
-  // mid-range, x = 0.5.
+  // A stoichiometry-dependent diffusivity (an expression in x or a table): its value at
+  // mid-range, x = 0.5, is the constant the rest of the host uses (the firmware's reduced model,
+  // the `--set` scales), and the truth's particles take D(x) / D(0.5) as a factor on it.
   constexpr double kDiffusivityStoichiometry = 0.5;
   const ScalarFunctionPtr diffusivity = s.function("Diffusivity [m2.s-1]");
-  s.check_function("Diffusivity [m2.s-1]", *diffusivity, kDiffusivityStoichiometry, kSolidDiffusivity);
+  for (const double x : {kDiffusivityStoichiometry, e.stoich_min, e.stoich_max})
+    s.check_function("Diffusivity [m2.s-1]", *diffusivity, x, kSolidDiffusivity);
   e.solid_diffusivity_m2_s = diffusivity->value(kDiffusivityStoichiometry);
+  if (!s.get("Diffusivity [m2.s-1]").is_number())
+    e.solid_diffusivity_factor = relative_to(diffusivity, kDiffusivityStoichiometry);
 
   e.ocp_v = s.function("OCP [V]");
   e.entropic_v_k = s.function_or_null("Entropic change coefficient [V.K-1]");
@@ -494,6 +500,10 @@ void read_cell_effects(const Section& params, CellParameters& p) {
   e.hysteresis_rate_per_soc = u.number_or("OCP hysteresis rate per state of charge [-]", kHysteresisRate, 0.0);
   e.thermal_h_w_per_k = u.number_or("Lumped heat transfer coefficient [W.K-1]", kHeatTransfer, 0.0);
   e.particle_size_sigma = u.number_or("Positive particle-size log-normal standard deviation [-]", kParticleSizeSigma, 0.0);
+  e.diffusivity_profile_positive =
+      u.number_or("Positive diffusivity profile log10 factor at full lithiation [-]", kProfileLog10, 0.0);
+  e.diffusivity_profile_positive_knee =
+      u.number_or("Positive diffusivity profile knee stoichiometry [-]", kProfileKnee, 0.5);
 }
 
 }  // namespace

@@ -135,10 +135,18 @@ void apply_effect(const std::string& e, ModelEffects& effects, MeasurementModel&
       throw InputError("--effect " + name + ": log-space standard deviation of the " +
                        (anode ? "anode" : "cathode") + " radius must be in [0, 1.5]");
     (anode ? effects.particle_size_negative_sigma : effects.particle_size_sigma) = value;
+  } else if (name == "diffusivity_profile_positive") {
+    if (!(value >= -4.0 && value <= 2.0))
+      throw InputError("--effect diffusivity_profile_positive: log10 of the factor at full lithiation must be in [-4, 2]");
+    effects.diffusivity_profile_positive = value;
+  } else if (name == "diffusivity_profile_positive_knee") {
+    if (!(value >= 0.0 && value <= 0.99))
+      throw InputError("--effect diffusivity_profile_positive_knee: the knee stoichiometry must be in [0, 0.99]");
+    effects.diffusivity_profile_positive_knee = value;
   } else if (name != "none") {
     throw InputError("--effect '" + name +
                      "': unknown; use contact_resistance, hysteresis, current_offset, current_gain, temperature_offset, voltage_offset, thermal, "
-                     "particle_size, particle_size_negative or none");
+                     "particle_size, particle_size_negative, diffusivity_profile_positive, diffusivity_profile_positive_knee or none");
   }
 }
 
