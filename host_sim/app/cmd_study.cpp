@@ -11,6 +11,7 @@
 #include "commands.hpp"
 #include "studies/study_blind.hpp"
 #include "io/input_error.hpp"
+#include "io/shell_word.hpp"
 #include "sim/truth_output.hpp"
 #include "studies/study_collect.hpp"
 #include "studies/study_plan.hpp"
@@ -31,16 +32,6 @@ struct StudyCli {
   std::string blind_sets = "1,2";
   int blind_cycles = 5;
 };
-
-// Single quotes unless the word is plainly safe, so printed command lines paste into a shell.
-std::string shell_quote(const std::string& w) {
-  if (!w.empty() && w.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-+=.,/:") ==
-                        std::string::npos)
-    return w;
-  std::string q = "'";
-  for (char ch : w) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-  return q + "'";
-}
 
 std::string join(const std::vector<std::string>& v, const char* sep) {
   std::string s;
@@ -110,12 +101,12 @@ void apply_plan_defaults(StudyCli& c, const CLI::App& sub, CLI::App& root) {
 void print_case_commands(const StudyCli& c, const std::vector<study::CaseSpec>& cases, const fs::path& exe,
                          const fs::path& out) {
   for (const auto& cs : cases) {
-    std::string line = shell_quote(exe.string());
-    for (const auto& a : case_argv(c, out.string(), cs.name)) line += " " + shell_quote(a);
+    std::string line = shell_word(exe.string());
+    for (const auto& a : case_argv(c, out.string(), cs.name)) line += " " + shell_word(a);
     std::printf("%s\n", line.c_str());
   }
   std::fprintf(stderr, "study: %zu cases; afterwards: %s study %s --collect %s\n", cases.size(),
-               shell_quote(exe.string()).c_str(), c.o.mode.c_str(), shell_quote(out.string()).c_str());
+               shell_word(exe.string()).c_str(), c.o.mode.c_str(), shell_word(out.string()).c_str());
 }
 
 int run_all_cases(const StudyCli& c, const std::vector<study::CaseSpec>& cases, const fs::path& self,

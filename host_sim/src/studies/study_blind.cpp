@@ -24,6 +24,7 @@
 #include "estimation/film_bound.hpp"
 #include "io/gnuplot.hpp"
 #include "io/input_error.hpp"
+#include "io/shell_word.hpp"
 #include "io/text_file.hpp"
 #include "sim/cell_catalog.hpp"
 #include "sim/simulation_plan.hpp"
@@ -336,16 +337,6 @@ json bound_json(const FilmBound& b) {
 }
 
 std::string case_name(const TruthDraw& t, const Noise& n) { return fmt::format("set{}-seed{:02d}-{}", t.set, t.seed, n.name); }
-
-// Single quotes unless the word is plainly safe, so printed command lines paste into a shell.
-std::string shell_word(const std::string& w) {
-  if (!w.empty() && w.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-+=.,/:") ==
-                        std::string::npos)
-    return w;
-  std::string q = "'";
-  for (char ch : w) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-  return q + "'";
-}
 
 SimulateOptions simulate_options(const TruthDraw& t, const Noise& n, int cycles, const CellParameters& nominal) {
   SimulateOptions so;
