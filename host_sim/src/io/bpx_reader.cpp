@@ -49,7 +49,6 @@ struct Range {
   }
 };
 
-constexpr Range kPositive{0.0, kInf, true, true};
 constexpr Range kOpenFraction{0.0, 1.0, true, true};
 constexpr Range kTransportEfficiency{0.0, 1.0, true, false};
 constexpr Range kStoichiometry{0.0, 1.0, false, false};
