@@ -91,6 +91,22 @@ TEST(CsvTable, BadCellsNameFileLineAndColumn) {
             "data.csv: line 1: missing column 'voltage_v' (the header has: t_s, current_a, mode)");
 }
 
+TEST(CsvTable, NanCellsOnlyWhereTheCallerAllowsThem) {
+  const CsvTable t = parse_csv("a,b\n1,nan\n2,3\n", "data.csv");
+  const auto& b = t.numbers_or_nan("b");
+  ASSERT_EQ(b.size(), 2u);
+  EXPECT_TRUE(std::isnan(b[0]));
+  EXPECT_EQ(b[1], 3.0);
+  EXPECT_THROW((void)t.numbers("b"), InputError) << "numbers() still refuses a nan";
+  const CsvTable bad = parse_csv("a,b\n1,nan\n2,inf\n3,x\n", "data.csv");
+  try {
+    (void)bad.numbers_or_nan("b");
+    FAIL() << "inf accepted";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "data.csv: line 3, column 2 ('b'): not a finite number: 'inf'");
+  }
+}
+
 TEST(CsvTable, StructuralErrors) {
   EXPECT_EQ(csv_error("a,b\n1,2\n3\n", "a"),
             "data.csv: line 3: 1 cells, but the header has 2 columns");

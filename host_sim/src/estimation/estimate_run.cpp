@@ -1,7 +1,6 @@
 #include "estimation/estimate_run.hpp"
 
 #include <algorithm>
-#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -56,24 +55,8 @@ EstimateData read_measured_file(const std::string& file, CurrentSign sign) {
 
 }  // namespace
 
-// The truth's capacity is undefined where its inventory leaves the cell's equilibrium window
-// (simulate writes nan there): a scoring column, so such a row is not scored rather than refused.
-std::vector<double> truth_capacity_ah(const CsvTable& t) {
-  const auto& cells = t.strings("capacity_ah");
-  std::vector<double> v(cells.size(), std::nan(""));
-  for (std::size_t i = 0; i < cells.size(); ++i) {
-    if (cells[i] == "nan") continue;
-    const char* first = cells[i].data();
-    const char* last = first + cells[i].size();
-    const auto [end, ec] = std::from_chars(first, last, v[i]);
-    if (ec != std::errc() || end != last || !std::isfinite(v[i]))
-      throw InputError(t.where(i, "capacity_ah") + ": not a number or 'nan': '" + cells[i] + "'");
-  }
-  return v;
-}
-
 EstimateData read_estimate_data(const std::string& file, CurrentSign sign) {
-  const CsvTable t = read_csv(file, {"mode", "capacity_ah"});
+  const CsvTable t = read_csv(file, {"mode"});
   if (!t.has("t_s")) return read_measured_file(file, sign);
   for (const char* c : {"t_s", "current_meas_a", "voltage_meas_v"})
     if (!t.has(c))
@@ -102,7 +85,9 @@ EstimateData read_estimate_data(const std::string& file, CurrentSign sign) {
     d.stoich_neg_true = t.numbers("stoich_neg");
     d.stoich_pos_true = t.numbers("stoich_pos");
   }
-  if (t.has("capacity_ah")) d.capacity_true_ah = truth_capacity_ah(t);
+  // The truth's capacity is undefined where its inventory leaves the cell's equilibrium window
+  // (simulate writes nan there): a scoring column, so such a row is not scored rather than refused.
+  if (t.has("capacity_ah")) d.capacity_true_ah = t.numbers_or_nan("capacity_ah");
   if (t.has("mode")) {
     for (std::size_t i = 0; i < t.rows(); ++i) {
       Mode m{};

@@ -74,6 +74,14 @@ const std::vector<double>& CsvTable::numbers(std::string_view column) const {
   const Column& c = data_[index(column)];
   if (c.text) throw std::logic_error(fmt::format("CSV column '{}' was read as text", column));
   if (!c.error.empty()) throw InputError(c.error);
+  if (!c.nan_error.empty()) throw InputError(c.nan_error);
+  return c.numbers;
+}
+
+const std::vector<double>& CsvTable::numbers_or_nan(std::string_view column) const {
+  const Column& c = data_[index(column)];
+  if (c.text) throw std::logic_error(fmt::format("CSV column '{}' was read as text", column));
+  if (!c.error.empty()) throw InputError(c.error);
   return c.numbers;
 }
 
@@ -159,6 +167,10 @@ CsvTable parse_csv(std::string_view text, std::string_view name,
       const std::string problem = parse_number(cells[c], v);
       if (problem.empty()) {
         col.numbers.push_back(v);
+      } else if (std::isnan(v)) {  // a 'nan' literal: parsed, not finite
+        col.numbers.push_back(v);
+        if (col.nan_error.empty())
+          col.nan_error = fmt::format("{}: line {}, column {} ('{}'): {}", name, line, c + 1, t.columns_[c], problem);
       } else {
         col.error = fmt::format("{}: line {}, column {} ('{}'): {}", name, line, c + 1,
                                 t.columns_[c], problem);

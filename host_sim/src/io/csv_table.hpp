@@ -27,6 +27,9 @@ class CsvTable {
   // for, so unused columns may hold anything. Throws InputError naming the first bad cell,
   // or the header line if the column is missing.
   const std::vector<double>& numbers(std::string_view column) const;
+  // The same, with 'nan' cells read as NaN: for a column whose value may be undefined (a
+  // truth's capacity where it has none); any other bad cell still throws.
+  const std::vector<double>& numbers_or_nan(std::string_view column) const;
   // Only for columns declared as text when parsing; missing column -> InputError.
   const std::vector<std::string>& strings(std::string_view column) const;
 
@@ -40,7 +43,8 @@ class CsvTable {
     bool text = false;
     std::vector<double> numbers;
     std::vector<std::string> strings;
-    std::string error;  // first bad numeric cell, empty if none
+    std::string error;      // first bad numeric cell other than 'nan', empty if none
+    std::string nan_error;  // first 'nan' cell (kept as NaN), empty if none
   };
   std::size_t index(std::string_view column) const;
 
