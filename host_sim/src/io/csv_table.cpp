@@ -165,17 +165,13 @@ CsvTable parse_csv(std::string_view text, std::string_view name,
       if (!col.error.empty()) continue;
       double v = 0.0;
       const std::string problem = parse_number(cells[c], v);
-      if (problem.empty()) {
-        col.numbers.push_back(v);
-      } else if (std::isnan(v)) {  // a 'nan' literal: parsed, not finite
-        col.numbers.push_back(v);
-        if (col.nan_error.empty())
-          col.nan_error = fmt::format("{}: line {}, column {} ('{}'): {}", name, line, c + 1, t.columns_[c], problem);
-      } else {
-        col.error = fmt::format("{}: line {}, column {} ('{}'): {}", name, line, c + 1,
-                                t.columns_[c], problem);
-        col.numbers = {};
-      }
+      const bool nan_cell = !problem.empty() && std::isnan(v);  // a 'nan' literal: parsed, not finite
+      col.numbers.push_back(v);
+      if (problem.empty()) continue;
+      std::string& first = nan_cell ? col.nan_error : col.error;
+      if (first.empty())
+        first = fmt::format("{}: line {}, column {} ('{}'): {}", name, line, c + 1, t.columns_[c], problem);
+      if (!nan_cell) col.numbers = {};
     }
   }
   return t;
