@@ -25,6 +25,7 @@
 #include "io/gnuplot.hpp"
 #include "io/input_error.hpp"
 #include "io/shell_word.hpp"
+#include "io/statistics.hpp"
 #include "io/text_file.hpp"
 #include "sim/cell_catalog.hpp"
 #include "sim/simulation_plan.hpp"
@@ -226,12 +227,6 @@ EstimateData estimate_data_of(const SimulateRun& run) {
 
 json finite_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
-double median_of(std::vector<double> v) {
-  if (v.empty()) return std::nan("");
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
 // Over the CC-charge ticks of cycles 3.. (the truth's mode where the rows are the truth's): the
 // share with the truth inside 2 sd, the median sd and the median |error| (% of the true film), the
 // worst tick error once learning has opened in that charge; and the learning ticks per cycle.
@@ -267,8 +262,8 @@ void score_ticks(const EstimateResult& r, const std::vector<fw::Mode>& true_mode
   }
   j["within_2sd_pct_cycles_3_on"] = sd.empty() ? json(nullptr) : json(100.0 * static_cast<double>(inside) /
                                                                        static_cast<double>(sd.size()));
-  j["sd_median_pct_cycles_3_on"] = finite_or_null(median_of(sd));
-  j["err_median_pct_cycles_3_on"] = finite_or_null(median_of(err));
+  j["sd_median_pct_cycles_3_on"] = finite_or_null(stats::median(sd));
+  j["err_median_pct_cycles_3_on"] = finite_or_null(stats::median(err));
   j["worst_tick_err_pct_after_learning_cycles_3_on"] = scored_learning ? json(worst_tick) : json(nullptr);
   // The truth's own film growth between the two (growth_err_pct's denominator), % of the film.
   const auto true_at = [&r](std::size_t i) { return r.rows[i].r_film_true_ohm_m2; };
