@@ -289,7 +289,6 @@ class BmsCore {
   // growth predicted since it was set (RcsiFilmPath).
   Scalar r_film_ohm_m2() const { return path_.r_film_ohm_m2(); }
   std::uint32_t resync_count() const { return resync_.count(); }
-  const CurrentOffset<Scalar>& current_offset() const { return offset_; }
   // Ticks that passed without reaching tick() at all (the application's clock or the bus's
   // sequence numbers say how many): counted as ticks without a sample, as `tick` would, without
   // building an output for each.
