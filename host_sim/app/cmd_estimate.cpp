@@ -77,6 +77,10 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--model-bias-ohm", v.model_bias_ohm);
   g("--relinearise", v.relinearise_inventory);
   g("--no-hold", v.hold_until_settled);
+  g("--spread-anode-i0", v.spread_anode_i0_rel);
+  g("--spread-cathode-i0", v.spread_cathode_i0_rel);
+  g("--spread-transport", v.spread_transport_rel);
+  g("--spread-area", v.spread_area_rel);
   g("--no-current-offset", v.current_offset);
   g("--inventory-error-pct", c.o.inventory_error_pct);
   c.o.points_given = sub.count("--points") > 0;
@@ -270,6 +274,23 @@ Runner add_estimate(CLI::App& app) {
                 "--settings best only: report the identifier's film, parameters and capacity from the first "
                 "learning tick after the start or a relinearisation, not the prior's (held, propagated) until the "
                 "restarted fit has settled (ablation: the first seconds swing tens of percent)");
+  const std::string spread =
+      "--settings best only: the cell's stated spread (a lot tolerance, relative 1-sigma in [0, 0.9], default 0: "
+      "a characterised cell) of ";
+  const std::string spread_end = "; its film equivalent enters r_film_sd_ohm_m2 in quadrature";
+  sub->add_option("--spread-anode-i0", c->o.overrides.spread_anode_i0_rel.value,
+                  spread + "the anode's exchange current" + spread_end)
+      ->check(CLI::Range(0.0, 0.9));
+  sub->add_option("--spread-cathode-i0", c->o.overrides.spread_cathode_i0_rel.value,
+                  spread + "the cathode's exchange current" + spread_end)
+      ->check(CLI::Range(0.0, 0.9));
+  sub->add_option("--spread-transport", c->o.overrides.spread_transport_rel.value,
+                  spread + "each transport property (electrolyte conductivity and diffusivity, each electrode's solid "
+                           "diffusivity, independently)" + spread_end)
+      ->check(CLI::Range(0.0, 0.9));
+  sub->add_option("--spread-area", c->o.overrides.spread_area_rel.value,
+                  spread + "the electrode area (both electrodes' capacity)" + spread_end)
+      ->check(CLI::Range(0.0, 0.9));
   sub->add_flag("!--no-current-offset", c->o.overrides.current_offset.value,
                 "Do not remove the current sensor's offset (default with --settings best: measured between two CV "
                 "end points of the same kind, where the cell is in the same state, as the counted charge over the "

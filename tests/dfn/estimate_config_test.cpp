@@ -64,7 +64,11 @@ void add_path_fields(const fw::IdentifierFilmPath<double>::Config& c, std::vecto
       {"innovation_time_constant_s", c.innovation_time_constant_s},
       {"innovation_sd_v", c.innovation_sd_v},
       {"innovation_gate", c.innovation_gate},
-      {"temperature_sd_k", c.temperature_sd_k}};
+      {"temperature_sd_k", c.temperature_sd_k},
+      {"spread.anode_i0_rel", c.spread.anode_i0_rel},
+      {"spread.cathode_i0_rel", c.spread.cathode_i0_rel},
+      {"spread.transport_rel", c.spread.transport_rel},
+      {"spread.area_rel", c.spread.area_rel}};
   f.insert(f.end(), g.begin(), g.end());
 }
 
@@ -227,6 +231,10 @@ const std::vector<OverrideCase>& override_cases() {
       {"no-inventory", [](fw::Overrides& o) { o.learn_inventory = false; }},
       {"model-bias-ohm", [](fw::Overrides& o) { o.model_bias_ohm = 0.0; }},
       {"relinearise", [](fw::Overrides& o) { o.relinearise_inventory = 1.0; }},
+      {"spread-anode-i0", [](fw::Overrides& o) { o.spread_anode_i0_rel = 0.1; }},
+      {"spread-cathode-i0", [](fw::Overrides& o) { o.spread_cathode_i0_rel = 0.1; }},
+      {"spread-transport", [](fw::Overrides& o) { o.spread_transport_rel = 0.1; }},
+      {"spread-area", [](fw::Overrides& o) { o.spread_area_rel = 0.01; }},
   };
   return c;
 }
@@ -235,12 +243,14 @@ std::set<std::string> expected_unused(fw::Profile p) {
   switch (p) {
     case fw::Profile::paper:  // no observer, no bias calibration, no propagation, H given
       return {"reference-after-resyncs", "growth-scale", "no-start-resync", "resync-window", "resync-current",
-              "no-inventory", "model-bias-ohm", "relinearise"};
+              "no-inventory", "model-bias-ohm", "relinearise", "spread-anode-i0", "spread-cathode-i0",
+              "spread-transport", "spread-area"};
     case fw::Profile::best:  // the eleven, and what only RCSI reads
       return {"nc", "h", "p0", "p0-y0", "lambda", "eta", "theta0", "r-film-init", "calibrate-bias",
               "reference-after-resyncs", "average", "propagate-growth", "growth-scale"};
     case fw::Profile::nominal_growth:  // H from the model; no identifier
-      return {"h", "no-inventory", "model-bias-ohm", "relinearise"};
+      return {"h", "no-inventory", "model-bias-ohm", "relinearise", "spread-anode-i0", "spread-cathode-i0",
+              "spread-transport", "spread-area"};
   }
   return {};
 }

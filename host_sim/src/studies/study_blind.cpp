@@ -198,6 +198,18 @@ const std::vector<Arm>& arms() {
       {"best-no-hold", "--settings best --no-hold", P::best, [](O& o) { o.hold_until_settled = false; }},
       {"best-window1", "--settings best --resync-window 1", P::best, [](O& o) { o.resync_window_ticks = 1u; }},
       {"best-no-resync", "--settings best --no-resync", P::best, [](O& o) { o.resync = false; }},
+      // Set 4's spread stated as a datasheet would: a uniform +-a tolerance as its 1-sigma a / sqrt(3)
+      // (kinetics +-30 %, transport +-20 %, area +-3 %); not tuned on any truth.
+      {"best-stated-spread",
+       "--settings best --spread-anode-i0 0.1732 --spread-cathode-i0 0.1732 --spread-transport 0.1155 "
+       "--spread-area 0.01732",
+       P::best,
+       [](O& o) {
+         o.spread_anode_i0_rel = 0.1732;
+         o.spread_cathode_i0_rel = 0.1732;
+         o.spread_transport_rel = 0.1155;
+         o.spread_area_rel = 0.01732;
+       }},
       {"paper", "--settings paper", P::paper, [](O&) {}},
       {"paper-no-learning", "--settings paper --no-learning", P::paper, [](O& o) { o.learning = false; }},
       {"nominal-growth", "--settings nominal-growth", P::nominal_growth, [](O&) {}},

@@ -177,6 +177,11 @@ struct Overrides {
   Given<double> model_bias_ohm;        // --model-bias-ohm
   Given<double> relinearise_inventory; // --relinearise
   Given<bool> hold_until_settled;      // --no-hold (false)
+  // best: the cell's stated parameter spread (relative 1-sigma, StatedSpread), default 0.
+  Given<double> spread_anode_i0_rel;    // --spread-anode-i0
+  Given<double> spread_cathode_i0_rel;  // --spread-cathode-i0
+  Given<double> spread_transport_rel;   // --spread-transport
+  Given<double> spread_area_rel;        // --spread-area
 };
 
 /// An override make_config refused: the option's name (without "--") and why; option nullptr: none.
@@ -234,6 +239,10 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"model-bias-ohm", o.model_bias_ohm.given, id, only_best},
       {"relinearise", o.relinearise_inventory.given, id && observer, id ? no_observer : only_best},
       {"no-hold", o.hold_until_settled.given, id, only_best},
+      {"spread-anode-i0", o.spread_anode_i0_rel.given, id, only_best},
+      {"spread-cathode-i0", o.spread_cathode_i0_rel.given, id, only_best},
+      {"spread-transport", o.spread_transport_rel.given, id, only_best},
+      {"spread-area", o.spread_area_rel.given, id, only_best},
   };
   for (const Use& u : uses)
     if (u.given && !u.used) return {u.option, u.reason};
@@ -379,6 +388,10 @@ void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   set_if(o.model_bias_ohm, cfg.film_path.model_bias_ohm);
   set_if(o.relinearise_inventory, cfg.film_path.relinearise_inventory);
   set_if(o.hold_until_settled, cfg.film_path.hold_until_settled);
+  set_if(o.spread_anode_i0_rel, cfg.film_path.spread.anode_i0_rel);
+  set_if(o.spread_cathode_i0_rel, cfg.film_path.spread.cathode_i0_rel);
+  set_if(o.spread_transport_rel, cfg.film_path.spread.transport_rel);
+  set_if(o.spread_area_rel, cfg.film_path.spread.area_rel);
 }
 
 }  // namespace detail

@@ -56,6 +56,13 @@ class IdentifierFilmPath {
     // as |dV/dT / H| x this (the model's sensitivity, probed at each learning tick). A stated
     // accuracy of the sensor, not learned; 0 leaves it out.
     Scalar temperature_sd_k = Scalar(0.2);
+    // The cell's stated parameter spread (relative 1-sigma, StatedSpread): in CC charge the anode's
+    // and the cathode's charge-transfer, the transport overpotentials and the film add almost
+    // collinearly, so a cell whose kinetics or transport are known only to a lot tolerance has a film
+    // level known no better. Each enters the film's sd as its voltage 1-sigma / H (the reduced
+    // model's closed form at each learning tick, ReducedCell::spread_voltage_sd_v). A stated
+    // tolerance, never learned; 0 (a characterised cell) leaves it out.
+    StatedSpread<Scalar> spread{};
   };
 
   // Trivially copyable, for the NVM image.
@@ -126,6 +133,7 @@ class IdentifierFilmPath {
       l.inventory_sensitivity_v = (t.v_probe_v - t.r.voltage_v) / kInventoryProbe;
       const Scalar per_k = (v_warm_v_ - t.r.voltage_v) / (kTemperatureProbeK * t.r.markov_v_per_ohm_m2);
       if (c_.temperature_sd_k > Scalar(0) && std::isfinite(per_k)) film_per_kelvin_ohm_m2_ = std::fabs(per_k);
+      update_spread(model, t.r);
       l.status |= identifier_.learn(t.u_ohm_m2, t.z_v, t.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
                                     resync.inventory_deviation_model(), -c_.model_bias_ohm * t.current_a);
       l.active = (l.status & kIdentifierRejectMask) == 0u;
@@ -146,11 +154,16 @@ class IdentifierFilmPath {
   Scalar r_film_ohm_m2() const { return reported().film_ohm_m2(); }
   // The film's 1-sigma: the identifier's (regression and model bound) and the temperature
   // sensor's, |dV/dT / H| x temperature_sd_k, in quadrature.
+  // With a stated spread, its film equivalent too.
   Scalar film_sd_ohm_m2() const {
     const Scalar sd = reported().film_sd_ohm_m2();
     const Scalar t = film_per_kelvin_ohm_m2_ * c_.temperature_sd_k;
-    return std::isfinite(t) ? std::sqrt(sd * sd + t * t) : sd;
+    const Scalar with_t = std::isfinite(t) ? std::sqrt(sd * sd + t * t) : sd;
+    if (!(film_spread_ohm_m2_ > Scalar(0))) return with_t;
+    return std::sqrt(with_t * with_t + film_spread_ohm_m2_ * film_spread_ohm_m2_);
   }
+  // The stated spread's film equivalent [ohm m2] at the last learning tick (0 without one).
+  Scalar film_spread_ohm_m2() const { return film_spread_ohm_m2_; }
   Scalar innovation_test_ratio() const { return innovation_ratio_; }
   // The identified parameters and their uncertainties. theta: the ARX subsystem RCSI fits is not
   // used here; it reads as the hold RCSI starts from, [M1 = 1, 0, ...] (the identifier's film
@@ -200,6 +213,20 @@ class IdentifierFilmPath {
     return innovation_ratio_ > Scalar(1) ? bit(FwStatus::kModelMisfit) : 0u;
   }
 
+  // The stated spread's film equivalent at this learning tick: the model's voltage 1-sigma for it
+  // over the film's sensitivity H (as the temperature sensor's term).
+  template <class Model>
+  void update_spread(const Model& model, const ModelTickResult<Scalar>& r) {
+    if constexpr (kGivesSpread<Model, Scalar>) {
+      if (!c_.spread.any()) return;
+      const Scalar per = model.spread_voltage_sd_v(r.current_a, r.voltage_v, c_.spread) / r.markov_v_per_ohm_m2;
+      if (std::isfinite(per)) film_spread_ohm_m2_ = std::fabs(per);
+    } else {
+      (void)model;
+      (void)r;
+    }
+  }
+
   // The open-circuit capacity of the identified inventory (less the model's own lithium loss),
   // at the first tick, every kCapacityEveryTicks learning ticks and when a learning window
   // closes: two bisections, not every tick.
@@ -240,6 +267,7 @@ class IdentifierFilmPath {
   bool identifying_ = false;
   Scalar v_warm_v_ = Scalar(0);                // this tick's voltage at +kTemperatureProbeK
   Scalar film_per_kelvin_ohm_m2_ = Scalar(0);  // |dV/dT / H| of the last learning tick
+  Scalar film_spread_ohm_m2_ = Scalar(0);      // the stated spread's film 1-sigma, last learning tick
   std::uint32_t capacity_ticks_ = 0u;          // learning ticks since the capacity was last computed
 };
 

@@ -145,6 +145,30 @@ inline constexpr bool kProbesTemperature<
     std::void_t<decltype(std::declval<const Model&>().temperature_probe_voltage(
         std::declval<Scalar>(), std::declval<Scalar>(), std::declval<Scalar>(), std::declval<Scalar>()))>> = true;
 
+// A cell's stated parameter spread: relative 1-sigma of the anode's and the cathode's exchange
+// current, of each transport property (electrolyte conductivity and diffusivity, each electrode's
+// solid diffusivity, drawn independently) and of the electrode area (both electrodes' capacity
+// and current density). A lot tolerance the BMS is given, not learned; 0: a characterised cell.
+template <typename Scalar>
+struct StatedSpread {
+  Scalar anode_i0_rel = Scalar(0);
+  Scalar cathode_i0_rel = Scalar(0);
+  Scalar transport_rel = Scalar(0);
+  Scalar area_rel = Scalar(0);
+  bool any() const {
+    return anode_i0_rel > Scalar(0) || cathode_i0_rel > Scalar(0) || transport_rel > Scalar(0) || area_rel > Scalar(0);
+  }
+};
+
+// Whether a main-system model gives the voltage's 1-sigma for a stated spread (spread_voltage_sd_v).
+template <typename Model, typename Scalar, typename = void>
+inline constexpr bool kGivesSpread = false;
+template <typename Model, typename Scalar>
+inline constexpr bool kGivesSpread<
+    Model, Scalar,
+    std::void_t<decltype(std::declval<const Model&>().spread_voltage_sd_v(
+        std::declval<Scalar>(), std::declval<Scalar>(), std::declval<const StatedSpread<Scalar>&>()))>> = true;
+
 // Whether a main-system model gives the open-circuit capacity of an inventory (the reduced
 // model does; the host's full DFN does not, and the tick then reports NaN).
 template <typename Model, typename Scalar, typename = void>
@@ -347,6 +371,42 @@ class ReducedCell {
     ReducedCell shifted = *this;
     if (!shifted.set_temperature_k(temperature_k_ + d_temperature_k)) return std::numeric_limits<Scalar>::quiet_NaN();
     return shifted.peek_voltage(current_a, r_film_ohm_m2, dt_s);
+  }
+
+  // The terminal voltage's 1-sigma [V] at the tick just committed (step_current / step_voltage
+  // with this current) for a stated relative spread, each parameter's share in closed form from
+  // the committed state and in quadrature: a kinetic overpotential 2/f asinh(j / 2 i0) at
+  // i0 (1 - s) less at i0 (the larger excursion of +-s: -ln(1 - s) > ln(1 + s)); a transport
+  // property's drop (electrolyte ohmic, electrolyte concentration, each electrode's surface-minus-
+  // mean OCP) at quasi-steady state inversely proportional to it, so x s / (1 - s); the area's
+  // the cell's whole polarisation V - OCV(mean stoichiometries) x s / (1 - s) (current density
+  // per area; the capacity's shift of the stoichiometries is left to the identified inventory).
+  Scalar spread_voltage_sd_v(Scalar current_a, Scalar voltage_v, const StatedSpread<Scalar>& s) const {
+    const Scalar i_app = current_a / Scalar(Cell::kAreaM2);
+    const Scalar j_n = i_app / Scalar(a_neg() * Cell::kNeg.thickness_m);
+    const Scalar j_p = -i_app / Scalar(a_pos() * Cell::kPos.thickness_m);
+    const Scalar js = s_.j_side_a_m2;
+    Scalar ce[kNx];
+    for (int k = 0; k < kNx; ++k) ce[k] = clamp_low(s_.ce_mol_m3[k] + s_.ce_carry_mol_m3[k]);
+    const double cmax_n = Cell::kNeg.max_concentration_mol_m3, cmax_p = Cell::kPos.max_concentration_mol_m3;
+    const Scalar cs_n = clamp_conc(s_.cs_neg_mol_m3[kNrN - 1] + s_.cs_neg_carry_mol_m3[kNrN - 1] -
+                                       half_n_ * (j_n - js) / Scalar(kFaradayC_mol) / ds_neg_, cmax_n);
+    const Scalar cs_p = clamp_conc(s_.cs_pos_mol_m3[kNrP - 1] + s_.cs_pos_carry_mol_m3[kNrP - 1] -
+                                       half_p_ * j_p / Scalar(kFaradayC_mol) / ds_pos_, cmax_p);
+    const Scalar kin_n = kinetic_spread_v(ce, 0, kNn, i0_coef_neg_, cs_n, cmax_n, j_n - js, s.anode_i0_rel);
+    const Scalar kin_p = kinetic_spread_v(ce, kNn + kNs, kNx, i0_coef_pos_, cs_p, cmax_p, j_p, s.cathode_i0_rel);
+    const Scalar inverse = spread_inverse(s.transport_rel);
+    Scalar ohmic_v = Scalar(0), conc_v = Scalar(0);
+    electrolyte_drops(ce, j_n, j_p, ohmic_v, conc_v);
+    const Scalar mean_n = mean_stoich_neg(), mean_p = mean_stoich_pos();
+    const Scalar ocv_mean = Cell::ocp_pos_v(mean_p) - Cell::ocp_neg_v(mean_n);
+    const Scalar solid_n = Cell::ocp_neg_v(cs_n / Scalar(cmax_n)) - Cell::ocp_neg_v(mean_n);
+    const Scalar solid_p = Cell::ocp_pos_v(cs_p / Scalar(cmax_p)) - Cell::ocp_pos_v(mean_p);
+    const Scalar terms[] = {kin_n, kin_p, ohmic_v * inverse, conc_v * inverse, solid_n * inverse, solid_p * inverse,
+                            (voltage_v - ocv_mean) * spread_inverse(s.area_rel)};
+    Scalar sum = Scalar(0);
+    for (const Scalar t : terms) sum += t * t;
+    return std::sqrt(sum);
   }
 
   // Ramadass film growth per unit of the model's volumetric side current:
@@ -842,6 +902,44 @@ class ReducedCell {
       phis_p = phis_p + phie[k] + ocp_p + Scalar(2) / frt * asinh_of(j_p / (Scalar(2) * i0));
     }
     return phis_p / Scalar(kNp);
+  }
+
+  // s / (1 - s): a property inversely proportional to a parameter at (1 - s) of it, relative.
+  static Scalar spread_inverse(Scalar s) {
+    return s > Scalar(0) && s < Scalar(1) ? s / (Scalar(1) - s) : Scalar(0);
+  }
+
+  // Mean over the cells [k0, k1) of 2/f (asinh(j / 2 i0 (1 - s)) - asinh(j / 2 i0)) [V], |.|.
+  Scalar kinetic_spread_v(const Scalar (&ce)[kNx], int k0, int k1, Scalar i0_coef, Scalar cs, double cmax, Scalar j,
+                          Scalar s) const {
+    if (!(s > Scalar(0) && s < Scalar(1))) return Scalar(0);
+    Scalar sum = Scalar(0);
+    for (int k = k0; k < k1; ++k) {
+      const Scalar x = j / (Scalar(2) * i0_coef * std::sqrt(ce[k] * cs * (Scalar(cmax) - cs)));
+      sum += asinh_of(x / (Scalar(1) - s)) - asinh_of(x);
+    }
+    return std::fabs(Scalar(2) / frt_ * sum / Scalar(k1 - k0));
+  }
+
+  // The electrolyte's ohmic drop and concentration overpotential between the mean of the cathode's
+  // cells and the mean of the anode's [V], |.| (electrolyte_potential's split of phi_e).
+  void electrolyte_drops(const Scalar (&ce)[kNx], Scalar j_n, Scalar j_p, Scalar& ohmic_v, Scalar& conc_v) const {
+    const Scalar nu = Scalar(2.0 * (1.0 - Cell::kTransference)) / frt_;
+    Scalar psi = Scalar(0), ie = Scalar(0), psi_n = Scalar(0), psi_p = Scalar(0), ln_n = Scalar(0), ln_p = Scalar(0);
+    Scalar kap_k = Cell::electrolyte_conductivity_s_m(ce[0]) * te_ke_[0];
+    for (int k = 0; k < kNx; ++k) {
+      if (k > 0) {
+        const Scalar j_k = k - 1 < kNn ? j_n : (k - 1 < kNn + kNs ? Scalar(0) : j_p);
+        ie += a_[k - 1] * j_k * dx_[k - 1];
+        const Scalar kap_n = Cell::electrolyte_conductivity_s_m(ce[k]) * te_ke_[k];
+        psi -= ie * (dx_[k - 1] / (Scalar(2) * kap_k) + dx_[k] / (Scalar(2) * kap_n));
+        kap_k = kap_n;
+      }
+      if (k < kNn) psi_n += psi, ln_n += std::log(ce[k]);
+      if (k >= kNn + kNs) psi_p += psi, ln_p += std::log(ce[k]);
+    }
+    ohmic_v = std::fabs(psi_p / Scalar(kNp) - psi_n / Scalar(kNn));
+    conc_v = std::fabs(nu * (ln_p / Scalar(kNp) - ln_n / Scalar(kNn)));
   }
 
   template <typename T>
