@@ -1,0 +1,95 @@
+// The stated parameter spread's voltage 1-sigma (ReducedCell::spread_voltage_sd_v) and its film
+// equivalent in the identifier path's sd (IdentifierFilmPath::Config::spread).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "bms/fw/model/reduced_cell.hpp"
+
+namespace {
+
+namespace fw = bms::fw;
+using Model = fw::ReducedCell<double>;
+using Spread = fw::StatedSpread<double>;
+
+constexpr double kChargeA = -2.5;  // 1C charge
+constexpr double kFilmOhmM2 = 3.391e-3;
+constexpr double kDtS = 0.2;
+
+// The paper cell with the anode's exchange current at (1 - s) of nominal.
+template <int PerMille>
+struct SlowAnodeTraits : fw::PaperCellTraits {
+  static constexpr fw::paper::Electrode scaled() {
+    fw::paper::Electrode e = fw::PaperCellTraits::kNeg;
+    e.i0_coefficient *= 1.0 - PerMille / 1000.0;
+    return e;
+  }
+  static constexpr fw::paper::Electrode kNeg = scaled();
+};
+
+// A nominal model after `ticks` of 1C charge from the default state, and this tick's voltage.
+double charged(Model& m, int ticks) {
+  m.init_default();
+  double v = 0.0;
+  for (int k = 0; k < ticks; ++k) v = m.step_current(kChargeA, kFilmOhmM2, kDtS).voltage_v;
+  return v;
+}
+
+TEST(StatedSpread, ZeroStatedGivesZeroAndTheTermGrowsWithTheStatedSpread) {
+  Model m;
+  const double v = charged(m, 600);  // 2 minutes of 1C charge: 3.48 V
+  EXPECT_EQ(m.spread_voltage_sd_v(kChargeA, v, Spread{}), 0.0);
+  double last = 0.0;
+  for (double s : {0.02, 0.05, 0.1, 0.2, 0.4}) {
+    Spread sp;
+    sp.anode_i0_rel = s;
+    sp.cathode_i0_rel = s;
+    sp.transport_rel = s;
+    sp.area_rel = s;
+    const double sd = m.spread_voltage_sd_v(kChargeA, v, sp);
+    EXPECT_GT(sd, last) << s;
+    last = sd;
+  }
+  // Each stated parameter alone gives a positive term.
+  for (int which = 0; which < 4; ++which) {
+    Spread sp;
+    (which == 0 ? sp.anode_i0_rel : which == 1 ? sp.cathode_i0_rel : which == 2 ? sp.transport_rel : sp.area_rel) = 0.1;
+    EXPECT_GT(m.spread_voltage_sd_v(kChargeA, v, sp), 0.0) << which;
+  }
+}
+
+// On a known tick the anode term is the voltage a model whose anode exchange current is (1 - s)
+// of nominal gives from the same state: the closed form is the model's own kinetics.
+TEST(StatedSpread, TheAnodeKineticTermIsTheModelsResponseToASlowerAnode) {
+  Model m;
+  const double v = charged(m, 600);  // 2 minutes of 1C charge: 3.48 V
+  Spread sp;
+  sp.anode_i0_rel = 0.2;
+  const double closed_v = m.spread_voltage_sd_v(kChargeA, v, sp);
+  fw::ReducedCell<double, SlowAnodeTraits<200>> slow;
+  slow.init_default();
+  typename fw::ReducedCell<double, SlowAnodeTraits<200>>::State st{};
+  static_assert(sizeof(st) == sizeof(m.state()), "same state layout");
+  std::memcpy(&st, &m.state(), sizeof(st));
+  ASSERT_TRUE(slow.restore(st));
+  // The next tick from the same state, nominal and slow: the difference is the kinetics' share.
+  const double dv = m.peek_voltage(kChargeA, kFilmOhmM2, kDtS) - slow.peek_voltage(kChargeA, kFilmOhmM2, kDtS);
+  EXPECT_LT(dv, 0.0);  // a slower anode charges at a higher voltage
+  EXPECT_NEAR(closed_v, std::fabs(dv), 1e-3 * std::fabs(dv));  // measured 1e-5 relative
+  // And its size against the film: several times the film's own drop j_n R_film at 1C.
+  const double h = m.step_current(kChargeA, kFilmOhmM2, kDtS).markov_v_per_ohm_m2;
+  EXPECT_GT(closed_v / std::fabs(h), kFilmOhmM2);
+}
+
+// A spread of 1 or more has no 1 - s to divide by: the term is left out, not infinite.
+TEST(StatedSpread, ASpreadOfOneOrMoreIsLeftOut) {
+  Model m;
+  const double v = charged(m, 600);
+  Spread sp;
+  sp.anode_i0_rel = 1.0;
+  sp.transport_rel = 2.0;
+  EXPECT_EQ(m.spread_voltage_sd_v(kChargeA, v, sp), 0.0);
+}
+
+}  // namespace
