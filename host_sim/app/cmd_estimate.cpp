@@ -279,18 +279,14 @@ Runner add_estimate(CLI::App& app) {
       "a characterised cell) of ";
   const std::string spread_end = "; its film equivalent enters r_film_sd_ohm_m2 in quadrature";
   sub->add_option("--spread-anode-i0", c->o.overrides.spread_anode_i0_rel.value,
-                  spread + "the anode's exchange current" + spread_end)
-      ->check(CLI::Range(0.0, 0.9));
+                  spread + "the anode's exchange current" + spread_end);
   sub->add_option("--spread-cathode-i0", c->o.overrides.spread_cathode_i0_rel.value,
-                  spread + "the cathode's exchange current" + spread_end)
-      ->check(CLI::Range(0.0, 0.9));
+                  spread + "the cathode's exchange current" + spread_end);
   sub->add_option("--spread-transport", c->o.overrides.spread_transport_rel.value,
                   spread + "each transport property (electrolyte conductivity and diffusivity, each electrode's solid "
-                           "diffusivity, independently)" + spread_end)
-      ->check(CLI::Range(0.0, 0.9));
+                           "diffusivity, independently)" + spread_end);
   sub->add_option("--spread-area", c->o.overrides.spread_area_rel.value,
-                  spread + "the electrode area (both electrodes' capacity)" + spread_end)
-      ->check(CLI::Range(0.0, 0.9));
+                  spread + "the electrode area (both electrodes' capacity)" + spread_end);
   sub->add_flag("!--no-current-offset", c->o.overrides.current_offset.value,
                 "Do not remove the current sensor's offset (default with --settings best: measured between two CV "
                 "end points of the same kind, where the cell is in the same state, as the counted charge over the "

@@ -42,6 +42,25 @@ for o in "no-start-resync" "resync-window 5" "resync-current 0.2" "reference-aft
   # shellcheck disable=SC2086
   refused paper $o
 done
+# The stated spread is the identifier's sd: refused where RCSI learns.
+for p in paper nominal-growth; do
+  for o in "spread-anode-i0 0.1" "spread-cathode-i0 0.1" "spread-transport 0.1" "spread-area 0.01"; do
+    # shellcheck disable=SC2086
+    refused "$p" $o
+  done
+done
+# A relative 1-sigma outside [0, 0.9] exits 2 naming the option.
+for o in "spread-anode-i0 0.95" "spread-transport -0.1"; do
+  read -r opt val <<< "$o"
+  check_input_error "best-$opt-range" "--$opt" "$WORK/o" -- \
+    "$BMSSIM" estimate --data short.csv --settings best "--$opt" "$val" --quiet --out "$WORK/o"
+done
+accepted best --spread-anode-i0 0.17 --spread-cathode-i0 0.16 --spread-transport 0.12 --spread-area 0.02
+python3 - "$WORK/a/summary.json" <<'PY' && pass "summary records the stated spread" || fail "stated spread" "see above"
+import json, sys
+s = json.load(open(sys.argv[1]))["options"]["stated_spread_rel"]
+assert s == {"anode_i0": 0.17, "cathode_i0": 0.16, "transport": 0.12, "area": 0.02}, s
+PY
 # --settings nominal-growth: H from the model, no identifier.
 for o in "h 0.02" "no-inventory" "model-bias-ohm 0" "relinearise 1"; do
   # shellcheck disable=SC2086

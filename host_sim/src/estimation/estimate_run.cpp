@@ -7,6 +7,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -424,6 +425,13 @@ void check_estimate_options(const EstimateOptions& o) {
     throw InputError("--r-film-init: must be a finite film resistance in [0, 1] ohm m2");
   if (bad(v.theta0, [&](const fw::Theta0& t) { return t.count == 2 * v.nc.or_else(1); }))
     throw InputError(fmt::format("--theta0: needs 2 n_c = {} values (got {})", 2 * v.nc.or_else(1), v.theta0.value.count));
+  const std::pair<const char*, const fw::Given<double>*> spreads[] = {{"spread-anode-i0", &v.spread_anode_i0_rel},
+                                                                      {"spread-cathode-i0", &v.spread_cathode_i0_rel},
+                                                                      {"spread-transport", &v.spread_transport_rel},
+                                                                      {"spread-area", &v.spread_area_rel}};
+  for (const auto& [name, g] : spreads)
+    if (bad(*g, [](double x) { return x >= 0.0 && x <= 0.9; }))
+      throw InputError(fmt::format("--{} must be a relative 1-sigma in [0, 0.9] (got {})", name, g->value));
 }
 
 namespace {

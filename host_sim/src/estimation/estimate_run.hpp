@@ -109,6 +109,7 @@ struct EstimateConfigSummary {
   double resync_current_a = 0, warmup_s = 0, nominal_inventory_mol = 0, voltage_min_v = 0, voltage_max_v = 0, dt_s = 0;
   bool calibrate_bias = false, average_estimate = false, learning = true, identify_growth = false, learn_inventory = true;
   double propagated_growth_ohm_m2_per_a_m3_s = 0, model_bias_ohm = 0, relinearise_inventory = 0;
+  fw::StatedSpread<double> spread{};  // the cell's stated parameter spread (relative 1-sigma)
 };
 
 template <class Config>
@@ -144,6 +145,8 @@ EstimateConfigSummary summarise_config(const Config& c, int nc) {
     s.learn_inventory = p.identifier.learn_inventory;
     s.model_bias_ohm = p.model_bias_ohm;
     s.relinearise_inventory = p.relinearise_inventory;
+    s.spread = {double(p.spread.anode_i0_rel), double(p.spread.cathode_i0_rel), double(p.spread.transport_rel),
+                double(p.spread.area_rel)};
   }
   return s;
 }
