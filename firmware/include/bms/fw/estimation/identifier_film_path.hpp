@@ -109,6 +109,7 @@ class IdentifierFilmPath {
     if (c_.hold_until_settled && !holding_) {
       held_ = identifier_;
       holding_ = true;
+      held_is_prior_ = false;
     }
     identifier_.relinearise();
   }
@@ -154,12 +155,13 @@ class IdentifierFilmPath {
   Scalar r_film_ohm_m2() const { return reported().film_ohm_m2(); }
   // The film's 1-sigma: the identifier's (regression and model bound) and the temperature
   // sensor's, |dV/dT / H| x temperature_sd_k, in quadrature.
-  // With a stated spread, its film equivalent too.
+  // With a stated spread, its film equivalent too, where the reported film is fitted to the
+  // voltage (the spread's collinear share is the fit's); the held prior's sd is the prior's.
   Scalar film_sd_ohm_m2() const {
     const Scalar sd = reported().film_sd_ohm_m2();
     const Scalar t = film_per_kelvin_ohm_m2_ * c_.temperature_sd_k;
     const Scalar with_t = std::isfinite(t) ? std::sqrt(sd * sd + t * t) : sd;
-    if (!(film_spread_ohm_m2_ > Scalar(0))) return with_t;
+    if (!(film_spread_ohm_m2_ > Scalar(0)) || (holding_ && held_is_prior_)) return with_t;
     return std::sqrt(with_t * with_t + film_spread_ohm_m2_ * film_spread_ohm_m2_);
   }
   // The stated spread's film equivalent [ohm m2] at the last learning tick (0 without one).
@@ -260,6 +262,7 @@ class IdentifierFilmPath {
   Identifier identifier_;
   Identifier held_;       // reported while holding_ (Config::hold_until_settled)
   bool holding_ = false;
+  bool held_is_prior_ = true;  // held_ is the prior (never fitted): no spread term on its sd
   Scalar capacity_ah_ = std::numeric_limits<Scalar>::quiet_NaN();
   Scalar capacity_sd_ah_ = std::numeric_limits<Scalar>::quiet_NaN();
   Scalar innovation_mean_v_ = Scalar(0);
