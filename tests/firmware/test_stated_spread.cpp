@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 
 #include "bms/fw/model/reduced_cell.hpp"
@@ -80,6 +81,34 @@ TEST(StatedSpread, TheAnodeKineticTermIsTheModelsResponseToASlowerAnode) {
   // And its size against the film: several times the film's own drop j_n R_film at 1C.
   const double h = m.step_current(kChargeA, kFilmOhmM2, kDtS).markov_v_per_ohm_m2;
   EXPECT_GT(closed_v / std::fabs(h), kFilmOhmM2);
+}
+
+// Each term's size at this tick for set 4's tolerances stated as 1-sigma (kinetics 30 %, transport
+// 20 %, area 3 %, each / sqrt(3)), as % of the film (printed for docs/results/envelope.md): the
+// kinetics' share is several films, the transport's a tenth of one.
+TEST(StatedSpread, TermsAtA1CChargeTickAgainstTheFilm) {
+  Model m;
+  const double v = charged(m, 600);
+  const double film_v = kFilmOhmM2 * m.step_current(kChargeA, kFilmOhmM2, kDtS).markov_v_per_ohm_m2;
+  m.init_default();
+  const double v0 = charged(m, 600);
+  ASSERT_EQ(v, v0);
+  const double stated[4] = {0.1732, 0.1732, 0.1155, 0.01732};
+  const char* names[4] = {"anode i0", "cathode i0", "transport", "area"};
+  double pct[5];
+  for (int which = 0; which < 5; ++which) {
+    Spread sp;
+    if (which == 0 || which == 4) sp.anode_i0_rel = stated[0];
+    if (which == 1 || which == 4) sp.cathode_i0_rel = stated[1];
+    if (which == 2 || which == 4) sp.transport_rel = stated[2];
+    if (which == 3 || which == 4) sp.area_rel = stated[3];
+    pct[which] = 100.0 * m.spread_voltage_sd_v(kChargeA, v, sp) / film_v;
+    std::printf("stated spread at 1C, 120 s into the charge: %s %.1f %% of the film\n",
+                which < 4 ? names[which] : "all (quadrature)", pct[which]);
+  }
+  EXPECT_GT(pct[0], 100.0);  // the anode's kinetics alone: more than the film
+  EXPECT_LT(pct[2], 0.2 * pct[0]);
+  EXPECT_NEAR(pct[4] * pct[4], pct[0] * pct[0] + pct[1] * pct[1] + pct[2] * pct[2] + pct[3] * pct[3], 1e-6 * pct[4] * pct[4]);
 }
 
 // A spread of 1 or more has no 1 - s to divide by: the term is left out, not infinite.
