@@ -73,6 +73,7 @@ class CurrentOffset {
   Scalar offset_a() const { return c_.enabled && std::fabs(offset_a_) > c_.deadband_a ? offset_a_ : Scalar(0); }
   Scalar measured_offset_a() const { return offset_a_; }
   std::uint32_t fused() const { return fused_; }
+  const Config& config() const { return c_; }
 
   // Step 2: counts the measured current over this tick and the `missed` ticks before it (on the
   // current interpolated between the two samples, as the catch-up steps the model).
