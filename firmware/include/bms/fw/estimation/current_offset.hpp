@@ -21,7 +21,9 @@
 //                   is not what the model thinks, and nothing is corrected);
 //   continue        the offset is the running mean of the fused spans (the last
 //                   Config::average_over weighted equally), subtracted from every accepted
-//                   sample's current from the next tick on when it is outside the dead band;
+//                   sample's current from the next tick on when it is outside the dead band
+//                   (a move of the offset in use by more than the dead band restarts the film
+//                   path from its prior: BmsCore::follow_offset);
 //   stop            a power cycle or a gap over Config::max_gap_s drops the open spans (the
 //                   offset stays): a record sampled every second or slower never fuses one.
 // The counted charge is kept in double on every target: a float sum over a cycle's 40 000 ticks
