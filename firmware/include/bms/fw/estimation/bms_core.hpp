@@ -217,7 +217,7 @@ class BmsCore {
     if (!step.r.valid) return model_failed(st, gate.open);
     if (!step.r.converged) st |= bit(FwStatus::kModelNotConverged);
     st |= resync_step(c, u, step.voltage_driven);                                 // 7
-    offset_.follow_phase(step.voltage_driven, mode == Mode::cv_charge, in.voltage_v, in.current_a);
+    follow_offset(in, mode, step.voltage_driven);
     const Scalar z = step.r.voltage_v - in.voltage_v;
     if (gate.reference) path_.collect_reference(z);                               // 8
     const Learned learned = learn(c, u, z, step, gate.open);                      // 9
@@ -442,6 +442,16 @@ class BmsCore {
     if (!model_.resync(m.voltage_v, m.current_a, u, config_.dt_s, target_mol)) return bit(FwStatus::kResyncFailed);
     if (resync_.succeeded(nu, path_.relinearise_inventory())) path_.relinearise();
     return 0u;
+  }
+
+  // Step 7: CurrentOffset's end points. When the offset in use moves by more than its dead band
+  // (in practice: the first span fused), everything the film path learned was on the old current:
+  // it is forgotten, and the re-synchronisation window this CV end opened (the same trigger)
+  // places the model at the restarted path's inventory when it fills.
+  void follow_offset(const TickInput<Scalar>& measured, Mode mode, bool voltage_driven) {
+    const Scalar before_a = offset_.offset_a();
+    if (!offset_.follow_phase(voltage_driven, mode == Mode::cv_charge, measured.voltage_v, measured.current_a)) return;
+    if (std::fabs(offset_.offset_a() - before_a) > offset_.config().deadband_a) path_.forget();
   }
 
   // Step 9 (the film's propagation over the tick included).

@@ -21,7 +21,9 @@
 //                   is not what the model thinks, and nothing is corrected);
 //   continue        the offset is the running mean of the fused spans (the last
 //                   Config::average_over weighted equally), subtracted from every accepted
-//                   sample's current from the next tick on when it is outside the dead band;
+//                   sample's current from the next tick on when it is outside the dead band
+//                   (a move of the offset in use by more than the dead band restarts the film
+//                   path from its prior: BmsCore::follow_offset);
 //   stop            a power cycle or a gap over Config::max_gap_s drops the open spans (the
 //                   offset stays): a record sampled every second or slower never fuses one.
 // The counted charge is kept in double on every target: a float sum over a cycle's 40 000 ticks
@@ -73,6 +75,7 @@ class CurrentOffset {
   Scalar offset_a() const { return c_.enabled && std::fabs(offset_a_) > c_.deadband_a ? offset_a_ : Scalar(0); }
   Scalar measured_offset_a() const { return offset_a_; }
   std::uint32_t fused() const { return fused_; }
+  const Config& config() const { return c_; }
 
   // Step 2: counts the measured current over this tick and the `missed` ticks before it (on the
   // current interpolated between the two samples, as the catch-up steps the model).

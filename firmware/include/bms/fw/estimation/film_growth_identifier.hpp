@@ -196,6 +196,15 @@ class FilmGrowthIdentifier {
     refresh();
   }
 
+  // What was learned came from data the model cannot explain any more (the current sensor's
+  // offset was removed from the samples since: BmsCore): forget it and its values, and start
+  // again from the prior (mean and covariance) as at power-up. G, the nominal law's integral, is
+  // the cell's history, not learned: it is kept.
+  void restart_from_prior() {
+    rls_ = RlsType(make_rls_config(config_));
+    refresh();
+  }
+
   State save() const { return State{rls_.save(), growth_, growth_at_charge_, growth_carry_}; }
   bool restore(const State& s) {
     RlsType candidate = rls_;

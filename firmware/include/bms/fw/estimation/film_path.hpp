@@ -16,7 +16,8 @@
 //           window_opens(last_j_side)
 //   step 5: film_in_use(open)
 //   step 6: learns_from_probes(gate, open, voltage_driven), probe(model, current, u, dt, inventory)
-//   step 7: inventory_deviation(), relinearise_inventory(), relinearise()
+//   step 7: inventory_deviation(), relinearise_inventory(), relinearise(), forget() (the
+//           current sensor's offset in use changed: what was learned on the old one is dropped)
 //   step 8: collect_reference(z)
 //   step 9: learn(tick, model, gate, resync)   (the film's propagation over the tick included)
 //   catch-up and model failure: propagate(j_side, dt), model_failed(open, last_j_side)

@@ -110,6 +110,7 @@ class RcsiFilmPath {
   Scalar inventory_deviation() const { return Scalar(0); }
   Scalar relinearise_inventory() const { return Scalar(0); }
   void relinearise() {}
+  void forget() {}  // RCSI restarts at every learning window anyway
   Scalar inventory_limit() const { return Scalar(0); }
 
   // Step 8.
