@@ -122,6 +122,7 @@ class IdentifierFilmPath {
     if (c_.hold_until_settled && !holding_) {
       held_ = identifier_;
       holding_ = true;
+      held_is_prior_ = false;
     }
     identifier_.restart_from_prior();
   }
