@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstring>
 
+#include "bms/fw/estimation/identifier_film_path.hpp"
 #include "bms/fw/model/reduced_cell.hpp"
 
 namespace {
@@ -119,6 +120,88 @@ TEST(StatedSpread, ASpreadOfOneOrMoreIsLeftOut) {
   sp.anode_i0_rel = 1.0;
   sp.transport_rel = 2.0;
   EXPECT_EQ(m.spread_voltage_sd_v(kChargeA, v, sp), 0.0);
+}
+
+// The film path's reported level with a stated spread: the inverse-variance mean of the prior and
+// the fitted level (the fit's sd with the spread's term), off without a spread. A stand-in model
+// gives a spread whose film equivalent is twice the film, as set 4's kinetics about do.
+struct SpreadModel {
+  double sd_v;
+  double spread_voltage_sd_v(double /*current_a*/, double /*voltage_v*/, const Spread& /*s*/) const { return sd_v; }
+};
+static_assert(fw::kGivesSpread<SpreadModel, double>, "the stand-in gives a spread");
+
+using Path = fw::IdentifierFilmPath<double>;
+constexpr double kH = 0.9;  // dV/dR_film [V per ohm m2] at a 1C charge tick, about
+
+Path::Config path_config(bool stated) {
+  Path::Config c;
+  c.identifier.r_film_nominal_ohm_m2 = kFilmOhmM2;
+  c.identifier.growth_nominal_ohm_m2_per_a_m3_s = 1e-12;
+  c.temperature_sd_k = 0.0;
+  if (stated) c.spread.anode_i0_rel = 0.1732;
+  return c;
+}
+
+// `ticks` learning ticks on a cell whose film is true_ohm_m2 (z = H (u - R), no noise).
+void learn_ticks(Path& path, int ticks, double true_ohm_m2) {
+  const SpreadModel model{2.0 * kFilmOhmM2 * kH};
+  fw::LearningGate<double> gate(fw::LearningGate<double>::Config{});
+  const fw::StateResync<double> resync(fw::StateResync<double>::Config{});
+  for (int k = 0; k < ticks; ++k) {
+    const double u = path.film_in_use(true);
+    fw::FilmTick<double> t{};
+    t.r = fw::ModelTickResult<double>{3.6, kChargeA, -1.0, kH, 0, true, true};
+    t.current_a = kChargeA;
+    t.u_ohm_m2 = u;
+    t.z_v = kH * (u - true_ohm_m2);
+    t.v_probe_v = t.r.voltage_v;  // no inventory information
+    t.dt_s = kDtS;
+    t.nominal_inventory_mol = 0.0;
+    t.open = true;
+    t.probed = true;
+    path.learn(t, model, gate, resync);
+  }
+}
+
+TEST(StatedSpread, TheReportedFilmIsTheInverseVarianceMeanOfThePriorAndTheFit) {
+  const double truth = 1.5 * kFilmOhmM2;
+  Path fused(path_config(true), kDtS), plain(path_config(false), kDtS);
+  // Before any fit the prior is held: reported as it is, with its own sd.
+  EXPECT_EQ(fused.r_film_ohm_m2(), plain.r_film_ohm_m2());
+  EXPECT_EQ(fused.film_sd_ohm_m2(), plain.film_sd_ohm_m2());
+  learn_ticks(fused, 200, truth);
+  learn_ticks(plain, 200, truth);
+  ASSERT_FALSE(fused.holding());
+  ASSERT_FALSE(plain.holding());
+  // The spread changes what is reported, not what is fitted.
+  const double fit = fused.identifier().film_ohm_m2();
+  EXPECT_EQ(fit, plain.identifier().film_ohm_m2());
+  EXPECT_NEAR(fit, truth, 1e-3 * truth);
+  // No spread: the fit and its sd, unchanged.
+  EXPECT_EQ(plain.r_film_ohm_m2(), fit);
+  EXPECT_EQ(plain.film_sd_ohm_m2(), plain.fitted_sd_ohm_m2());
+  // The prior is what an identifier that never learned reports at the same growth.
+  const fw::FilmGrowthIdentifier<double>& id = fused.identifier();
+  fw::FilmGrowthIdentifier<double> never(path_config(true).identifier);
+  never.propagate(-1.0, 200 * kDtS);
+  EXPECT_NEAR(id.growth_ohm_m2(), never.growth_ohm_m2(), 1e-15);
+  EXPECT_NEAR(id.prior_film_ohm_m2(), never.film_ohm_m2(), 1e-15);
+  EXPECT_NEAR(id.prior_film_sd_ohm_m2(), never.film_sd_ohm_m2(), 1e-9 * never.film_sd_ohm_m2());
+  // The fit's sd carries the spread's film equivalent (twice the film) in quadrature.
+  const double sf = fused.fitted_sd_ohm_m2(), sp = id.prior_film_sd_ohm_m2(), prior = id.prior_film_ohm_m2();
+  EXPECT_NEAR(fused.film_spread_ohm_m2(), 2.0 * kFilmOhmM2, 1e-12);
+  EXPECT_NEAR(sf * sf, plain.fitted_sd_ohm_m2() * plain.fitted_sd_ohm_m2() + 4.0 * kFilmOhmM2 * kFilmOhmM2, 1e-15);
+  ASSERT_GT(sf, sp);  // the fit says less than the prior here
+  const double wp = 1.0 / (sp * sp), wf = 1.0 / (sf * sf);
+  EXPECT_NEAR(fused.r_film_ohm_m2(), (wp * prior + wf * fit) / (wp + wf), 1e-12 * fit);
+  EXPECT_NEAR(fused.film_sd_ohm_m2(), 1.0 / std::sqrt(wp + wf), 1e-12 * sp);
+  // Between the two, nearer the prior; sharper than either.
+  EXPECT_GT(fused.r_film_ohm_m2(), prior);
+  EXPECT_LT(fused.r_film_ohm_m2(), 0.5 * (prior + fit));
+  EXPECT_LT(fused.film_sd_ohm_m2(), sp);
+  std::printf("prior %.4g (sd %.3g), fit %.4g (sd %.3g): reported %.4g (sd %.3g) ohm m2\n", prior, sp, fit, sf,
+              fused.r_film_ohm_m2(), fused.film_sd_ohm_m2());
 }
 
 }  // namespace

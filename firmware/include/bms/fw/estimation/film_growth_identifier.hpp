@@ -116,6 +116,21 @@ class FilmGrowthIdentifier {
     const Real sd = std::sqrt((v > Real(0) ? v : Real(0)) + m * m);
     return static_cast<Scalar>(sd);
   }
+  // The prior's film and its 1-sigma at this tick: what an identifier that never learned reports
+  // (theta(0) = the nominal film and gain 1, P(0) = the stated priors, with the same G and the
+  // same model bound): the nominal cell's film grown by the nominal law.
+  Scalar prior_film_ohm_m2() const {
+    const Scalar r = config_.r_film_nominal_ohm_m2 + growth_;
+    if (!std::isfinite(r)) return config_.r_film_nominal_ohm_m2;
+    return r < config_.r_film_min_ohm_m2 ? config_.r_film_min_ohm_m2
+                                         : (r > config_.r_film_max_ohm_m2 ? config_.r_film_max_ohm_m2 : r);
+  }
+  Scalar prior_film_sd_ohm_m2() const {
+    const Real g = static_cast<Real>(growth_), pr = static_cast<Real>(config_.prior_r0_ohm_m2),
+               pg = static_cast<Real>(config_.prior_gain);
+    const Real m = static_cast<Real>(config_.film_model_sd_rel * prior_film_ohm_m2());
+    return static_cast<Scalar>(std::sqrt(pr * pr + g * g * pg * pg + m * m));
+  }
   // Whether the film's regression variance (what the data since the last relinearise() left
   // open) is within the stated model bound: the estimate no longer moves by more than the
   // model's own error as the next samples come in.

@@ -122,6 +122,7 @@ class IdentifierFilmPath {
     if (c_.hold_until_settled && !holding_) {
       held_ = identifier_;
       holding_ = true;
+      held_is_prior_ = false;
     }
     identifier_.restart_from_prior();
   }
@@ -164,17 +165,49 @@ class IdentifierFilmPath {
   }
   StatusWord model_failed(bool /*open*/, Scalar /*last_j_side_a_m3*/) { return 0u; }
 
-  Scalar r_film_ohm_m2() const { return reported().film_ohm_m2(); }
-  // The film's 1-sigma: the identifier's (regression and model bound) and the temperature
+  // The reported film: the identified one; with a stated spread, once a fitted level is reported,
+  // the inverse-variance combination of the prior and that fit (fused_with_prior).
+  Scalar r_film_ohm_m2() const {
+    const Scalar fit = reported().film_ohm_m2();
+    return fuses_with_prior() ? fused_with_prior(fit, fitted_sd_ohm_m2()).film_ohm_m2 : fit;
+  }
+  // The reported film's 1-sigma: the fitted level's (fitted_sd_ohm_m2), or with a stated spread
+  // that of its combination with the prior, 1 / sqrt(1 / sd_prior^2 + 1 / sd_fit^2).
+  Scalar film_sd_ohm_m2() const {
+    const Scalar sd = fitted_sd_ohm_m2();
+    return fuses_with_prior() ? fused_with_prior(reported().film_ohm_m2(), sd).sd_ohm_m2 : sd;
+  }
+  // The fitted level's 1-sigma: the identifier's (regression and model bound) and the temperature
   // sensor's, |dV/dT / H| x temperature_sd_k, in quadrature.
   // With a stated spread, its film equivalent too, where the reported film is fitted to the
   // voltage (the spread's collinear share is the fit's); the held prior's sd is the prior's.
-  Scalar film_sd_ohm_m2() const {
+  Scalar fitted_sd_ohm_m2() const {
     const Scalar sd = reported().film_sd_ohm_m2();
     const Scalar t = film_per_kelvin_ohm_m2_ * c_.temperature_sd_k;
     const Scalar with_t = std::isfinite(t) ? std::sqrt(sd * sd + t * t) : sd;
     if (!(film_spread_ohm_m2_ > Scalar(0)) || (holding_ && held_is_prior_)) return with_t;
     return std::sqrt(with_t * with_t + film_spread_ohm_m2_ * film_spread_ohm_m2_);
+  }
+  // With a stated spread the fitted level is told from the prior only to within the spread's
+  // collinear share: where that is wider than the prior's own sd the fit says less than the
+  // prior. Both are independent estimates of the same film (the fit's regression prior is weak:
+  // Identifier::Config, the data decide), so the level reported is their inverse-variance mean.
+  // Without a stated spread (a characterised cell), or while the prior itself is held, nothing.
+  bool fuses_with_prior() const {
+    return c_.spread.any() && film_spread_ohm_m2_ > Scalar(0) && !(holding_ && held_is_prior_);
+  }
+  struct Level {
+    Scalar film_ohm_m2;
+    Scalar sd_ohm_m2;
+  };
+  // (sd_f^2 prior + sd_p^2 fit) / (sd_p^2 + sd_f^2), sd_p sd_f / sqrt(sd_p^2 + sd_f^2): the
+  // inverse-variance mean and its 1-sigma. A prior sd that is not positive and finite: the fit.
+  Level fused_with_prior(Scalar fit_ohm_m2, Scalar fit_sd_ohm_m2) const {
+    const Scalar p = identifier_.prior_film_ohm_m2(), sp = identifier_.prior_film_sd_ohm_m2();
+    const Scalar vp = sp * sp, vf = fit_sd_ohm_m2 * fit_sd_ohm_m2;
+    if (!(sp > Scalar(0)) || !std::isfinite(vp) || !std::isfinite(vf) || !(vp + vf > Scalar(0)))
+      return Level{fit_ohm_m2, fit_sd_ohm_m2};
+    return Level{(vf * p + vp * fit_ohm_m2) / (vp + vf), sp * fit_sd_ohm_m2 / std::sqrt(vp + vf)};
   }
   // The stated spread's film equivalent [ohm m2] at the last learning tick (0 without one).
   Scalar film_spread_ohm_m2() const { return film_spread_ohm_m2_; }
