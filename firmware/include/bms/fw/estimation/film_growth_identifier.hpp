@@ -93,12 +93,7 @@ class FilmGrowthIdentifier {
   explicit FilmGrowthIdentifier(const Config& c) : config_(c), rls_(make_rls_config(c)) { refresh(); }
 
   // The film resistance in use at this tick: theta_R0 + theta_g G, within the admissible range.
-  Scalar film_ohm_m2() const {
-    const Scalar r = theta_(0) + theta_(1) * growth_;
-    if (!std::isfinite(r)) return config_.r_film_nominal_ohm_m2;
-    return r < config_.r_film_min_ohm_m2 ? config_.r_film_min_ohm_m2
-                                         : (r > config_.r_film_max_ohm_m2 ? config_.r_film_max_ohm_m2 : r);
-  }
+  Scalar film_ohm_m2() const { return admissible_film_ohm_m2(theta_(0) + theta_(1) * growth_); }
   // Relative inventory deviation the model should be placed at (clipped to the limit).
   Scalar inventory_deviation() const {
     const Scalar nu = theta_(2);
@@ -119,12 +114,7 @@ class FilmGrowthIdentifier {
   // The prior's film and its 1-sigma at this tick: what an identifier that never learned reports
   // (theta(0) = the nominal film and gain 1, P(0) = the stated priors, with the same G and the
   // same model bound): the nominal cell's film grown by the nominal law.
-  Scalar prior_film_ohm_m2() const {
-    const Scalar r = config_.r_film_nominal_ohm_m2 + growth_;
-    if (!std::isfinite(r)) return config_.r_film_nominal_ohm_m2;
-    return r < config_.r_film_min_ohm_m2 ? config_.r_film_min_ohm_m2
-                                         : (r > config_.r_film_max_ohm_m2 ? config_.r_film_max_ohm_m2 : r);
-  }
+  Scalar prior_film_ohm_m2() const { return admissible_film_ohm_m2(config_.r_film_nominal_ohm_m2 + growth_); }
   Scalar prior_film_sd_ohm_m2() const {
     const Real g = static_cast<Real>(growth_), pr = static_cast<Real>(config_.prior_r0_ohm_m2),
                pg = static_cast<Real>(config_.prior_gain);
@@ -224,6 +214,12 @@ class FilmGrowthIdentifier {
   }
 
  private:
+  // A film within the admissible range; the nominal one where it is not finite.
+  Scalar admissible_film_ohm_m2(Scalar r) const {
+    if (!std::isfinite(r)) return config_.r_film_nominal_ohm_m2;
+    return r < config_.r_film_min_ohm_m2 ? config_.r_film_min_ohm_m2
+                                         : (r > config_.r_film_max_ohm_m2 ? config_.r_film_max_ohm_m2 : r);
+  }
   static typename RlsType::Config make_rls_config(const Config& c) {
     typename RlsType::Config rc;
     rc.lambda = Real(1);

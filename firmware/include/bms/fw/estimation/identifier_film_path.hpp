@@ -106,11 +106,7 @@ class IdentifierFilmPath {
   Scalar inventory_deviation() const { return identifier_.inventory_deviation(); }
   Scalar relinearise_inventory() const { return c_.relinearise_inventory; }
   void relinearise() {
-    if (c_.hold_until_settled && !holding_) {
-      held_ = identifier_;
-      holding_ = true;
-      held_is_prior_ = false;
-    }
+    hold_reported();
     identifier_.relinearise();
   }
   // The current the model and the identifier see changed (the sensor's offset in use moved):
@@ -119,12 +115,15 @@ class IdentifierFilmPath {
   // more). Restart from the prior; the re-synchronisation at this CV end places the model at the
   // prior's inventory. The outputs are held as at a relinearisation.
   void forget() {
-    if (c_.hold_until_settled && !holding_) {
-      held_ = identifier_;
-      holding_ = true;
-      held_is_prior_ = false;
-    }
+    hold_reported();
     identifier_.restart_from_prior();
+  }
+  // Keeps reporting the fitted values while a restarted fit settles (Config::hold_until_settled).
+  void hold_reported() {
+    if (!c_.hold_until_settled || holding_) return;
+    held_ = identifier_;
+    holding_ = true;
+    held_is_prior_ = false;
   }
   // The identifier whose values are reported: the held one until the restarted one settles.
   const Identifier& reported() const { return holding_ ? held_ : identifier_; }
