@@ -76,4 +76,25 @@ TEST(FilmIdentifierRestart, PathForgetsAndHoldsWhatItReported) {
   EXPECT_DOUBLE_EQ(unheld.r_film_ohm_m2(), 3.4e-3 + id.growth_ohm_m2()) << "the prior's film, grown by G";
 }
 
+// A relinearised (restarted) fit is reported only once it has learned a whole CC charge: the end
+// of a charge it did not learn in does not release the hold (measured: under a current gain the
+// restarted fit is 8-9 % off for most of its first charge; docs/results/envelope.md).
+TEST(FilmIdentifierRestart, RestartIsHeldUntilTheRestartedFitLearnedACharge) {
+  Path::Config pc;
+  pc.identifier = config();
+  Path path(pc, 0.2);
+  const Identifier id = learned();
+  ASSERT_TRUE(path.restore(Path::State{id.save()}));
+  const double film = path.r_film_ohm_m2();
+
+  path.relinearise();
+  EXPECT_TRUE(path.holding());
+  path.charge_ended();
+  EXPECT_TRUE(path.holding()) << "no charge learned since the restart";
+  EXPECT_EQ(path.r_film_ohm_m2(), film);
+  path.forget();  // a second restart while held keeps what was reported before the first
+  EXPECT_TRUE(path.holding());
+  EXPECT_EQ(path.r_film_ohm_m2(), film);
+}
+
 }  // namespace
