@@ -26,6 +26,7 @@ nlohmann::json options_json(const EstimateConfigSummary& c, const EstimateOption
     j["model_bias_ohm"] = c.model_bias_ohm;
     j["stated_spread_rel"] = {{"anode_i0", c.spread.anode_i0_rel}, {"cathode_i0", c.spread.cathode_i0_rel},
                               {"transport", c.spread.transport_rel}, {"area", c.spread.area_rel}};
+    j["voltage_offset_sd_mv"] = c.voltage_offset_sd_v * 1e3;
     if (c.resync_at_cv_end) j["relinearise_inventory"] = c.relinearise_inventory;
   } else {
     j.update({{"nc", c.nc}, {"p0", c.p0_u}, {"p0_y0", c.p0_y0}, {"lambda", c.lambda}, {"eta", c.eta},

@@ -110,6 +110,7 @@ struct EstimateConfigSummary {
   bool calibrate_bias = false, average_estimate = false, learning = true, identify_growth = false, learn_inventory = true;
   double propagated_growth_ohm_m2_per_a_m3_s = 0, model_bias_ohm = 0, relinearise_inventory = 0;
   fw::StatedSpread<double> spread{};  // the cell's stated parameter spread (relative 1-sigma)
+  double voltage_offset_sd_v = 0;     // the voltage sensor's stated offset accuracy (1-sigma)
 };
 
 template <class Config>
@@ -147,6 +148,7 @@ EstimateConfigSummary summarise_config(const Config& c, int nc) {
     s.relinearise_inventory = p.relinearise_inventory;
     s.spread = {double(p.spread.anode_i0_rel), double(p.spread.cathode_i0_rel), double(p.spread.transport_rel),
                 double(p.spread.area_rel)};
+    s.voltage_offset_sd_v = double(p.voltage_offset_sd_v);
   }
   return s;
 }

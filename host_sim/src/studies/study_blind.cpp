@@ -210,6 +210,10 @@ const std::vector<Arm>& arms() {
          o.spread_transport_rel = 0.1155;
          o.spread_area_rel = 0.01732;
        }},
+      // Set 5's voltage offset U(-0.5, 0.5) mV stated as a front end's datasheet bound: 1-sigma
+      // 0.5 / sqrt(3) mV; not tuned on any truth.
+      {"best-stated-voltage", "--settings best --voltage-offset-sd-mv 0.2887", P::best,
+       [](O& o) { o.voltage_offset_sd_mv = 0.2887; }},
       {"paper", "--settings paper", P::paper, [](O&) {}},
       {"paper-no-learning", "--settings paper --no-learning", P::paper, [](O& o) { o.learning = false; }},
       {"nominal-growth", "--settings nominal-growth", P::nominal_growth, [](O&) {}},

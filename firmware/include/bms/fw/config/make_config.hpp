@@ -182,6 +182,8 @@ struct Overrides {
   Given<double> spread_cathode_i0_rel;  // --spread-cathode-i0
   Given<double> spread_transport_rel;   // --spread-transport
   Given<double> spread_area_rel;        // --spread-area
+  // best: the voltage sensor's stated offset accuracy (1-sigma), default 0.
+  Given<double> voltage_offset_sd_mv;   // --voltage-offset-sd-mv
 };
 
 /// An override make_config refused: the option's name (without "--") and why; option nullptr: none.
@@ -243,6 +245,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"spread-cathode-i0", o.spread_cathode_i0_rel.given, id, only_best},
       {"spread-transport", o.spread_transport_rel.given, id, only_best},
       {"spread-area", o.spread_area_rel.given, id, only_best},
+      {"voltage-offset-sd-mv", o.voltage_offset_sd_mv.given, id, only_best},
   };
   for (const Use& u : uses)
     if (u.given && !u.used) return {u.option, u.reason};
@@ -392,6 +395,8 @@ void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   set_if(o.spread_cathode_i0_rel, cfg.film_path.spread.cathode_i0_rel);
   set_if(o.spread_transport_rel, cfg.film_path.spread.transport_rel);
   set_if(o.spread_area_rel, cfg.film_path.spread.area_rel);
+  if (o.voltage_offset_sd_mv.given)
+    cfg.film_path.voltage_offset_sd_v = static_cast<decltype(cfg.film_path.voltage_offset_sd_v)>(o.voltage_offset_sd_mv.value * 1e-3);
 }
 
 }  // namespace detail
