@@ -70,3 +70,66 @@ TEST(VoltageOffsetSd, TheStatedAccuracyOverHEntersTheFittedSdInQuadrature) {
 }
 
 }  // namespace
+
+#include "bms/fw/estimation/voltage_offset.hpp"
+
+namespace {
+
+using Offset = bms::fw::VoltageOffset<double>;
+
+Offset::Config offset_config() {
+  Offset::Config c;
+  c.enabled = true;
+  c.model_bias_ohm = 0.0;
+  return c;
+}
+
+// A fitted charge (its learning ticks at H_c), then a CC discharge whose residual after the warm-up
+// is z (H_d = -H_c: the film's drop has the other sign), then the phase ends.
+bool charge_then_discharge(Offset& o, double z_v, bool holding = false, int fitted_ticks = 3000) {
+  for (int k = 0; k < fitted_ticks; ++k) o.follow(false, holding, true, 0.0, kChargeA, kH);
+  const int discharge_ticks = 900 * 5 + 1600;  // the warm-up, then 1600 collected ticks
+  for (int k = 0; k < discharge_ticks; ++k) o.follow(true, holding, false, z_v, 2.5, -kH);
+  return o.follow(false, holding, false, 0.0, 0.0, 0.0);  // CV discharge: the phase ends
+}
+
+// The discharge's residual after a fitted charge is -(1 - H_d / H_c) b = -2 b: b is fused and
+// subtracted from every later sample; a remainder inside the dead band changes nothing.
+TEST(VoltageOffset, TheDischargeResidualAfterAFittedChargeGivesTheOffset) {
+  Offset o(offset_config());
+  EXPECT_EQ(o.corrected(3.7), 3.7);
+  EXPECT_TRUE(charge_then_discharge(o, -2.0 * 0.4e-3));
+  EXPECT_NEAR(o.offset_v(), 0.4e-3, 1e-12);
+  EXPECT_NEAR(o.corrected(3.7), 3.7 - 0.4e-3, 1e-12);
+  // The next charge is fitted on the corrected voltage: a remainder of 0.05 mV is inside the band.
+  EXPECT_FALSE(charge_then_discharge(o, -2.0 * 0.05e-3));
+  EXPECT_NEAR(o.offset_v(), 0.4e-3, 1e-12);
+  EXPECT_NEAR(o.last_remainder_v(), 0.05e-3, 1e-12);
+  // One outside it moves the offset in use by the remainder.
+  EXPECT_TRUE(charge_then_discharge(o, 2.0 * 0.15e-3));
+  EXPECT_NEAR(o.offset_v(), 0.25e-3, 1e-12);
+}
+
+// Start and stop conditions: nothing without a fitted charge, while the path holds a restarted fit,
+// for a remainder no front end has, or when off.
+TEST(VoltageOffset, NothingIsFusedWithoutAFittedSettledChargeOrBeyondTheLimit) {
+  Offset a(offset_config()), b(offset_config()), c(offset_config());
+  EXPECT_FALSE(charge_then_discharge(a, -0.8e-3, false, 100));  // 100 learning ticks: not a fitted charge
+  EXPECT_FALSE(charge_then_discharge(b, -0.8e-3, true));        // the path holds: the fit is not settled
+  EXPECT_FALSE(charge_then_discharge(c, -2.0 * 6e-3));          // 6 mV: over the 5 mV limit
+  EXPECT_EQ(a.offset_v() + b.offset_v() + c.offset_v(), 0.0);
+  Offset::Config off = offset_config();
+  off.enabled = false;
+  Offset d(off);
+  EXPECT_FALSE(charge_then_discharge(d, -0.8e-3));
+  EXPECT_EQ(d.corrected(3.7), 3.7);
+  // A restored image with an offset over the limit is refused.
+  Offset::State s = Offset(offset_config()).save();
+  s.offset_v = 6e-3;
+  EXPECT_FALSE(a.restore(s));
+  s.offset_v = 0.3e-3;
+  EXPECT_TRUE(a.restore(s));
+  EXPECT_NEAR(a.offset_v(), 0.3e-3, 1e-15);
+}
+
+}  // namespace

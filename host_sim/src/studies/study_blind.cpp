@@ -195,6 +195,7 @@ const std::vector<Arm>& arms() {
       {"best-no-relinearise", "--settings best --relinearise 1", P::best, [](O& o) { o.relinearise_inventory = 1.0; }},
       {"best-no-warmup", "--settings best --warmup 0", P::best, [](O& o) { o.warmup_s = 0.0; }},
       {"best-no-offset", "--settings best --no-current-offset", P::best, [](O& o) { o.current_offset = false; }},
+      {"best-voffset", "--settings best --voltage-offset", P::best, [](O& o) { o.voltage_offset = true; }},
       {"best-no-hold", "--settings best --no-hold", P::best, [](O& o) { o.hold_until_settled = false; }},
       {"best-window1", "--settings best --resync-window 1", P::best, [](O& o) { o.resync_window_ticks = 1u; }},
       {"best-no-resync", "--settings best --no-resync", P::best, [](O& o) { o.resync = false; }},

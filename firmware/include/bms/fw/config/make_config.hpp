@@ -184,6 +184,7 @@ struct Overrides {
   Given<double> spread_area_rel;        // --spread-area
   // best: the voltage sensor's stated offset accuracy (1-sigma), default 0.
   Given<double> voltage_offset_sd_mv;   // --voltage-offset-sd-mv
+  Given<bool> voltage_offset;           // --voltage-offset (true): the sensor offset from CC discharges (off by default)
 };
 
 /// An override make_config refused: the option's name (without "--") and why; option nullptr: none.
@@ -246,6 +247,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"spread-transport", o.spread_transport_rel.given, id, only_best},
       {"spread-area", o.spread_area_rel.given, id, only_best},
       {"voltage-offset-sd-mv", o.voltage_offset_sd_mv.given, id, only_best},
+      {"voltage-offset", o.voltage_offset.given, id, only_best},
   };
   for (const Use& u : uses)
     if (u.given && !u.used) return {u.option, u.reason};
@@ -417,6 +419,7 @@ Refusal make_config(const NominalCell& cell, Profile profile, const Overrides& o
   if (r.option != nullptr) return r;
   detail::set_if(o.learning, cfg.learning);
   detail::set_if(o.current_offset, cfg.current_offset);
+  detail::set_if(o.voltage_offset, cfg.voltage_offset);
   detail::set_if(o.warmup_s, cfg.rcsi_warmup_s);
   detail::apply_observer(o, cfg);
   out = cfg;
