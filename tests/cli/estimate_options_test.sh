@@ -99,6 +99,10 @@ assert o["settings"] == "paper" and o["h_from_model"] is True and "h" not in o, 
 assert o["propagate_growth"] is True and "p0" in o and "learn_inventory" not in o, o
 PY
 
+# A value out of an option's range is a parse error: still one line, naming the option.
+check_input_error range-relinearise "--relinearise.*not in range.*estimate --help" "$WORK/o" -- \
+  "$BMSSIM" estimate --data short.csv --relinearise 5 --quiet --out "$WORK/o"
+
 if [ -n "$FW" ]; then
   for p in best nominal-growth; do
     check_input_error "firmware-$p-h" "--h\\b.*not used by --settings $p" "$WORK/o" -- \
