@@ -1,6 +1,7 @@
 // bmssim: the host simulator and tools (contract: ../shared/contract.md).
 #include <cstdio>
 #include <exception>
+#include <string>
 #include <vector>
 
 #include "commands.hpp"
@@ -38,8 +39,11 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForAllHelp& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    std::fprintf(stderr, "bmssim: %s\n", e.what());
-    std::fprintf(stderr, "Run 'bmssim --help' or 'bmssim SUBCOMMAND --help'.\n");
+    // One line, as every other bad input: the message, then where the options are explained.
+    std::string where = "bmssim --help";
+    for (auto& [sub, run] : commands)
+      if (sub->parsed()) where = "bmssim " + sub->get_name() + " --help";
+    std::fprintf(stderr, "bmssim: %s (see '%s')\n", e.what(), where.c_str());
     return 2;
   }
   try {

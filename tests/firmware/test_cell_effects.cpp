@@ -114,6 +114,36 @@ TEST(CellEffects, CurrentGainDividesTheMeasuredCurrent) {
   EXPECT_NEAR(b.current_a, 2.02, 1e-12);
 }
 
+// The film's sd terms (temperature sensor, stated spread) need the inner model's probes: the
+// wrapper must pass them on, seen through its effects, or an augmented cell loses them.
+TEST(CellEffects, TemperatureProbeAndStatedSpreadReachTheInnerModel) {
+  static_assert(bms::fw::kProbesTemperature<All, double>);
+  static_assert(bms::fw::kGivesSpread<All, double>);
+  Plain plain, inner;
+  plain.init_default();
+  inner.init_default();
+  auto p = params();
+  p.contact_resistance_ohm = 1e-3;
+  p.current_gain = 0.01;
+  bms::fw::EffectsModel<Plain, bms::fw::kEffectContactResistance | bms::fw::kEffectCurrentGain> wrapped(inner, p);
+  bms::fw::StatedSpread<double> spread;
+  spread.anode_i0_rel = 0.2;
+  spread.area_rel = 0.03;
+  for (int k = 0; k < 200; ++k) {
+    const auto a = plain.step_current(-2.5, kFilm, kDt);
+    const auto b = wrapped.step_current(-2.5 * 1.01, kFilm, kDt);
+    const double dv_plain = plain.temperature_probe_voltage(-2.5, kFilm, kDt, 1.0) -
+                            plain.temperature_probe_voltage(-2.5, kFilm, kDt, 0.0);
+    const double dv_wrapped = wrapped.temperature_probe_voltage(-2.5 * 1.01, kFilm, kDt, 1.0) -
+                              wrapped.temperature_probe_voltage(-2.5 * 1.01, kFilm, kDt, 0.0);
+    ASSERT_NEAR(dv_wrapped, dv_plain, 1e-12);
+    ASSERT_GT(std::fabs(dv_plain), 1e-6);
+    const double sd_plain = plain.spread_voltage_sd_v(-2.5, a.voltage_v, spread);
+    ASSERT_GT(sd_plain, 0.0);
+    ASSERT_NEAR(wrapped.spread_voltage_sd_v(b.current_a, b.voltage_v, spread), sd_plain, 1e-12);
+  }
+}
+
 TEST(CellEffects, HysteresisFollowsTheChargeMovedAsTheTruthModel) {
   // Truth (host_sim/src/dfn): dh/dt = -(kappa/(3600 Q)) (H I + |I| h), h(0) = +H. After a
   // discharge of 3 % of Q with kappa = 50: h = H (2 e^-1.5 - 1), whatever the current.

@@ -110,6 +110,8 @@ struct EstimateConfigSummary {
   bool calibrate_bias = false, average_estimate = false, learning = true, identify_growth = false, learn_inventory = true;
   double propagated_growth_ohm_m2_per_a_m3_s = 0, model_bias_ohm = 0, relinearise_inventory = 0;
   fw::StatedSpread<double> spread{};  // the cell's stated parameter spread (relative 1-sigma)
+  double voltage_offset_sd_v = 0;     // the voltage sensor's stated offset accuracy (1-sigma)
+  bool voltage_offset = false;        // the voltage sensor's offset measured and removed
 };
 
 template <class Config>
@@ -127,6 +129,7 @@ EstimateConfigSummary summarise_config(const Config& c, int nc) {
   s.voltage_max_v = c.voltage_max_v;
   s.dt_s = c.dt_s;
   s.learning = c.learning;
+  s.voltage_offset = c.voltage_offset;
   const auto& p = c.film_path;
   if constexpr (std::decay_t<decltype(p)>::kKind == fw::FilmPathKind::rcsi) {
     s.h_v_per_ohm_m2 = p.estimator.markov_v_per_ohm_m2;
@@ -147,6 +150,7 @@ EstimateConfigSummary summarise_config(const Config& c, int nc) {
     s.relinearise_inventory = p.relinearise_inventory;
     s.spread = {double(p.spread.anode_i0_rel), double(p.spread.cathode_i0_rel), double(p.spread.transport_rel),
                 double(p.spread.area_rel)};
+    s.voltage_offset_sd_v = double(p.voltage_offset_sd_v);
   }
   return s;
 }
@@ -165,6 +169,7 @@ struct EstimateRow {
   // the identifier), the truth's capacity (NaN without), the innovation test ratio (> 1: misfit).
   double r_film_sd_ohm_m2, capacity_est_ah, capacity_sd_ah, capacity_true_ah, innovation_test_ratio;
   double current_offset_a;  // the current sensor offset the firmware subtracts (CurrentOffset)
+  double voltage_offset_v;  // the voltage sensor offset the firmware subtracts (VoltageOffset)
   std::uint32_t status;
 };
 

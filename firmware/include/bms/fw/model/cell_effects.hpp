@@ -187,6 +187,29 @@ class EffectsModel {
                             hysteresis_after(current, dt_s));
   }
 
+  // The inner model's temperature probe through the same effects (none of them depends on the
+  // temperature, so they cancel in the difference the film path takes); only where the inner
+  // model gives one, so the film sd keeps its temperature-sensor term with effects.
+  template <typename I = Inner>
+  auto temperature_probe_voltage(Scalar current_meas_a, Scalar r_film_ohm_m2, Scalar dt_s, Scalar d_temperature_k) const
+      -> decltype(std::declval<const I&>().temperature_probe_voltage(current_meas_a, r_film_ohm_m2, dt_s, d_temperature_k)) {
+    const Scalar current = cell_current(current_meas_a);
+    return terminal_voltage(inner_.temperature_probe_voltage(current, r_film_ohm_m2, dt_s, d_temperature_k), current,
+                            hysteresis_after(current, dt_s));
+  }
+
+  // The inner model's voltage 1-sigma for a stated spread, at the inner model's own current and
+  // voltage of the committed tick (the effects are not part of the spread).
+  template <typename I = Inner>
+  auto spread_voltage_sd_v(Scalar current_meas_a, Scalar voltage_v, const StatedSpread<Scalar>& s) const
+      -> decltype(std::declval<const I&>().spread_voltage_sd_v(current_meas_a, voltage_v, s)) {
+    const Scalar current = cell_current(current_meas_a);
+    Scalar inner_v = voltage_v;
+    if constexpr (kContact) inner_v += p_.contact_resistance_ohm * current;
+    if constexpr (kHysteresis) inner_v -= h_v_;
+    return inner_.spread_voltage_sd_v(current, inner_v, s);
+  }
+
   // The measured cell temperature, passed to the inner model when it takes one.
   bool set_temperature_k(Scalar t_k) {
     if constexpr (kTakesTemperature<Inner, Scalar>) {
