@@ -173,6 +173,7 @@ EstimateRow row_of(const Output& out, double t_s, int cycle) {
   r.capacity_true_ah = std::nan("");
   r.innovation_test_ratio = out.innovation_test_ratio;
   r.current_offset_a = out.current_offset_a;
+  r.area_scale = out.area_scale;
   r.status = out.status;
   return r;
 }

@@ -165,6 +165,7 @@ struct EstimateRow {
   // the identifier), the truth's capacity (NaN without), the innovation test ratio (> 1: misfit).
   double r_film_sd_ohm_m2, capacity_est_ah, capacity_sd_ah, capacity_true_ah, innovation_test_ratio;
   double current_offset_a;  // the current sensor offset the firmware subtracts (CurrentOffset)
+  double area_scale;        // the electrode-capacity scale the firmware identified (AreaScale)
   std::uint32_t status;
 };
 
