@@ -83,7 +83,7 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--spread-area", v.spread_area_rel);
   g("--no-current-offset", v.current_offset);
   g("--no-area-scale", v.area_scale);
-  g("--area-scale-capacity-only", v.area_scale_model_sees);
+  g("--area-scale-in-model", v.area_scale_model_sees);
   g("--inventory-error-pct", c.o.inventory_error_pct);
   c.o.points_given = sub.count("--points") > 0;
   if (sub.count("--theta0") > 0) {
@@ -295,11 +295,11 @@ Runner add_estimate(CLI::App& app) {
                 "span's duration, when no two samples are more than 0.5 s apart; ablation)");
   sub->add_flag("!--no-area-scale", c->o.overrides.area_scale.value,
                 "Do not measure the electrode-capacity (area) scale (default with --settings best: the counted "
-                "charge between two CV-end re-synchronisations against the model's pinned anode; the model runs "
-                "on I / a and the capacity is a times the nominal electrodes'; ablation)");
-  sub->add_flag("!--area-scale-capacity-only", c->o.overrides.area_scale_model_sees.value,
-                "Measure the electrode-capacity scale for the capacity only: the model keeps the nominal area "
-                "(ablation)");
+                "charge between two CV ends against the model's pinned anode; the capacity is a times the "
+                "nominal electrodes'; ablation)");
+  sub->add_flag("--area-scale-in-model", c->o.overrides.area_scale_model_sees.value,
+                "Run the model on I / a with the measured electrode-capacity scale a too (default: the capacity "
+                "only; the film and growth were worse with it on the blind sensor set)");
   // RCSI (paper, nominal-growth).
   sub->add_option("--nc", c->o.overrides.nc.value, "RCSI profiles: order n_c of the ARX subsystem model (1..8, default 1)");
   sub->add_option("--p0", c->o.overrides.p0.value,

@@ -47,7 +47,8 @@ class AreaScale {
   struct Config {
     bool enabled = false;
     // The model runs on I / a (the film path and the inventory see the area); false: only the
-    // capacity is scaled (the ablation).
+    // capacity is scaled (the best profile's choice: with the model on I / a the film and the
+    // growth got worse on the blind sensor set, and the capacity no better there).
     bool model_sees = true;
     // The least counted charge between two pins that measures a [mol]; set from the nominal
     // cell's capacity by BmsCore (min_span_of_capacity x its open-circuit capacity).

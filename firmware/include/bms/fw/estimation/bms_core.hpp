@@ -153,8 +153,9 @@ class BmsCore {
     // points of the same kind (their |I| at resync_current_a), is subtracted from every sample.
     bool current_offset = false;
     // AreaScale. Beyond the paper: the electrode-capacity (area) scale measured from the counted
-    // charge between two CV-end re-synchronisations against the model's pinned anode; the model
-    // runs on I / a (area_scale_model_sees) and the capacity is a C_nom.
+    // charge between two CV ends against the model's pinned anode; the capacity is a C_nom, and
+    // with area_scale_model_sees the model runs on I / a too (off in best: measured, the film and
+    // growth got worse with it on the sensor set, docs/results/envelope.md "Capacity").
     bool area_scale = false;
     bool area_scale_model_sees = true;
   };
