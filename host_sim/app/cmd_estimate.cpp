@@ -84,6 +84,8 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--voltage-offset-sd-mv", v.voltage_offset_sd_mv);
   g("--no-current-offset", v.current_offset);
   g("--voltage-offset", v.voltage_offset);
+  g("--no-area-scale", v.area_scale);
+  g("--area-scale-in-model", v.area_scale_model_sees);
   g("--inventory-error-pct", c.o.inventory_error_pct);
   c.o.points_given = sub.count("--points") > 0;
   if (sub.count("--theta0") > 0) {
@@ -302,6 +304,13 @@ Runner add_estimate(CLI::App& app) {
                 "each CC discharge's residual after a fitted CC charge (the film's drop has the other sign there, "
                 "an offset the same); a change outside 0.1 mV restarts the film's learning. Misled by a current "
                 "gain or a transport spread (docs/results/envelope.md)");
+  sub->add_flag("!--no-area-scale", c->o.overrides.area_scale.value,
+                "Do not measure the electrode-capacity (area) scale (default with --settings best: the counted "
+                "charge between two CV ends against the model's pinned anode; the capacity is a times the "
+                "nominal electrodes'; ablation)");
+  sub->add_flag("--area-scale-in-model", c->o.overrides.area_scale_model_sees.value,
+                "Run the model on I / a with the measured electrode-capacity scale a too (default: the capacity "
+                "only; the film and growth were worse with it on the blind sensor set)");
   // RCSI (paper, nominal-growth).
   sub->add_option("--nc", c->o.overrides.nc.value, "RCSI profiles: order n_c of the ARX subsystem model (1..8, default 1)");
   sub->add_option("--p0", c->o.overrides.p0.value,

@@ -149,9 +149,50 @@ TEST(OpenCircuitCapacity, NominalPaperCellAndItsSensitivityToTheInventory) {
   const float cf = fw::open_circuit_capacity_ah(static_cast<float>(n0), static_cast<float>(cap_n),
                                                 static_cast<float>(cap_p), 2.0f, 3.6f, unf, upf);
   EXPECT_NEAR(static_cast<double>(cf) / c0, 1.0, 1e-4);
-  // An inventory that cannot reach a limit (both electrodes nearly full: no 3.6 V at rest): NaN,
-  // not a number that looks right.
-  EXPECT_TRUE(std::isnan(fw::open_circuit_capacity_ah(1.9 * n0, cap_n, cap_p, 2.0, 3.6, un, up)));
+  // An inventory no pair of stoichiometries can hold (more than both electrodes together, or
+  // none): NaN, not a number that looks right.
+  EXPECT_TRUE(std::isnan(fw::open_circuit_capacity_ah(1.01 * (cap_n + cap_p), cap_n, cap_p, 2.0, 3.6, un, up)));
+  EXPECT_TRUE(std::isnan(fw::open_circuit_capacity_ah(-0.01 * n0, cap_n, cap_p, 2.0, 3.6, un, up)));
+}
+
+// The upper end when the anode is full before the resting cell shows 3.6 V (the paper cell from
+// an inventory about 0.85 % above nominal): the anode's full stoichiometry, so the capacity is
+// defined, continuous across the change of end, and falls past it.
+TEST(OpenCircuitCapacity, TheUpperEndIsTheFullAnodeWhenItIsFullBeforeTheVoltageLimit) {
+  using T = fw::PaperCellTraits;
+  const double cap_n = T::kNeg.max_concentration_mol_m3 * T::kNeg.solid_fraction * T::kNeg.thickness_m * T::kAreaM2;
+  const double cap_p = T::kPos.max_concentration_mol_m3 * T::kPos.solid_fraction * T::kPos.thickness_m * T::kAreaM2;
+  const double n0 = Model::inventory_of(T::kNeg.stoich_init, T::kPos.stoich_init);
+  auto un = [](double x) { return T::ocp_neg_v(x); };
+  auto up = [](double y) { return T::ocp_pos_v(y); };
+  auto cap = [&](double scale) { return fw::open_circuit_capacity_ah(scale * n0, cap_n, cap_p, 2.0, 3.6, un, up); };
+  // At 1 % more lithium the resting cell never shows 3.6 V: no equilibrium pair, but a window end.
+  EXPECT_TRUE(std::isnan(fw::equilibrium_stoich_neg(1.01 * n0, cap_n, cap_p, 3.6, un, up)));
+  const double x_full = fw::window_end_stoich_neg(1.01 * n0, cap_n, cap_p, 3.6, un, up);
+  EXPECT_NEAR(x_full, 1.0 - 1e-6, 1e-12);
+  EXPECT_LT(up((1.01 * n0 - x_full * cap_n) / cap_p) - un(x_full), 3.6);
+  ASSERT_TRUE(std::isfinite(cap(1.01)));
+  EXPECT_NEAR(cap(1.01) / cap(1.0), 1.0076, 0.002);
+  // Where both limits are reached, the window end is the equilibrium stoichiometry bit for bit.
+  EXPECT_EQ(fw::window_end_stoich_neg(n0, cap_n, cap_p, 3.6, un, up),
+            fw::equilibrium_stoich_neg(n0, cap_n, cap_p, 3.6, un, up));
+  // Find the change of end (bisection on the inventory): continuous there, falling past it.
+  double a = 1.0, b = 1.01;
+  for (int i = 0; i < 40; ++i) {
+    const double m = 0.5 * (a + b);
+    (std::isnan(fw::equilibrium_stoich_neg(m * n0, cap_n, cap_p, 3.6, un, up)) ? b : a) = m;
+  }
+  EXPECT_GT(a, 1.005);
+  EXPECT_LT(a, 1.01);
+  EXPECT_NEAR(cap(a), cap(b), 1e-6);
+  EXPECT_GT(cap(a), cap(a + 0.005));
+  EXPECT_GT(cap(a + 0.005), cap(a + 0.01));
+  // The same in float (the M4F).
+  auto unf = [](float v) { return T::ocp_neg_v(v); };
+  auto upf = [](float v) { return T::ocp_pos_v(v); };
+  const float cf = fw::open_circuit_capacity_ah(static_cast<float>(1.01 * n0), static_cast<float>(cap_n),
+                                                static_cast<float>(cap_p), 2.0f, 3.6f, unf, upf);
+  EXPECT_NEAR(static_cast<double>(cf) / cap(1.01), 1.0, 1e-4);
 }
 
 }  // namespace

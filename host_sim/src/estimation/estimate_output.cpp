@@ -105,6 +105,7 @@ nlohmann::json estimate_summary_json(const EstimateResult& r, const EstimateOpti
   }
   if (!r.rows.empty()) j["current_offset_a"] = r.rows.back().current_offset_a;
   if (!r.rows.empty() && r.config.voltage_offset) j["voltage_offset_v"] = r.rows.back().voltage_offset_v;
+  if (!r.rows.empty()) j["area_scale"] = r.rows.back().area_scale;
   j["status_bits_seen"] = r.status;
   j["newton_cap_hits"] = r.newton_cap_hits;
   j["wall_s"] = r.wall_s;

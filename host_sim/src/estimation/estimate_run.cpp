@@ -174,6 +174,7 @@ EstimateRow row_of(const Output& out, double t_s, int cycle) {
   r.innovation_test_ratio = out.innovation_test_ratio;
   r.current_offset_a = out.current_offset_a;
   r.voltage_offset_v = out.voltage_offset_v;
+  r.area_scale = out.area_scale;
   r.status = out.status;
   return r;
 }

@@ -170,6 +170,7 @@ struct EstimateRow {
   double r_film_sd_ohm_m2, capacity_est_ah, capacity_sd_ah, capacity_true_ah, innovation_test_ratio;
   double current_offset_a;  // the current sensor offset the firmware subtracts (CurrentOffset)
   double voltage_offset_v;  // the voltage sensor offset the firmware subtracts (VoltageOffset)
+  double area_scale;        // the electrode-capacity scale the firmware identified (AreaScale)
   std::uint32_t status;
 };
 

@@ -9,7 +9,8 @@
 //   paper          - the paper's RCSI (n_c = 1, eta = 0, P(0) = kPaperCovarianceP0 I,
 //                    H = kPaperMarkovVPerOhmM2) in CC charge, film held elsewhere;
 //   best           - H from the model, the state observer (re-synchronisation at power-up and at
-//                    each CV end over 50 ticks), 900 s warm-up, and the film, its growth gain and
+//                    each CV end over 50 ticks), 900 s warm-up, the current sensor's offset and the
+//                    electrode-capacity scale (AreaScale, for the capacity) measured, and the film, its growth gain and
 //                    the lithium inventory identified together (FilmGrowthIdentifier) against
 //                    the model's design-time bias;
 //   nominal-growth - RCSI with H from the model, the observer, 600 s warm-up, the bias
@@ -172,6 +173,8 @@ struct Overrides {
   Given<unsigned> resync_window_ticks; // --resync-window: with the observer
   Given<double> resync_current_a;      // --resync-current: with the observer
   Given<bool> current_offset;          // --no-current-offset (false): the sensor offset from CV end points
+  Given<bool> area_scale;              // --no-area-scale (false): the electrode-capacity scale from CV-end pins
+  Given<bool> area_scale_model_sees;   // --area-scale-in-model (true): the model runs on I / a too
   // best: the FilmGrowthIdentifier.
   Given<bool> learn_inventory;         // --no-inventory (false)
   Given<double> model_bias_ohm;        // --model-bias-ohm
@@ -238,6 +241,9 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"resync-window", o.resync_window_ticks.given, observer, no_observer},
       {"resync-current", o.resync_current_a.given, observer, no_observer},
       {"no-current-offset", o.current_offset.given, true, ""},
+      {"no-area-scale", o.area_scale.given, true, ""},
+      {"area-scale-in-model", o.area_scale_model_sees.given, o.area_scale.or_else(p == Profile::best),
+       "the electrode-capacity scale is off (--no-area-scale, or a profile without it)"},
       {"no-inventory", o.learn_inventory.given, id, only_best},
       {"model-bias-ohm", o.model_bias_ohm.given, id, only_best},
       {"relinearise", o.relinearise_inventory.given, id && observer, id ? no_observer : only_best},
@@ -292,6 +298,8 @@ void best(const NominalCell& cell, Config& c) {
   observer(c);
   c.rcsi_warmup_s = Scalar(900);
   c.current_offset = true;
+  c.area_scale = true;
+  c.area_scale_model_sees = false;  // measured: the film and growth worse with it (docs/results/envelope.md)
   if constexpr (decltype(c.film_path)::kKind == FilmPathKind::identifier) {
     c.film_path.identifier.r_film_nominal_ohm_m2 = Scalar(cell.initial_film_ohm_m2);
     c.film_path.identifier.growth_nominal_ohm_m2_per_a_m3_s = Scalar(cell.growth_ohm_m2_per_a_m3_s);
@@ -420,6 +428,8 @@ Refusal make_config(const NominalCell& cell, Profile profile, const Overrides& o
   detail::set_if(o.learning, cfg.learning);
   detail::set_if(o.current_offset, cfg.current_offset);
   detail::set_if(o.voltage_offset, cfg.voltage_offset);
+  detail::set_if(o.area_scale, cfg.area_scale);
+  detail::set_if(o.area_scale_model_sees, cfg.area_scale_model_sees);
   detail::set_if(o.warmup_s, cfg.rcsi_warmup_s);
   detail::apply_observer(o, cfg);
   out = cfg;

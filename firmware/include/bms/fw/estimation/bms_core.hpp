@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <limits>
 
+#include "bms/fw/estimation/area_scale.hpp"
 #include "bms/fw/estimation/current_offset.hpp"
 #include "bms/fw/estimation/film_path.hpp"
 #include "bms/fw/estimation/fw_status.hpp"
@@ -79,6 +80,7 @@ struct TickOutput {
   Scalar innovation_test_ratio;
   Scalar current_offset_a;     // the current sensor's offset subtracted from the samples (CurrentOffset)
   Scalar voltage_offset_v;     // the voltage sensor's offset subtracted from the samples (VoltageOffset)
+  Scalar area_scale;           // the identified electrode-capacity scale (AreaScale; 1 when off)
   StatusWord status;           // bits raised in this tick (estimator bits 0..7, tick 8..15)
   std::uint32_t tick;          // committed ticks
   std::uint8_t newton_iterations;
@@ -156,6 +158,12 @@ class BmsCore {
     // discharge's residual after a fitted CC charge (the film's drop changes sign with the
     // current, an offset does not), is subtracted from every sample. With the identifier only.
     bool voltage_offset = false;
+    // AreaScale. Beyond the paper: the electrode-capacity (area) scale measured from the counted
+    // charge between two CV ends against the model's pinned anode; the capacity is a C_nom, and
+    // with area_scale_model_sees the model runs on I / a too (off in best: measured, the film and
+    // growth got worse with it on the sensor set, docs/results/envelope.md "Capacity").
+    bool area_scale = false;
+    bool area_scale_model_sees = true;
   };
 
   // The profiles (paper, best, nominal-growth) are built from the nominal cell in one place,
@@ -173,6 +181,7 @@ class BmsCore {
     typename StateResync<Scalar>::State resync;
     typename CurrentOffset<Scalar>::State offset;
     typename VoltageOffset<Scalar>::State voltage_offset;
+    typename AreaScale<Scalar>::State area;
     typename Detector::State detector;
     ModelState model;
   };
@@ -183,7 +192,7 @@ class BmsCore {
   BmsCore(const Config& config, MainModel& model)
       : config_(config), model_(model), detector_(config.detector), path_(config.film_path, config.dt_s),
         gate_(gate_config(config)), resync_(resync_config(config)),
-        offset_(offset_config(config)), voffset_(voltage_offset_config(config)) {
+        offset_(offset_config(config)), voffset_(voltage_offset_config(config)), area_(area_config(config)) {
     last_j_side_ = path_.initial_j_side_a_m3();
   }
 
@@ -245,6 +254,7 @@ class BmsCore {
     s.resync = resync_.save();
     s.offset = offset_.save();
     s.voltage_offset = voffset_.save();
+    s.area = area_.save();
     s.detector = detector_.state();
     s.model = model_.state();
     return s;
@@ -267,10 +277,11 @@ class BmsCore {
     StateResync<Scalar> rs = resync_;
     CurrentOffset<Scalar> off = offset_;
     VoltageOffset<Scalar> voff = voffset_;
+    AreaScale<Scalar> area = area_;
     const ModelState model_backup = model_.state();
     const bool ok = header_ok && d.restore(s.detector) && p.restore(s.film_path) && g.restore(s.learning) &&
                     rs.restore(s.resync, path_.inventory_limit()) && off.restore(s.offset) &&
-                    voff.restore(s.voltage_offset) && model_.restore(s.model);
+                    voff.restore(s.voltage_offset) && area.restore(s.area) && model_.restore(s.model);
     if (!ok) {
       model_.restore(model_backup);
       status_ |= bit(FwStatus::kRestoreRejected);
@@ -282,6 +293,7 @@ class BmsCore {
     resync_ = rs;
     offset_ = off;
     voffset_ = voff;
+    area_ = area;
     ticks_ = s.ticks;
     stale_ticks_ = s.stale_ticks;
     have_sample_ = (s.flags & 1u) != 0u;
@@ -308,6 +320,7 @@ class BmsCore {
   }
   // Ticks without an accepted sample the model was stepped over since construction (not persisted).
   std::uint32_t catch_up_ticks() const { return catch_up_ticks_; }
+  const AreaScale<Scalar>& area_scale() const { return area_; }
   const Config& config() const { return config_; }
 
  private:
@@ -343,6 +356,18 @@ class BmsCore {
     o.dt_s = c.dt_s;
     return o;
   }
+  // The least span that measures the area: a share of the nominal cell's open-circuit capacity.
+  static typename AreaScale<Scalar>::Config area_config(const Config& c) {
+    typename AreaScale<Scalar>::Config a{};
+    a.enabled = c.area_scale;
+    a.model_sees = c.area_scale_model_sees;
+    a.dt_s = c.dt_s;
+    if constexpr (kGivesCapacity<MainModel, Scalar>) {
+      const Scalar cap_ah = MainModel::open_circuit_capacity_ah(c.nominal_inventory_mol);
+      if (std::isfinite(cap_ah)) a.min_span_mol = a.min_span_of_capacity * cap_ah * Scalar(3600.0 / kFaradayC_mol);
+    }
+    return a;
+  }
 
   // Step 1.
   StatusWord validate(const TickInput<Scalar>& in) const {
@@ -369,6 +394,7 @@ class BmsCore {
     TickInput<Scalar> in = measured;
     in.current_a = offset_.corrected(measured.current_a);
     in.voltage_v = voffset_.corrected(measured.voltage_v);
+    area_.count(in.current_a, first_sample || power_cycle ? 0u : stale_ticks_);
     if (!first_sample && stale_ticks_ > 0u) catch_up(stale_ticks_, in, power_cycle);
     stale_ticks_ = 0;
     have_sample_ = true;
@@ -398,7 +424,8 @@ class BmsCore {
     if (gap == 0u || config_.catch_up_max_steps == 0u) return;
     const bool hold_voltage =
         !at_rest && last_voltage_driven_ && std::fabs(in.voltage_v - last_voltage_) <= config_.detector.cv_band_v;
-    const Scalar from_a = at_rest ? Scalar(0) : last_current_, to_a = at_rest ? Scalar(0) : in.current_a;
+    const Scalar from_a = at_rest ? Scalar(0) : area_.model_current_a(last_current_);
+    const Scalar to_a = at_rest ? Scalar(0) : area_.model_current_a(in.current_a);
     std::uint32_t max_steps = config_.catch_up_max_steps;
     if (hold_voltage && config_.catch_up_max_voltage_steps < max_steps) max_steps = config_.catch_up_max_voltage_steps;
     if (max_steps == 0u) return;
@@ -436,10 +463,11 @@ class BmsCore {
     const Mode raw = detector_.raw_mode();
     const bool voltage_driven = (raw == Mode::cv_charge || raw == Mode::cv_discharge) && raw == mode;
     const bool probed = path_.learns_from_probes(gate_, open, voltage_driven);
+    const Scalar current_a = area_.model_current_a(in.current_a);  // in the nominal cell's units
     const Scalar v_probe =
-        probed ? path_.probe(model_, in.current_a, u, config_.dt_s, config_.nominal_inventory_mol) : Scalar(0);
+        probed ? path_.probe(model_, current_a, u, config_.dt_s, config_.nominal_inventory_mol) : Scalar(0);
     const ModelTickResult<Scalar> r = voltage_driven ? model_.step_voltage(in.voltage_v, u, config_.dt_s)
-                                                     : model_.step_current(in.current_a, u, config_.dt_s);
+                                                     : model_.step_current(current_a, u, config_.dt_s);
     return ModelStep{r, voltage_driven, probed, v_probe};
   }
 
@@ -456,12 +484,32 @@ class BmsCore {
   StatusWord resync_step(const TickInput<Scalar>& in, Scalar u, bool voltage_driven) {
     resync_.follow_phase(voltage_driven, in.current_a);
     typename StateResync<Scalar>::Fit m{};
+    const bool power_up = resync_.power_up_window();
     if (!resync_.collect(in.voltage_v, in.current_a, m)) return 0u;
     const Scalar nu = path_.inventory_deviation();
     const Scalar target_mol = config_.nominal_inventory_mol * (Scalar(1) + nu) - model_.li_loss_mol();
-    if (!model_.resync(m.voltage_v, m.current_a, u, config_.dt_s, target_mol)) return bit(FwStatus::kResyncFailed);
-    if (resync_.succeeded(nu, path_.relinearise_inventory())) path_.relinearise();
+    if (!model_.resync(m.voltage_v, area_.model_current_a(m.current_a), u, config_.dt_s, target_mol)) {
+      if (!power_up && pin_area()) path_.relinearise();
+      return bit(FwStatus::kResyncFailed);
+    }
+    bool relinearise = resync_.succeeded(nu, path_.relinearise_inventory());
+    if (!power_up) relinearise = pin_area() || relinearise;
+    if (relinearise) path_.relinearise();
     return 0u;
+  }
+
+  // Step 7: a CV end is one of AreaScale's pins, re-synchronised or not (the voltage-driven CV
+  // phase has held the model's state to the measured voltage); true when the scale the model runs
+  // with moved by more than the path's relinearisation limit (what it learned was on the model's
+  // old current density and stoichiometry rate).
+  bool pin_area() {
+    if constexpr (kGivesAnodeLithium<MainModel, Scalar>) {
+      const Scalar before = area_.scale();
+      area_.pin(model_.anode_lithium_mol(), model_.li_loss_mol(), model_.solid_inventory_mol());
+      return area_.model_sees() && std::fabs(area_.scale() - before) > path_.relinearise_inventory();
+    } else {
+      return false;
+    }
   }
 
   // Step 7: CurrentOffset's end points. When the offset in use moves by more than its dead band
@@ -471,7 +519,9 @@ class BmsCore {
   void follow_offset(const TickInput<Scalar>& measured, Mode mode, bool voltage_driven) {
     const Scalar before_a = offset_.offset_a();
     if (!offset_.follow_phase(voltage_driven, mode == Mode::cv_charge, measured.voltage_v, measured.current_a)) return;
-    if (std::fabs(offset_.offset_a() - before_a) > offset_.config().deadband_a) path_.forget();
+    if (!(std::fabs(offset_.offset_a() - before_a) > offset_.config().deadband_a)) return;
+    path_.forget();
+    area_.forget();
   }
 
   // Step 9: VoltageOffset's CC-discharge residual. When the offset in use moves (a discharge's
@@ -487,8 +537,9 @@ class BmsCore {
 
   // Step 9 (the film's propagation over the tick included).
   Learned learn(const TickInput<Scalar>& in, Scalar u, Scalar z, const ModelStep& step, bool open) {
-    const FilmTick<Scalar> t{step.r, in.current_a, u, z, step.v_probe_v, config_.dt_s, config_.nominal_inventory_mol,
-                             open, step.probed};
+    const FilmTick<Scalar> t{step.r,       area_.model_current_a(in.current_a), u, z, step.v_probe_v, config_.dt_s,
+                             config_.nominal_inventory_mol, open, step.probed, area_.scale(),
+                             area_.span_inventory_mol()};
     return path_.learn(t, model_, gate_, resync_);
   }
 
@@ -504,7 +555,7 @@ class BmsCore {
     out.r_film_est_ohm_m2 = r_film_ohm_m2();  // u itself, or its charge average, plus predicted growth
     out.z_v = z;
     out.model_voltage_v = step.r.voltage_v;
-    out.model_current_a = step.r.current_a;
+    out.model_current_a = area_.cell_current_a(step.r.current_a);
     out.j_side_a_m3 = step.r.j_side_a_m3;
     out.markov_v_per_ohm_m2 = step.r.markov_v_per_ohm_m2;
     out.inventory_sensitivity_v = learned.inventory_sensitivity_v;
@@ -538,6 +589,7 @@ class BmsCore {
     o.innovation_test_ratio = Scalar(0);
     o.current_offset_a = offset_.offset_a();
     o.voltage_offset_v = voffset_.offset_v();
+    o.area_scale = area_.scale();
     o.tick = ticks_;
     o.newton_iterations = 0;
     o.status = 0u;
@@ -558,6 +610,7 @@ class BmsCore {
   StateResync<Scalar> resync_;
   CurrentOffset<Scalar> offset_;
   VoltageOffset<Scalar> voffset_;
+  AreaScale<Scalar> area_;
   Scalar last_current_ = Scalar(0);
   Scalar last_voltage_ = Scalar(0);   // the last accepted sample's (catch-up in CV; not persisted)
   bool last_voltage_driven_ = false;  // the last tick's model step was voltage-driven

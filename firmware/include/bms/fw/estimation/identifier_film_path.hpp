@@ -179,7 +179,7 @@ class IdentifierFilmPath {
     }
     propagate(t.r.j_side_a_m3, t.dt_s);
     gate.identified(t.probed);
-    update_capacity(model, t.probed, t.nominal_inventory_mol);
+    update_capacity(model, t.probed, t.nominal_inventory_mol, t.area_scale, t.area_inventory_mol);
     return l;
   }
 
@@ -312,11 +312,12 @@ class IdentifierFilmPath {
     if (std::isfinite(per)) film_voltage_offset_ohm_m2_ = std::fabs(per);
   }
 
-  // The open-circuit capacity of the identified inventory (less the model's own lithium loss),
-  // at the first tick, every kCapacityEveryTicks learning ticks and when a learning window
+  // The open-circuit capacity of the identified inventory (less the model's own lithium loss)
+  // times the identified area scale, at the first tick, every kCapacityEveryTicks learning ticks and when a learning window
   // closes: two bisections, not every tick.
   template <class Model>
-  void update_capacity(const Model& model, bool identifying, Scalar nominal_inventory_mol) {
+  void update_capacity(const Model& model, bool identifying, Scalar nominal_inventory_mol, Scalar area_scale,
+                       Scalar area_inventory_mol) {
     const bool window_closed = identifying_ && !identifying;
     identifying_ = identifying;
     capacity_ticks_ = identifying ? capacity_ticks_ + 1u : 0u;
@@ -325,8 +326,13 @@ class IdentifierFilmPath {
       if (!(due || std::isnan(capacity_ah_)) || !(nominal_inventory_mol > Scalar(0))) return;
       capacity_ticks_ = 0u;
       const Scalar n0 = nominal_inventory_mol;
-      const Scalar n = n0 * (Scalar(1) + reported().inventory_deviation()) - model.li_loss_mol();
-      capacity_ah_ = Model::open_circuit_capacity_ah(n);
+      const Scalar before_loss = std::isfinite(area_inventory_mol) ? area_inventory_mol
+                                                                   : n0 * (Scalar(1) + reported().inventory_deviation());
+      const Scalar n = before_loss - model.li_loss_mol();
+      // The model's inventory is in the nominal electrodes' units (n / a: AreaScale), the
+      // capacity in the cell's: a C_nom(n / a). Once a span has measured a, n is the model's
+      // inventory at that span (consistent with a: AreaScale's header), else the identified one.
+      capacity_ah_ = area_scale * Model::open_circuit_capacity_ah(n);
       // The capacity moves with the inventory nearly one to one near the nominal cell (0.98:
       // tests/firmware/test_temperature.cpp): its relative sd is the inventory's.
       capacity_sd_ah_ = capacity_ah_ * reported().inventory_sd() * n0 / n;

@@ -88,6 +88,8 @@ class StateResync {
   }
 
   std::uint32_t count() const { return count_; }
+  // The open window is the power-up one (not a CV end).
+  bool power_up_window() const { return power_up_window_; }
   Scalar inventory_deviation_model() const { return nu_model_; }
 
   State save() const {

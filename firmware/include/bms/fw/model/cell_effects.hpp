@@ -224,6 +224,15 @@ class EffectsModel {
   static auto open_circuit_capacity_ah(S inventory_mol) -> decltype(I::open_circuit_capacity_ah(inventory_mol)) {
     return I::open_circuit_capacity_ah(inventory_mol);
   }
+  // The inner model's anode lithium, where it gives it.
+  template <typename I = Inner>
+  auto anode_lithium_mol() const -> decltype(std::declval<const I&>().anode_lithium_mol()) {
+    return inner_.anode_lithium_mol();
+  }
+  template <typename I = Inner>
+  auto solid_inventory_mol() const -> decltype(std::declval<const I&>().solid_inventory_mol()) {
+    return inner_.solid_inventory_mol();
+  }
   Scalar li_loss_ah() const { return inner_.li_loss_ah(); }
   Scalar li_loss_mol() const { return inner_.li_loss_mol(); }
   Scalar hysteresis_v() const { return h_v_; }

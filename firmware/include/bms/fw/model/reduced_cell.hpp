@@ -169,6 +169,13 @@ inline constexpr bool kGivesSpread<
     std::void_t<decltype(std::declval<const Model&>().spread_voltage_sd_v(
         std::declval<Scalar>(), std::declval<Scalar>(), std::declval<const StatedSpread<Scalar>&>()))>> = true;
 
+// Whether a main-system model gives the lithium its anode holds (AreaScale's pins).
+template <typename Model, typename Scalar, typename = void>
+inline constexpr bool kGivesAnodeLithium = false;
+template <typename Model, typename Scalar>
+inline constexpr bool kGivesAnodeLithium<Model, Scalar,
+                                         std::void_t<decltype(std::declval<const Model&>().anode_lithium_mol())>> = true;
+
 // Whether a main-system model gives the open-circuit capacity of an inventory (the reduced
 // model does; the host's full DFN does not, and the tick then reports NaN).
 template <typename Model, typename Scalar, typename = void>
@@ -425,6 +432,8 @@ class ReducedCell {
     return mean_shell(s_.cs_pos_mol_m3, s_.cs_pos_carry_mol_m3, vol_p_, kNrP) / Scalar(Cell::kPos.max_concentration_mol_m3);
   }
 
+  // Lithium held in the anode's particles [mol] (AreaScale's pins).
+  Scalar anode_lithium_mol() const { return mean_stoich_neg() * Scalar(solid_capacity_neg_mol()); }
   // Lithium held in both particles [mol]: the cyclable inventory.
   Scalar solid_inventory_mol() const {
     return mean_stoich_neg() * Scalar(solid_capacity_neg_mol()) + mean_stoich_pos() * Scalar(solid_capacity_pos_mol());

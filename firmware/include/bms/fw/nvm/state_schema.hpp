@@ -23,6 +23,7 @@
 
 #include "bms/fw/estimation/bias_calibration.hpp"
 #include "bms/fw/estimation/bms_core.hpp"
+#include "bms/fw/estimation/area_scale.hpp"
 #include "bms/fw/estimation/current_offset.hpp"
 #include "bms/fw/estimation/voltage_offset.hpp"
 #include "bms/fw/model/cell_effects.hpp"
@@ -283,6 +284,21 @@ constexpr std::uint32_t state_schema(Type<IdentifierFilmPath<S>> /*tag*/) {
   return hash("IdentifierFilmPath.State", f, sizeof(St));
 }
 
+template <class S>
+constexpr std::uint32_t state_schema(Type<AreaScale<S>> /*tag*/) {
+  using St = typename AreaScale<S>::State;
+  constexpr Field f[] = {BMS_SCHEMA_FIELD(St, scale),
+                         BMS_SCHEMA_FIELD(St, weight),
+                         BMS_SCHEMA_FIELD(St, counted_mol),
+                         BMS_SCHEMA_FIELD(St, counted_carry_mol),
+                         BMS_SCHEMA_FIELD(St, pinned_anode_mol),
+                         BMS_SCHEMA_FIELD(St, pinned_loss_mol),
+                         BMS_SCHEMA_FIELD(St, span_inventory_mol),
+                         BMS_SCHEMA_FIELD(St, flags)};
+  static_assert(covers(f, sizeof(St), alignof(St)), "AreaScale::State changed: update its schema table");
+  return hash("AreaScale.State", f, sizeof(St));
+}
+
 template <class S, class M, int Nc, int D, class P>
 constexpr std::uint32_t state_schema(Type<BmsCore<S, M, Nc, D, P>> /*tag*/) {
   using C = BmsCore<S, M, Nc, D, P>;
@@ -298,6 +314,7 @@ constexpr std::uint32_t state_schema(Type<BmsCore<S, M, Nc, D, P>> /*tag*/) {
                          BMS_SCHEMA_NESTED(St, resync, StateResync<S>),
                          BMS_SCHEMA_NESTED(St, offset, CurrentOffset<S>),
                          BMS_SCHEMA_NESTED(St, voltage_offset, VoltageOffset<S>),
+                         BMS_SCHEMA_NESTED(St, area, AreaScale<S>),
                          BMS_SCHEMA_NESTED(St, detector, typename C::Detector),
                          BMS_SCHEMA_NESTED(St, model, M)};
   static_assert(covers(f, sizeof(St), alignof(St)), "BmsCore::State changed: update its schema table");
