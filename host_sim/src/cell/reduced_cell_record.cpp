@@ -256,9 +256,9 @@ std::string cell_header_text(const ReducedCellRecord& r, const std::string& type
   s += "  // The bias's state-of-charge part (bms/fw/model/model_bias_table.hpp; first = last: none)\n";
   field("kModelBiasTableFirst", model_bias_table.x_first);
   field("kModelBiasTableLast", model_bias_table.x_last);
-  s += fmt::format("  static constexpr double kModelBiasTableOhm[{}] = {{", fw::ModelBiasTable<double>::kKnots);
+  s += fmt::format("  static constexpr double kModelBiasTableOhm[{}] = {{\n     ", fw::ModelBiasTable<double>::kKnots);
   for (int k = 0; k < fw::ModelBiasTable<double>::kKnots; ++k)
-    s += (k == 0 ? "" : k % 4 == 0 ? ",\n      " : ", ") + num(model_bias_table.ohm[k]);
+    s += (k == 0 ? " " : k % 4 == 0 ? ",\n      " : ", ") + num(model_bias_table.ohm[k]);
   s += "};\n";
   s += fmt::format("  static constexpr std::uint32_t kRecordCrc32 = 0x{:08X}u;\n", record_crc32(r));
   s += fmt::format("  static constexpr HermiteTable<{}> kOcpNeg{};\n", kOcpTableNodes, table_text(r.ocp_neg));
