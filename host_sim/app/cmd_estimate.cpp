@@ -82,7 +82,9 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--spread-cathode-i0", v.spread_cathode_i0_rel);
   g("--spread-transport", v.spread_transport_rel);
   g("--spread-area", v.spread_area_rel);
+  g("--voltage-offset-sd-mv", v.voltage_offset_sd_mv);
   g("--no-current-offset", v.current_offset);
+  g("--voltage-offset", v.voltage_offset);
   g("--inventory-error-pct", c.o.inventory_error_pct);
   c.o.points_given = sub.count("--points") > 0;
   if (sub.count("--theta0") > 0) {
@@ -294,10 +296,19 @@ Runner add_estimate(CLI::App& app) {
                            "diffusivity, independently)" + spread_end);
   sub->add_option("--spread-area", c->o.overrides.spread_area_rel.value,
                   spread + "the electrode area (both electrodes' capacity)" + spread_end);
+  sub->add_option("--voltage-offset-sd-mv", c->o.overrides.voltage_offset_sd_mv.value,
+                  "--settings best only: the voltage sensor's stated offset accuracy (the front end's datasheet "
+                  "1-sigma in mV, in [0, 10], default 0); in CC charge an offset reads as film, so this over "
+                  "dV/dR_film enters r_film_sd_ohm_m2 in quadrature");
   sub->add_flag("!--no-current-offset", c->o.overrides.current_offset.value,
                 "Do not remove the current sensor's offset (default with --settings best: measured between two CV "
                 "end points of the same kind, where the cell is in the same state, as the counted charge over the "
                 "span's duration, when no two samples are more than 0.5 s apart; ablation)");
+  sub->add_flag("--voltage-offset", c->o.overrides.voltage_offset.value,
+                "--settings best only, experimental (off by default): remove a voltage sensor offset measured from "
+                "each CC discharge's residual after a fitted CC charge (the film's drop has the other sign there, "
+                "an offset the same); a change outside 0.1 mV restarts the film's learning. Misled by a current "
+                "gain or a transport spread (docs/results/envelope.md)");
   // RCSI (paper, nominal-growth).
   sub->add_option("--nc", c->o.overrides.nc.value, "RCSI profiles: order n_c of the ARX subsystem model (1..8, default 1)");
   sub->add_option("--p0", c->o.overrides.p0.value,

@@ -61,6 +61,19 @@ import json, sys
 s = json.load(open(sys.argv[1]))["options"]["stated_spread_rel"]
 assert s == {"anode_i0": 0.17, "cathode_i0": 0.16, "transport": 0.12, "area": 0.02}, s
 PY
+# The voltage sensor's stated offset accuracy: the identifier's sd; refused where RCSI learns,
+# outside [0, 10] mV exit 2 naming the option, recorded in summary.json.
+for p in paper nominal-growth; do refused "$p" voltage-offset-sd-mv 0.3; done
+for val in -0.1 11; do
+  check_input_error "best-voltage-offset-sd-range-$val" "--voltage-offset-sd-mv" "$WORK/o" -- \
+    "$BMSSIM" estimate --data short.csv --settings best --voltage-offset-sd-mv "$val" --quiet --out "$WORK/o"
+done
+accepted best --voltage-offset-sd-mv 0.2887
+python3 - "$WORK/a/summary.json" <<'PY' && pass "summary records the voltage offset sd" || fail "voltage offset sd" "see above"
+import json, sys
+s = json.load(open(sys.argv[1]))["options"]["voltage_offset_sd_mv"]
+assert abs(s - 0.2887) < 1e-12, s
+PY
 # --settings nominal-growth: H from the model, no identifier.
 for o in "h 0.02" "no-inventory" "model-bias-ohm 0" "relinearise 1"; do
   # shellcheck disable=SC2086

@@ -68,7 +68,8 @@ void add_path_fields(const fw::IdentifierFilmPath<double>::Config& c, std::vecto
       {"spread.anode_i0_rel", c.spread.anode_i0_rel},
       {"spread.cathode_i0_rel", c.spread.cathode_i0_rel},
       {"spread.transport_rel", c.spread.transport_rel},
-      {"spread.area_rel", c.spread.area_rel}};
+      {"spread.area_rel", c.spread.area_rel},
+      {"voltage_offset_sd_v", c.voltage_offset_sd_v}};
   f.insert(f.end(), g.begin(), g.end());
 }
 
@@ -97,7 +98,8 @@ std::vector<Field> fields(const Config& c) {
       {"resync_window_ticks", c.resync_window_ticks},
       {"nominal_inventory_mol", c.nominal_inventory_mol},
       {"rcsi_warmup_s", c.rcsi_warmup_s},
-      {"learning", c.learning}};
+      {"learning", c.learning},
+      {"voltage_offset", c.voltage_offset}};
   add_path_fields(c.film_path, f);
   return f;
 }
@@ -235,6 +237,8 @@ const std::vector<OverrideCase>& override_cases() {
       {"spread-cathode-i0", [](fw::Overrides& o) { o.spread_cathode_i0_rel = 0.1; }},
       {"spread-transport", [](fw::Overrides& o) { o.spread_transport_rel = 0.1; }},
       {"spread-area", [](fw::Overrides& o) { o.spread_area_rel = 0.01; }},
+      {"voltage-offset-sd-mv", [](fw::Overrides& o) { o.voltage_offset_sd_mv = 0.3; }},
+      {"voltage-offset", [](fw::Overrides& o) { o.voltage_offset = true; }},
   };
   return c;
 }
@@ -244,13 +248,13 @@ std::set<std::string> expected_unused(fw::Profile p) {
     case fw::Profile::paper:  // no observer, no bias calibration, no propagation, H given
       return {"reference-after-resyncs", "growth-scale", "no-start-resync", "resync-window", "resync-current",
               "no-inventory", "model-bias-ohm", "relinearise", "spread-anode-i0", "spread-cathode-i0",
-              "spread-transport", "spread-area"};
+              "spread-transport", "spread-area", "voltage-offset-sd-mv", "voltage-offset"};
     case fw::Profile::best:  // the eleven, and what only RCSI reads
       return {"nc", "h", "p0", "p0-y0", "lambda", "eta", "theta0", "r-film-init", "calibrate-bias",
               "reference-after-resyncs", "average", "propagate-growth", "growth-scale"};
     case fw::Profile::nominal_growth:  // H from the model; no identifier
       return {"h", "no-inventory", "model-bias-ohm", "relinearise", "spread-anode-i0", "spread-cathode-i0",
-              "spread-transport", "spread-area"};
+              "spread-transport", "spread-area", "voltage-offset-sd-mv", "voltage-offset"};
   }
   return {};
 }

@@ -33,6 +33,8 @@ nlohmann::json options_json(const EstimateConfigSummary& c, const EstimateOption
       j["model_bias_table"] = nullptr;
     j["stated_spread_rel"] = {{"anode_i0", c.spread.anode_i0_rel}, {"cathode_i0", c.spread.cathode_i0_rel},
                               {"transport", c.spread.transport_rel}, {"area", c.spread.area_rel}};
+    j["voltage_offset_sd_mv"] = c.voltage_offset_sd_v * 1e3;
+    j["voltage_offset"] = c.voltage_offset;
     if (c.resync_at_cv_end) j["relinearise_inventory"] = c.relinearise_inventory;
   } else {
     j.update({{"nc", c.nc}, {"p0", c.p0_u}, {"p0_y0", c.p0_y0}, {"lambda", c.lambda}, {"eta", c.eta},
@@ -109,6 +111,7 @@ nlohmann::json estimate_summary_json(const EstimateResult& r, const EstimateOpti
                        {"inventory_deviation", last.inventory_deviation}};
   }
   if (!r.rows.empty()) j["current_offset_a"] = r.rows.back().current_offset_a;
+  if (!r.rows.empty() && r.config.voltage_offset) j["voltage_offset_v"] = r.rows.back().voltage_offset_v;
   j["status_bits_seen"] = r.status;
   j["newton_cap_hits"] = r.newton_cap_hits;
   j["wall_s"] = r.wall_s;

@@ -173,6 +173,7 @@ EstimateRow row_of(const Output& out, double t_s, int cycle) {
   r.capacity_true_ah = std::nan("");
   r.innovation_test_ratio = out.innovation_test_ratio;
   r.current_offset_a = out.current_offset_a;
+  r.voltage_offset_v = out.voltage_offset_v;
   r.status = out.status;
   r.model_stoich_neg = std::nan("");
   r.model_bias_v = std::nan("");
@@ -452,6 +453,8 @@ void check_estimate_options(const EstimateOptions& o) {
   for (const auto& [name, g] : spreads)
     if (bad(*g, [](double x) { return x >= 0.0 && x <= 0.9; }))
       throw InputError(fmt::format("--{} must be a relative 1-sigma in [0, 0.9] (got {})", name, g->value));
+  if (bad(v.voltage_offset_sd_mv, [](double x) { return x >= 0.0 && x <= 10.0; }))
+    throw InputError(fmt::format("--voltage-offset-sd-mv must be a 1-sigma in [0, 10] mV (got {})", v.voltage_offset_sd_mv.value));
 }
 
 namespace {

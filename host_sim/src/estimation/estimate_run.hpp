@@ -114,6 +114,8 @@ struct EstimateConfigSummary {
   double propagated_growth_ohm_m2_per_a_m3_s = 0, model_bias_ohm = 0, relinearise_inventory = 0;
   fw::StatedSpread<double> spread{};  // the cell's stated parameter spread (relative 1-sigma)
   fw::ModelBiasTable<double> model_bias_table{};  // the bias's state-of-charge-dependent part (off: none)
+  double voltage_offset_sd_v = 0;     // the voltage sensor's stated offset accuracy (1-sigma)
+  bool voltage_offset = false;        // the voltage sensor's offset measured and removed
 };
 
 template <class Config>
@@ -131,6 +133,7 @@ EstimateConfigSummary summarise_config(const Config& c, int nc) {
   s.voltage_max_v = c.voltage_max_v;
   s.dt_s = c.dt_s;
   s.learning = c.learning;
+  s.voltage_offset = c.voltage_offset;
   const auto& p = c.film_path;
   if constexpr (std::decay_t<decltype(p)>::kKind == fw::FilmPathKind::rcsi) {
     s.h_v_per_ohm_m2 = p.estimator.markov_v_per_ohm_m2;
@@ -152,6 +155,7 @@ EstimateConfigSummary summarise_config(const Config& c, int nc) {
     s.relinearise_inventory = p.relinearise_inventory;
     s.spread = {double(p.spread.anode_i0_rel), double(p.spread.cathode_i0_rel), double(p.spread.transport_rel),
                 double(p.spread.area_rel)};
+    s.voltage_offset_sd_v = double(p.voltage_offset_sd_v);
   }
   return s;
 }
@@ -173,6 +177,7 @@ struct EstimateRow {
   // The main model's mean anode stoichiometry after the tick (NaN where the model gives none) and
   // the design-time bias the identifier subtracts from z at it [V] (NaN without the identifier).
   double model_stoich_neg, model_bias_v;
+  double voltage_offset_v;  // the voltage sensor offset the firmware subtracts (VoltageOffset)
   std::uint32_t status;
 };
 

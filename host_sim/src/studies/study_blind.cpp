@@ -195,6 +195,7 @@ const std::vector<Arm>& arms() {
       {"best-no-relinearise", "--settings best --relinearise 1", P::best, [](O& o) { o.relinearise_inventory = 1.0; }},
       {"best-no-warmup", "--settings best --warmup 0", P::best, [](O& o) { o.warmup_s = 0.0; }},
       {"best-no-offset", "--settings best --no-current-offset", P::best, [](O& o) { o.current_offset = false; }},
+      {"best-voffset", "--settings best --voltage-offset", P::best, [](O& o) { o.voltage_offset = true; }},
       {"best-no-hold", "--settings best --no-hold", P::best, [](O& o) { o.hold_until_settled = false; }},
       {"best-window1", "--settings best --resync-window 1", P::best, [](O& o) { o.resync_window_ticks = 1u; }},
       {"best-no-resync", "--settings best --no-resync", P::best, [](O& o) { o.resync = false; }},
@@ -210,6 +211,10 @@ const std::vector<Arm>& arms() {
          o.spread_transport_rel = 0.1155;
          o.spread_area_rel = 0.01732;
        }},
+      // Set 5's voltage offset U(-0.5, 0.5) mV stated as a front end's datasheet bound: 1-sigma
+      // 0.5 / sqrt(3) mV; not tuned on any truth.
+      {"best-stated-voltage", "--settings best --voltage-offset-sd-mv 0.2887", P::best,
+       [](O& o) { o.voltage_offset_sd_mv = 0.2887; }},
       {"paper", "--settings paper", P::paper, [](O&) {}},
       {"paper-no-learning", "--settings paper --no-learning", P::paper, [](O& o) { o.learning = false; }},
       {"nominal-growth", "--settings nominal-growth", P::nominal_growth, [](O&) {}},

@@ -187,6 +187,9 @@ struct Overrides {
   Given<double> spread_cathode_i0_rel;  // --spread-cathode-i0
   Given<double> spread_transport_rel;   // --spread-transport
   Given<double> spread_area_rel;        // --spread-area
+  // best: the voltage sensor's stated offset accuracy (1-sigma), default 0.
+  Given<double> voltage_offset_sd_mv;   // --voltage-offset-sd-mv
+  Given<bool> voltage_offset;           // --voltage-offset (true): the sensor offset from CC discharges (off by default)
 };
 
 /// An override make_config refused: the option's name (without "--") and why; option nullptr: none.
@@ -249,6 +252,8 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"spread-cathode-i0", o.spread_cathode_i0_rel.given, id, only_best},
       {"spread-transport", o.spread_transport_rel.given, id, only_best},
       {"spread-area", o.spread_area_rel.given, id, only_best},
+      {"voltage-offset-sd-mv", o.voltage_offset_sd_mv.given, id, only_best},
+      {"voltage-offset", o.voltage_offset.given, id, only_best},
   };
   for (const Use& u : uses)
     if (u.given && !u.used) return {u.option, u.reason};
@@ -400,6 +405,8 @@ void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   set_if(o.spread_cathode_i0_rel, cfg.film_path.spread.cathode_i0_rel);
   set_if(o.spread_transport_rel, cfg.film_path.spread.transport_rel);
   set_if(o.spread_area_rel, cfg.film_path.spread.area_rel);
+  if (o.voltage_offset_sd_mv.given)
+    cfg.film_path.voltage_offset_sd_v = static_cast<decltype(cfg.film_path.voltage_offset_sd_v)>(o.voltage_offset_sd_mv.value * 1e-3);
 }
 
 }  // namespace detail
@@ -420,6 +427,7 @@ Refusal make_config(const NominalCell& cell, Profile profile, const Overrides& o
   if (r.option != nullptr) return r;
   detail::set_if(o.learning, cfg.learning);
   detail::set_if(o.current_offset, cfg.current_offset);
+  detail::set_if(o.voltage_offset, cfg.voltage_offset);
   detail::set_if(o.warmup_s, cfg.rcsi_warmup_s);
   detail::apply_observer(o, cfg);
   out = cfg;

@@ -36,6 +36,7 @@
 #include "bms/fw/model/reduced_cell.hpp"
 #include "bms/fw/estimation/resync_window.hpp"
 #include "bms/fw/estimation/state_resync.hpp"
+#include "bms/fw/estimation/voltage_offset.hpp"
 
 namespace bms::fw {
 
@@ -77,6 +78,7 @@ struct TickOutput {
   Scalar capacity_sd_ah;
   Scalar innovation_test_ratio;
   Scalar current_offset_a;     // the current sensor's offset subtracted from the samples (CurrentOffset)
+  Scalar voltage_offset_v;     // the voltage sensor's offset subtracted from the samples (VoltageOffset)
   StatusWord status;           // bits raised in this tick (estimator bits 0..7, tick 8..15)
   std::uint32_t tick;          // committed ticks
   std::uint8_t newton_iterations;
@@ -150,6 +152,10 @@ class BmsCore {
     // CurrentOffset. Beyond the paper: the current sensor's offset, measured between two CV end
     // points of the same kind (their |I| at resync_current_a), is subtracted from every sample.
     bool current_offset = false;
+    // VoltageOffset. Beyond the paper: the voltage sensor's offset, measured from the CC
+    // discharge's residual after a fitted CC charge (the film's drop changes sign with the
+    // current, an offset does not), is subtracted from every sample. With the identifier only.
+    bool voltage_offset = false;
   };
 
   // The profiles (paper, best, nominal-growth) are built from the nominal cell in one place,
@@ -166,6 +172,7 @@ class BmsCore {
     typename LearningGate<Scalar>::State learning;
     typename StateResync<Scalar>::State resync;
     typename CurrentOffset<Scalar>::State offset;
+    typename VoltageOffset<Scalar>::State voltage_offset;
     typename Detector::State detector;
     ModelState model;
   };
@@ -176,7 +183,7 @@ class BmsCore {
   BmsCore(const Config& config, MainModel& model)
       : config_(config), model_(model), detector_(config.detector), path_(config.film_path, config.dt_s),
         gate_(gate_config(config)), resync_(resync_config(config)),
-        offset_(offset_config(config)) {
+        offset_(offset_config(config)), voffset_(voltage_offset_config(config)) {
     last_j_side_ = path_.initial_j_side_a_m3();
   }
 
@@ -218,9 +225,10 @@ class BmsCore {
     if (!step.r.converged) st |= bit(FwStatus::kModelNotConverged);
     st |= resync_step(c, u, step.voltage_driven);                                 // 7
     follow_offset(in, mode, step.voltage_driven);
-    const Scalar z = step.r.voltage_v - in.voltage_v;
+    const Scalar z = step.r.voltage_v - c.voltage_v;
     if (gate.reference) path_.collect_reference(z);                               // 8
     const Learned learned = learn(c, u, z, step, gate.open);                      // 9
+    follow_voltage_offset(mode, step, z, c.current_a, learned.active);
     return finish_tick(mode, gate, step, z, learned, st | learned.status);        // 10
   }
 
@@ -236,6 +244,7 @@ class BmsCore {
     s.learning = gate_.save();
     s.resync = resync_.save();
     s.offset = offset_.save();
+    s.voltage_offset = voffset_.save();
     s.detector = detector_.state();
     s.model = model_.state();
     return s;
@@ -257,10 +266,11 @@ class BmsCore {
     LearningGate<Scalar> g = gate_;
     StateResync<Scalar> rs = resync_;
     CurrentOffset<Scalar> off = offset_;
+    VoltageOffset<Scalar> voff = voffset_;
     const ModelState model_backup = model_.state();
     const bool ok = header_ok && d.restore(s.detector) && p.restore(s.film_path) && g.restore(s.learning) &&
                     rs.restore(s.resync, path_.inventory_limit()) && off.restore(s.offset) &&
-                    model_.restore(s.model);
+                    voff.restore(s.voltage_offset) && model_.restore(s.model);
     if (!ok) {
       model_.restore(model_backup);
       status_ |= bit(FwStatus::kRestoreRejected);
@@ -271,6 +281,7 @@ class BmsCore {
     gate_ = g;
     resync_ = rs;
     offset_ = off;
+    voffset_ = voff;
     ticks_ = s.ticks;
     stale_ticks_ = s.stale_ticks;
     have_sample_ = (s.flags & 1u) != 0u;
@@ -325,6 +336,13 @@ class BmsCore {
     o.dt_s = c.dt_s;
     return o;
   }
+  static typename VoltageOffset<Scalar>::Config voltage_offset_config(const Config& c) {
+    typename VoltageOffset<Scalar>::Config o{};
+    o.enabled = c.voltage_offset && FilmPath::kKind == FilmPathKind::identifier;
+    if constexpr (FilmPath::kKind == FilmPathKind::identifier) o.model_bias_ohm = c.film_path.model_bias_ohm;
+    o.dt_s = c.dt_s;
+    return o;
+  }
 
   // Step 1.
   StatusWord validate(const TickInput<Scalar>& in) const {
@@ -347,8 +365,10 @@ class BmsCore {
     const bool power_cycle = !first_sample && config_.power_cycle_after_s > Scalar(0) &&
                              static_cast<Scalar>(stale_ticks_) * config_.dt_s > config_.power_cycle_after_s;
     offset_.count(measured.current_a, first_sample ? 0u : stale_ticks_, first_sample, power_cycle);
+    voffset_.gap(first_sample ? 0u : stale_ticks_, power_cycle);
     TickInput<Scalar> in = measured;
     in.current_a = offset_.corrected(measured.current_a);
+    in.voltage_v = voffset_.corrected(measured.voltage_v);
     if (!first_sample && stale_ticks_ > 0u) catch_up(stale_ticks_, in, power_cycle);
     stale_ticks_ = 0;
     have_sample_ = true;
@@ -454,6 +474,17 @@ class BmsCore {
     if (std::fabs(offset_.offset_a() - before_a) > offset_.config().deadband_a) path_.forget();
   }
 
+  // Step 9: VoltageOffset's CC-discharge residual. When the offset in use moves (a discharge's
+  // remainder outside the dead band), what the film path learned was on the old voltage: it is
+  // forgotten, as at a current offset's change.
+  void follow_voltage_offset(Mode mode, const ModelStep& step, Scalar z, Scalar current_a, bool learned) {
+    if (!voffset_.config().enabled) return;
+    bool holding = false;
+    if constexpr (FilmPath::kKind == FilmPathKind::identifier) holding = path_.holding();
+    const bool cc_discharge = mode == Mode::cc_discharge && !step.voltage_driven;
+    if (voffset_.follow(cc_discharge, holding, learned, z, current_a, step.r.markov_v_per_ohm_m2)) path_.forget();
+  }
+
   // Step 9 (the film's propagation over the tick included).
   Learned learn(const TickInput<Scalar>& in, Scalar u, Scalar z, const ModelStep& step, bool open) {
     const FilmTick<Scalar> t{step.r, in.current_a, u, z, step.v_probe_v, config_.dt_s, config_.nominal_inventory_mol,
@@ -506,6 +537,7 @@ class BmsCore {
     o.inventory_sensitivity_v = Scalar(0);
     o.innovation_test_ratio = Scalar(0);
     o.current_offset_a = offset_.offset_a();
+    o.voltage_offset_v = voffset_.offset_v();
     o.tick = ticks_;
     o.newton_iterations = 0;
     o.status = 0u;
@@ -525,6 +557,7 @@ class BmsCore {
   LearningGate<Scalar> gate_;
   StateResync<Scalar> resync_;
   CurrentOffset<Scalar> offset_;
+  VoltageOffset<Scalar> voffset_;
   Scalar last_current_ = Scalar(0);
   Scalar last_voltage_ = Scalar(0);   // the last accepted sample's (catch-up in CV; not persisted)
   bool last_voltage_driven_ = false;  // the last tick's model step was voltage-driven

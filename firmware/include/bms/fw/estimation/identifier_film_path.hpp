@@ -68,6 +68,12 @@ class IdentifierFilmPath {
     // model's closed form at each learning tick, ReducedCell::spread_voltage_sd_v). A stated
     // tolerance, never learned; 0 (a characterised cell) leaves it out.
     StatedSpread<Scalar> spread{};
+    // 1-sigma of the voltage sensor's offset [V] (the analog front end's stated accuracy, never
+    // this unit's actual offset): in CC charge a constant voltage offset is read as a resistance
+    // (measured about 30 % of the paper cell's film per mV at 1C), so it enters the fitted level's
+    // sd as this / |H| in quadrature, as the stated spread does (not on the held prior: the prior
+    // reads no voltage). A stated accuracy, not learned; 0 leaves it out.
+    Scalar voltage_offset_sd_v = Scalar(0);
   };
 
   // Trivially copyable, for the NVM image.
@@ -153,6 +159,7 @@ class IdentifierFilmPath {
       const Scalar per_k = (v_warm_v_ - t.r.voltage_v) / (kTemperatureProbeK * t.r.markov_v_per_ohm_m2);
       if (c_.temperature_sd_k > Scalar(0) && std::isfinite(per_k)) film_per_kelvin_ohm_m2_ = std::fabs(per_k);
       update_spread(model, t.r);
+      update_voltage_offset_term(t.r.markov_v_per_ohm_m2);
       l.status |= identifier_.learn(t.u_ohm_m2, t.z_v, t.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
                                     resync.inventory_deviation_model(), -bias_ohm * t.current_a);
       l.active = (l.status & kIdentifierRejectMask) == 0u;
@@ -184,14 +191,19 @@ class IdentifierFilmPath {
   }
   // The fitted level's 1-sigma: the identifier's (regression and model bound) and the temperature
   // sensor's, |dV/dT / H| x temperature_sd_k, in quadrature.
-  // With a stated spread, its film equivalent too, where the reported film is fitted to the
-  // voltage (the spread's collinear share is the fit's); the held prior's sd is the prior's.
+  // With a stated spread or voltage sensor accuracy, their film equivalents too, where the
+  // reported film is fitted to the voltage (their collinear share is the fit's); the held prior's
+  // sd is the prior's.
   Scalar fitted_sd_ohm_m2() const {
     const Scalar sd = reported().film_sd_ohm_m2();
     const Scalar t = film_per_kelvin_ohm_m2_ * c_.temperature_sd_k;
     const Scalar with_t = std::isfinite(t) ? std::sqrt(sd * sd + t * t) : sd;
-    if (!(film_spread_ohm_m2_ > Scalar(0)) || (holding_ && held_is_prior_)) return with_t;
-    return std::sqrt(with_t * with_t + film_spread_ohm_m2_ * film_spread_ohm_m2_);
+    const bool spread = film_spread_ohm_m2_ > Scalar(0), voltage = film_voltage_offset_ohm_m2_ > Scalar(0);
+    if (!(spread || voltage) || (holding_ && held_is_prior_)) return with_t;
+    Scalar v = with_t * with_t;
+    if (spread) v += film_spread_ohm_m2_ * film_spread_ohm_m2_;
+    if (voltage) v += film_voltage_offset_ohm_m2_ * film_voltage_offset_ohm_m2_;
+    return std::sqrt(v);
   }
   // With a stated spread the fitted level is told from the prior only to within the spread's
   // collinear share: where that is wider than the prior's own sd the fit says less than the
@@ -216,6 +228,8 @@ class IdentifierFilmPath {
   }
   // The stated spread's film equivalent [ohm m2] at the last learning tick (0 without one).
   Scalar film_spread_ohm_m2() const { return film_spread_ohm_m2_; }
+  // The voltage sensor's stated offset accuracy as a film [ohm m2], last learning tick (0 without).
+  Scalar film_voltage_offset_ohm_m2() const { return film_voltage_offset_ohm_m2_; }
   Scalar innovation_test_ratio() const { return innovation_ratio_; }
   // The identified parameters and their uncertainties. theta: the ARX subsystem RCSI fits is not
   // used here; it reads as the hold RCSI starts from, [M1 = 1, 0, ...] (the identifier's film
@@ -291,6 +305,13 @@ class IdentifierFilmPath {
     }
   }
 
+  // The voltage sensor's stated offset 1-sigma over the film's sensitivity H at this learning tick.
+  void update_voltage_offset_term(Scalar markov_v_per_ohm_m2) {
+    if (!(c_.voltage_offset_sd_v > Scalar(0))) return;
+    const Scalar per = c_.voltage_offset_sd_v / markov_v_per_ohm_m2;
+    if (std::isfinite(per)) film_voltage_offset_ohm_m2_ = std::fabs(per);
+  }
+
   // The open-circuit capacity of the identified inventory (less the model's own lithium loss),
   // at the first tick, every kCapacityEveryTicks learning ticks and when a learning window
   // closes: two bisections, not every tick.
@@ -333,6 +354,7 @@ class IdentifierFilmPath {
   Scalar v_warm_v_ = Scalar(0);                // this tick's voltage at +kTemperatureProbeK
   Scalar film_per_kelvin_ohm_m2_ = Scalar(0);  // |dV/dT / H| of the last learning tick
   Scalar film_spread_ohm_m2_ = Scalar(0);      // the stated spread's film 1-sigma, last learning tick
+  Scalar film_voltage_offset_ohm_m2_ = Scalar(0);  // the voltage sensor's stated offset as a film, last learning tick
   std::uint32_t capacity_ticks_ = 0u;          // learning ticks since the capacity was last computed
 };
 

@@ -24,6 +24,7 @@
 #include "bms/fw/estimation/bias_calibration.hpp"
 #include "bms/fw/estimation/bms_core.hpp"
 #include "bms/fw/estimation/current_offset.hpp"
+#include "bms/fw/estimation/voltage_offset.hpp"
 #include "bms/fw/model/cell_effects.hpp"
 #include "bms/fw/estimation/film_growth_identifier.hpp"
 #include "bms/fw/estimation/film_level.hpp"
@@ -209,6 +210,18 @@ constexpr std::uint32_t state_schema(Type<CurrentOffset<S>> /*tag*/) {
   return hash("CurrentOffset.State", f, sizeof(St));
 }
 
+template <class S>
+constexpr std::uint32_t state_schema(Type<VoltageOffset<S>> /*tag*/) {
+  using St = typename VoltageOffset<S>::State;
+  constexpr Field f[] = {BMS_SCHEMA_FIELD(St, sum_z_v),      BMS_SCHEMA_FIELD(St, sum_w),
+                         BMS_SCHEMA_FIELD(St, offset_v),     BMS_SCHEMA_FIELD(St, charge_markov_v_per_ohm_m2),
+                         BMS_SCHEMA_FIELD(St, phase_s),      BMS_SCHEMA_FIELD(St, ticks),
+                         BMS_SCHEMA_FIELD(St, fitted_ticks), BMS_SCHEMA_FIELD(St, fused),
+                         BMS_SCHEMA_FIELD(St, flags)};
+  static_assert(covers(f, sizeof(St), alignof(St)), "VoltageOffset::State changed: update its schema table");
+  return hash("VoltageOffset.State", f, sizeof(St));
+}
+
 /// A generated cell configuration (bms/fw/cells/) carries its record's CRC: the state of a model
 /// of that cell is tagged with it, so that a state saved under one cell is refused under another
 /// (same layout, other numbers). The paper cell's traits carry none: its tag is unchanged.
@@ -284,6 +297,7 @@ constexpr std::uint32_t state_schema(Type<BmsCore<S, M, Nc, D, P>> /*tag*/) {
                          BMS_SCHEMA_NESTED(St, learning, LearningGate<S>),
                          BMS_SCHEMA_NESTED(St, resync, StateResync<S>),
                          BMS_SCHEMA_NESTED(St, offset, CurrentOffset<S>),
+                         BMS_SCHEMA_NESTED(St, voltage_offset, VoltageOffset<S>),
                          BMS_SCHEMA_NESTED(St, detector, typename C::Detector),
                          BMS_SCHEMA_NESTED(St, model, M)};
   static_assert(covers(f, sizeof(St), alignof(St)), "BmsCore::State changed: update its schema table");
