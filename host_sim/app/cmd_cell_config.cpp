@@ -57,7 +57,7 @@ int run_cell_config(const CellConfigCli& c) {
   }
   const std::string type = type_name_for(cell.name);
   const std::string header = fmt::format("{}_cell.hpp", cell.name);
-  write_file_atomically(folder.staging() / header, cell_header_text(record, type, bias.bias_ohm));
+  write_file_atomically(folder.staging() / header, cell_header_text(record, type, bias.bias_ohm, bias.table));
   const nlohmann::json j = {
       {"cell", cell.name},
       {"source", cell.source},
@@ -67,6 +67,13 @@ int run_cell_config(const CellConfigCli& c) {
       {"model_bias_ohm", bias.bias_ohm},
       {"model_bias_from", std::isfinite(c.bias_ohm) ? "--model-bias-ohm" : "nominal DFN, 3 CCCV cycles at 1C (CV to C/10), 40/40 volumes, rtol 1e-9"},
       {"model_bias_ticks", bias.ticks},
+      {"model_bias_table", bias.table.on() ? nlohmann::json{{"abscissa", "the model's mean anode stoichiometry"},
+                                                            {"x_first", bias.table.x_first},
+                                                            {"x_last", bias.table.x_last},
+                                                            {"ohm", bias.table.ohm}}
+                                           : nlohmann::json(nullptr)},
+      {"nominal_residual_constant_v_p10_p50_p90", bias.residual_constant_v},
+      {"nominal_residual_table_v_p10_p50_p90", bias.residual_table_v},
       {"ocp_table_nodes", kOcpTableNodes},
       {"electrolyte_table_nodes", kElectrolyteTableNodes},
       {"ocp_neg_max_err_v", record.ocp_neg_max_err_v},

@@ -75,6 +75,7 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--resync-current", v.resync_current_a);
   g("--no-inventory", v.learn_inventory);
   g("--model-bias-ohm", v.model_bias_ohm);
+  g("--no-bias-table", v.model_bias_table);
   g("--relinearise", v.relinearise_inventory);
   g("--no-hold", v.hold_until_settled);
   g("--spread-anode-i0", v.spread_anode_i0_rel);
@@ -199,8 +200,11 @@ int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
     // field) before any long work, then its design-time bias from its nominal DFN (recorded in
     // summary.json as model_bias_used_ohm).
     (void)make_reduced_cell_record(cell);
-    if (c.o.profile == fw::Profile::best && !c.o.overrides.model_bias_ohm.given)
-      c.o.design_bias_ohm = design_time_bias(cell).bias_ohm;
+    if (c.o.profile == fw::Profile::best && !c.o.overrides.model_bias_ohm.given) {
+      const DesignBias b = design_time_bias(cell);
+      c.o.design_bias_ohm = b.bias_ohm;
+      c.o.design_bias_table = b.table;  // --model-bias-ohm: that constant is the whole bias
+    }
   }
   const CurrentSign sign = current_sign_option(c.current_sign);
   const EstimateInput input = read_estimate_input(c.data, sign);
@@ -270,6 +274,9 @@ Runner add_estimate(CLI::App& app) {
   sub->add_option("--model-bias-ohm", c->o.overrides.model_bias_ohm.value,
                   "--settings best only: the main model's voltage bias in CC charge per ampere [ohm] (default: the "
                   "reduced model's design-time calibration, 0 for the full model; 0 = ablation)");
+  sub->add_flag("!--no-bias-table", c->o.overrides.model_bias_table.value,
+                "--settings best only: remove the reduced model's design-time bias as the constant alone, not with "
+                "its state-of-charge-dependent table (a cell other than the paper's; the paper cell has no table)");
   sub->add_option("--relinearise", c->o.overrides.relinearise_inventory.value,
                   "--settings best with the observer: a re-synchronisation that moves the model's inventory by more "
                   "than this (relative, default 1e-3) restarts the film's learning (1 = never: ablation)")

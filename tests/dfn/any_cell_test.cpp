@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bms/fw/cells/lco_cell.hpp"
+#include "bms/fw/config/cell_choice.hpp"
 #include "bms/fw/model/reduced_cell.hpp"
 #include "cell/reduced_cell_record.hpp"
 #include "io/bpx_reader.hpp"
@@ -96,7 +97,7 @@ TEST(CellRecord, GeneratedHeaderIsTheRuntimeModel) {
   const ReducedCellRecord r = make_reduced_cell_record(load_cell("lco"));
   EXPECT_EQ(record_crc32(r), Generated::kRecordCrc32);
   const std::string committed = read_text_file(BMS_SOURCE_DIR "/firmware/include/bms/fw/cells/lco_cell.hpp");
-  EXPECT_EQ(cell_header_text(r, "LcoCellTraits", Generated::kModelBiasOhm), committed)
+  EXPECT_EQ(cell_header_text(r, "LcoCellTraits", Generated::kModelBiasOhm, fw::LcoCell::kModelBiasTable), committed)
       << "regenerate: bmssim cell-config --cell lco --out DIR (scripts/generate-cells.sh)";
 
   const RuntimeCellScope scope(r);

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "bms/fw/model/cell_table.hpp"
+#include "bms/fw/model/model_bias_table.hpp"
 #include "bms/fw/model/paper_cell.hpp"
 #include "bms/fw/model/reduced_cell.hpp"
 #include "cell/cell_parameters.hpp"
@@ -53,8 +54,11 @@ struct ReducedCellRecord {
 ReducedCellRecord make_reduced_cell_record(const CellParameters& cell);
 
 // The record as a generated C++ header: namespace bms::fw::cells, struct `type_name` with
-// PaperCellTraits' fields, plus kModelBiasOhm (the design-time bias, computed by the caller).
-std::string cell_header_text(const ReducedCellRecord& r, const std::string& type_name, double model_bias_ohm);
+// PaperCellTraits' fields, plus kModelBiasOhm and its state-of-charge table kModelBiasTable*
+// (the design-time bias, computed by the caller; off: no table). Like kModelBiasOhm, the table is a
+// calibration of the model, not a number of the cell's record: outside the record's CRC.
+std::string cell_header_text(const ReducedCellRecord& r, const std::string& type_name, double model_bias_ohm,
+                             const fw::ModelBiasTable<double>& model_bias_table);
 
 // CRC-32 of the record's numbers (tables included), written into the header as kRecordCrc32.
 std::uint32_t record_crc32(const ReducedCellRecord& r);

@@ -1,6 +1,7 @@
 #include "estimation/design_bias.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <vector>
@@ -44,7 +45,51 @@ EstimateData nominal_run(const CellParameters& cell) {
   return d;
 }
 
+double median_of(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+// 10th / 50th / 90th percentile (nearest rank).
+std::array<double, 3> percentiles(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const auto at = [&](double q) { return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5)]; };
+  return {at(0.1), at(0.5), at(0.9)};
+}
+
 }  // namespace
+
+fw::ModelBiasTable<double> bias_table_of(const std::vector<double>& stoich, const std::vector<double>& ratio_ohm) {
+  constexpr int kN = fw::ModelBiasTable<double>::kKnots;
+  if (stoich.empty() || stoich.size() != ratio_ohm.size())
+    throw RuntimeFailure("design-time bias table: no CC-charge tick to build it from");
+  const auto [lo, hi] = std::minmax_element(stoich.begin(), stoich.end());
+  fw::ModelBiasTable<double> t;
+  if (!(*hi > *lo)) return t;  // one state only: the constant says it all
+  t.x_first = *lo;
+  t.x_last = *hi;
+  const double step = (t.x_last - t.x_first) / (kN - 1);
+  std::array<std::vector<double>, kN> bins;
+  for (std::size_t i = 0; i < stoich.size(); ++i) {
+    const long k = std::lround((stoich[i] - t.x_first) / step);
+    bins[static_cast<std::size_t>(std::clamp<long>(k, 0, kN - 1))].push_back(ratio_ohm[i]);
+  }
+  std::array<bool, kN> have{};
+  for (int k = 0; k < kN; ++k) {
+    have[k] = !bins[k].empty();
+    if (have[k]) t.ohm[k] = median_of(bins[k]);
+  }
+  for (int k = 0; k < kN; ++k) {  // a knot without ticks: linear between its nearest knots with ticks
+    if (have[k]) continue;
+    int a = k - 1, b = k + 1;
+    while (a >= 0 && !have[a]) --a;
+    while (b < kN && !have[b]) ++b;
+    if (a < 0) t.ohm[k] = t.ohm[b];
+    else if (b >= kN) t.ohm[k] = t.ohm[a];
+    else t.ohm[k] = t.ohm[a] + (t.ohm[b] - t.ohm[a]) * (k - a) / double(b - a);
+  }
+  return t;
+}
 
 DesignBias design_time_bias(const CellParameters& nominal_in) {
   const auto wall0 = std::chrono::steady_clock::now();
@@ -60,7 +105,7 @@ DesignBias design_time_bias(const CellParameters& nominal_in) {
   o.overrides.model_bias_ohm = 0.0;  // the bias itself is what the run measures
   o.ic = default_initial_conditions(nominal);
   const EstimateResult res = run_estimate(d, nominal, o);
-  std::vector<double> ratios;
+  std::vector<double> ratios, stoich, z_v, charge_a;
   double start = std::nan("");
   for (const EstimateRow& row : res.rows) {
     if (row.mode != fw::Mode::cc_charge) {
@@ -68,15 +113,28 @@ DesignBias design_time_bias(const CellParameters& nominal_in) {
       continue;
     }
     if (std::isnan(start)) start = row.t_s;
-    if (row.t_s - start > res.config.warmup_s && row.model_current_a < 0.0) ratios.push_back(row.z_v / -row.model_current_a);
+    if (row.t_s - start > res.config.warmup_s && row.model_current_a < 0.0) {
+      ratios.push_back(row.z_v / -row.model_current_a);
+      stoich.push_back(row.model_stoich_neg);
+      z_v.push_back(row.z_v);
+      charge_a.push_back(-row.model_current_a);
+    }
   }
   if (ratios.empty())
     throw RuntimeFailure("design-time bias of cell '" + nominal.name +
                          "': no CC-charge tick after the warm-up in the nominal run");
-  std::nth_element(ratios.begin(), ratios.begin() + static_cast<long>(ratios.size() / 2), ratios.end());
   DesignBias b;
-  b.bias_ohm = ratios[ratios.size() / 2];
+  b.bias_ohm = median_of(ratios);
   b.ticks = ratios.size();
+  for (double& r : ratios) r -= b.bias_ohm;
+  b.table = bias_table_of(stoich, ratios);
+  std::vector<double> with_constant(z_v.size()), with_table(z_v.size());
+  for (std::size_t i = 0; i < z_v.size(); ++i) {
+    with_constant[i] = z_v[i] - b.bias_ohm * charge_a[i];
+    with_table[i] = with_constant[i] - b.table.at(stoich[i]) * charge_a[i];
+  }
+  b.residual_constant_v = percentiles(with_constant);
+  b.residual_table_v = percentiles(with_table);
   b.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   return b;
 }

@@ -4,18 +4,35 @@
 // profile's warm-up, against a converged DFN (40/40 volumes, rtol 1e-9) of the *nominal* cell
 // (its own film, growth law and inventory; nothing of a cell in use; without the cell's own effects
 // of CellParameters::effects) over 3 CCCV cycles at 1C (CV to C/10).
+// Beside the constant, its state-of-charge-dependent part: a ModelBiasTable over the model's mean
+// anode stoichiometry, each knot the median of (z / -I less the constant) over the same ticks
+// within half a knot step of it (a median: the charge's end can be 100 mV off on a knee), a knot
+// without ticks interpolated from its neighbours. The paper cell runs on its constant alone.
 // What scripts/calibrate-model-bias.sh measures for the paper cell, for every other cell by one
 // call: `bmssim cell-config --cell X` prints it, `estimate --cell X --model reduced` uses it.
+#include <array>
+#include <cstddef>
+#include <vector>
+
+#include "bms/fw/model/model_bias_table.hpp"
 #include "cell/cell_parameters.hpp"
 
 namespace bms {
 
 struct DesignBias {
   double bias_ohm = 0.0;
+  fw::ModelBiasTable<double> table{};  // the part that varies with the state of charge (added)
   std::size_t ticks = 0;  // CC-charge ticks the median is over
+  // The nominal run's residual less the bias over those ticks, 10th / 50th / 90th percentile [V]:
+  // with the constant alone, and with the constant and the table.
+  std::array<double, 3> residual_constant_v{}, residual_table_v{};
   double wall_s = 0.0;
 };
 
 DesignBias design_time_bias(const CellParameters& nominal);
+
+// The table of the ticks' (stoichiometry, z / -I less the constant): knots over the ticks' range.
+// Exposed for the tests; throws RuntimeFailure without ticks.
+fw::ModelBiasTable<double> bias_table_of(const std::vector<double>& stoich, const std::vector<double>& ratio_ohm);
 
 }  // namespace bms

@@ -24,6 +24,13 @@ nlohmann::json options_json(const EstimateConfigSummary& c, const EstimateOption
   if (c.identify_growth) {
     j["learn_inventory"] = c.learn_inventory;
     j["model_bias_ohm"] = c.model_bias_ohm;
+    if (c.model_bias_table.on())
+      j["model_bias_table"] = {{"abscissa", "the model's mean anode stoichiometry"},
+                               {"x_first", c.model_bias_table.x_first},
+                               {"x_last", c.model_bias_table.x_last},
+                               {"ohm", c.model_bias_table.ohm}};
+    else
+      j["model_bias_table"] = nullptr;
     j["stated_spread_rel"] = {{"anode_i0", c.spread.anode_i0_rel}, {"cathode_i0", c.spread.cathode_i0_rel},
                               {"transport", c.spread.transport_rel}, {"area", c.spread.area_rel}};
     j["voltage_offset_sd_mv"] = c.voltage_offset_sd_v * 1e3;
@@ -51,7 +58,7 @@ void write_estimates_csv(const std::filesystem::path& file, const EstimateResult
                                    "film_initial_est_ohm_m2", "growth_gain_est", "inventory_deviation_est"};
   if (with_truth) cols.push_back("inventory_err_pct");
   for (const char* c : {"r_film_sd_ohm_m2", "capacity_est_ah", "capacity_sd_ah", "capacity_true_ah",
-                        "innovation_test_ratio", "current_offset_est_a"})
+                        "innovation_test_ratio", "current_offset_est_a", "model_bias_v"})
     cols.push_back(c);
   const std::size_t n_theta = r.theta.size();
   for (std::size_t i = 0; i < n_theta / 2; ++i) cols.push_back("theta_m" + std::to_string(i + 1));
@@ -70,7 +77,7 @@ void write_estimates_csv(const std::filesystem::path& file, const EstimateResult
       else w.cell("");
     }
     for (double v : {row.r_film_sd_ohm_m2, row.capacity_est_ah, row.capacity_sd_ah, row.capacity_true_ah,
-                     row.innovation_test_ratio, row.current_offset_a}) {
+                     row.innovation_test_ratio, row.current_offset_a, row.model_bias_v}) {
       if (std::isfinite(v)) w.cell(v);
       else w.cell("");
     }

@@ -176,7 +176,23 @@ EstimateRow row_of(const Output& out, double t_s, int cycle) {
   r.voltage_offset_v = out.voltage_offset_v;
   r.area_scale = out.area_scale;
   r.status = out.status;
+  r.model_stoich_neg = std::nan("");
+  r.model_bias_v = std::nan("");
   return r;
+}
+
+// The model's mean anode stoichiometry and the identifier's design-time bias at it (volts, at the
+// model's current: what the identifier subtracts from z), where the model and the path give them.
+template <class Core, class Model>
+void attach_model_bias(const Core& core, const Model& model, EstimateRow& r) {
+  if constexpr (fw::kGivesStoichiometry<Model, double>) {
+    r.model_stoich_neg = model.mean_stoich_neg();
+    if constexpr (Core::FilmPath::kKind == fw::FilmPathKind::identifier)
+      r.model_bias_v = -core.film_path().model_bias_ohm_of(model) * r.model_current_a;
+  } else {
+    (void)core;
+    (void)model;
+  }
 }
 
 // Ticks of dt_s from the record's start to each sample (the firmware's clock); a sample less
@@ -228,6 +244,7 @@ void run_core_with(Model& model, const MeasuredSeries& d, const EstimateOptions&
     const double temperature_k = d.temperature_k.empty() ? 0.0 : d.temperature_k[i];
     const auto out = core.tick({d.voltage_v[i], d.current_a[i], true, temperature_k});
     EstimateRow r = row_of(out, d.t_s[i], d.cycle[i]);
+    attach_model_bias(core, model, r);
     res.status |= out.status;
     if (fw::has_status(out.status, fw::FwStatus::kModelNotConverged)) ++res.newton_cap_hits;
     res.rows.push_back(r);
@@ -375,7 +392,9 @@ fw::NominalCell estimate_nominal_cell(const CellParameters& cell, const Estimate
   // The full model is the DFN itself: no design-time bias to remove. The reduced model of a cell
   // other than the paper's: the bias its nominal DFN gives (estimation/design_bias.hpp).
   double bias_ohm = o.model == "full" ? 0.0 : fw::kPaperReducedModelBiasOhm;
+  fw::ModelBiasTable<double> table{};
   if (o.model == "reduced" && cell.name != "paper") {
+    table = o.design_bias_table;
     bias_ohm = o.design_bias_ohm;
     if (o.profile == fw::Profile::best && !o.overrides.model_bias_ohm.given && !std::isfinite(bias_ohm))
       throw InputError(fmt::format("--model reduced --cell {}: needs --model-bias-ohm (bmssim cell-config --cell {} "
@@ -385,7 +404,8 @@ fw::NominalCell estimate_nominal_cell(const CellParameters& cell, const Estimate
   }
   return {inventory_mol,           cell.side.initial_film_resistance_ohm_m2,
           nominal_growth_ohm_m2_per_a_m3_s(cell), bias_ohm,
-          cell.lower_voltage_v,    cell.upper_voltage_v};
+          cell.lower_voltage_v,    cell.upper_voltage_v,
+          table};
 }
 
 fw::Overrides estimate_overrides(const EstimateOptions& o) {

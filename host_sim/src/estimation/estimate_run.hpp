@@ -94,6 +94,9 @@ struct EstimateOptions {
   // model_bias_ohm < 0 (estimation/design_bias.hpp: a converged DFN of the nominal cell; it may
   // be negative, so it has its own field); NaN = not computed.
   double design_bias_ohm = std::nan("");
+  // Its state-of-charge-dependent part (the same calibration; bms/fw/model/model_bias_table.hpp),
+  // added to the constant; off (the default, and the paper cell): the constant alone.
+  fw::ModelBiasTable<double> design_bias_table{};
   DfnMesh mesh;                      // full model only
   bool points_given = false;         // --points (full model only)
   double rtol = 1e-6;                // full model only
@@ -110,6 +113,7 @@ struct EstimateConfigSummary {
   bool calibrate_bias = false, average_estimate = false, learning = true, identify_growth = false, learn_inventory = true;
   double propagated_growth_ohm_m2_per_a_m3_s = 0, model_bias_ohm = 0, relinearise_inventory = 0;
   fw::StatedSpread<double> spread{};  // the cell's stated parameter spread (relative 1-sigma)
+  fw::ModelBiasTable<double> model_bias_table{};  // the bias's state-of-charge-dependent part (off: none)
   double voltage_offset_sd_v = 0;     // the voltage sensor's stated offset accuracy (1-sigma)
   bool voltage_offset = false;        // the voltage sensor's offset measured and removed
 };
@@ -147,6 +151,7 @@ EstimateConfigSummary summarise_config(const Config& c, int nc) {
     s.h_from_model = true;  // the identifier takes H = dV/dR_film from the model at every learning tick
     s.learn_inventory = p.identifier.learn_inventory;
     s.model_bias_ohm = p.model_bias_ohm;
+    s.model_bias_table = p.model_bias_table.template as<double>();
     s.relinearise_inventory = p.relinearise_inventory;
     s.spread = {double(p.spread.anode_i0_rel), double(p.spread.cathode_i0_rel), double(p.spread.transport_rel),
                 double(p.spread.area_rel)};
@@ -169,6 +174,9 @@ struct EstimateRow {
   // the identifier), the truth's capacity (NaN without), the innovation test ratio (> 1: misfit).
   double r_film_sd_ohm_m2, capacity_est_ah, capacity_sd_ah, capacity_true_ah, innovation_test_ratio;
   double current_offset_a;  // the current sensor offset the firmware subtracts (CurrentOffset)
+  // The main model's mean anode stoichiometry after the tick (NaN where the model gives none) and
+  // the design-time bias the identifier subtracts from z at it [V] (NaN without the identifier).
+  double model_stoich_neg, model_bias_v;
   double voltage_offset_v;  // the voltage sensor offset the firmware subtracts (VoltageOffset)
   double area_scale;        // the electrode-capacity scale the firmware identified (AreaScale)
   std::uint32_t status;

@@ -13,12 +13,14 @@
 // state saved under one cell is refused under another.
 // Firmware rules: constexpr only, no heap.
 #include <cstdint>
+#include <type_traits>
 
 #include "bms/fw/cells/aboutenergy_cell.hpp"
 #include "bms/fw/cells/lco_cell.hpp"
 #include "bms/fw/cells/nmc_cell.hpp"
 #include "bms/fw/config/make_config.hpp"
 #include "bms/fw/model/cell_table.hpp"
+#include "bms/fw/model/model_bias_table.hpp"
 #include "bms/fw/model/reduced_cell.hpp"
 #include "bms/fw/model/reduced_model_bias.hpp"
 #if defined(BMS_CELL_ID) && BMS_CELL_ID == 4
@@ -111,12 +113,31 @@ constexpr std::uint32_t cell_config_crc32() {
   return ~crc;
 }
 
+/// A generated configuration's design-time bias table (kModelBiasTable*; a header without one: off).
+template <class Cell, class = void>
+struct BiasTableOf {
+  static constexpr ModelBiasTable<double> value() { return {}; }
+};
+template <class Cell>
+struct BiasTableOf<Cell, std::void_t<decltype(Cell::kModelBiasTableOhm)>> {
+  static constexpr ModelBiasTable<double> value() {
+    static_assert(sizeof(Cell::kModelBiasTableOhm) / sizeof(double) == kModelBiasKnots,
+                  "cell configuration: kModelBiasTableOhm has another number of knots than the firmware's table");
+    ModelBiasTable<double> t{};
+    t.x_first = Cell::kModelBiasTableFirst;
+    t.x_last = Cell::kModelBiasTableLast;
+    for (int k = 0; k < kModelBiasKnots; ++k) t.ohm[k] = Cell::kModelBiasTableOhm[k];
+    return t;
+  }
+};
+
 /// The paper cell: its exact expressions (PaperCellTraits), the paper's mesh, its bias.
 struct PaperCell {
   using Traits = PaperCellTraits;
   using Mesh = ReducedMesh<>;
   static constexpr const char* kName = "paper";
   static constexpr double kModelBiasOhm = kPaperReducedModelBiasOhm;
+  static constexpr ModelBiasTable<double> kModelBiasTable{};  // the constant alone
 };
 
 /// A generated configuration: its tables, the mesh the host runs every other cell on (16
@@ -131,6 +152,7 @@ struct GeneratedCell {
   using Traits = Cell;
   using Mesh = ReducedMesh<3, 1, 3, 16, 16>;
   static constexpr double kModelBiasOhm = Cell::kModelBiasOhm;
+  static constexpr ModelBiasTable<double> kModelBiasTable = BiasTableOf<Cell>::value();
 };
 
 struct LcoName {
@@ -175,7 +197,8 @@ NominalCell nominal_cell_of() {
           static_cast<double>(Model::nominal_film_growth_ohm_m2_per_a_m3_s()),
           Choice::kModelBiasOhm,
           Cell::kLowerVoltageV,
-          Cell::kUpperVoltageV};
+          Cell::kUpperVoltageV,
+          Choice::kModelBiasTable};
 }
 
 }  // namespace bms::fw

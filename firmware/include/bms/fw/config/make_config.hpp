@@ -32,6 +32,7 @@
 #include "bms/fw/estimation/bms_core.hpp"
 #include "bms/fw/estimation/identifier_film_path.hpp"
 #include "bms/fw/estimation/rcsi_film_path.hpp"
+#include "bms/fw/model/model_bias_table.hpp"
 #include "bms/fw/model/reduced_cell.hpp"
 #include "bms/fw/model/reduced_model_bias.hpp"
 
@@ -111,6 +112,9 @@ struct NominalCell {
   double model_bias_ohm;                    ///< the reduced model's design-time film bias
   double lower_voltage_v;                   ///< the cell's voltage window
   double upper_voltage_v;
+  /// The state-of-charge-dependent part of the design-time bias, added to model_bias_ohm (off:
+  /// the constant alone, as for the paper cell).
+  ModelBiasTable<double> model_bias_table{};
 };
 
 /// Margin of the measured-voltage plausibility check outside the cell's window: a sensor
@@ -178,6 +182,7 @@ struct Overrides {
   // best: the FilmGrowthIdentifier.
   Given<bool> learn_inventory;         // --no-inventory (false)
   Given<double> model_bias_ohm;        // --model-bias-ohm
+  Given<bool> model_bias_table;        // --no-bias-table (false): the constant bias alone
   Given<double> relinearise_inventory; // --relinearise
   Given<bool> hold_until_settled;      // --no-hold (false)
   // best: the cell's stated parameter spread (relative 1-sigma, StatedSpread), default 0.
@@ -246,6 +251,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
        "the electrode-capacity scale is off (--no-area-scale, or a profile without it)"},
       {"no-inventory", o.learn_inventory.given, id, only_best},
       {"model-bias-ohm", o.model_bias_ohm.given, id, only_best},
+      {"no-bias-table", o.model_bias_table.given, id, only_best},
       {"relinearise", o.relinearise_inventory.given, id && observer, id ? no_observer : only_best},
       {"no-hold", o.hold_until_settled.given, id, only_best},
       {"spread-anode-i0", o.spread_anode_i0_rel.given, id, only_best},
@@ -304,6 +310,7 @@ void best(const NominalCell& cell, Config& c) {
     c.film_path.identifier.r_film_nominal_ohm_m2 = Scalar(cell.initial_film_ohm_m2);
     c.film_path.identifier.growth_nominal_ohm_m2_per_a_m3_s = Scalar(cell.growth_ohm_m2_per_a_m3_s);
     c.film_path.model_bias_ohm = Scalar(cell.model_bias_ohm);
+    c.film_path.model_bias_table = cell.model_bias_table.template as<Scalar>();
   }
 }
 
@@ -399,6 +406,7 @@ template <class Core>
 void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   set_if(o.learn_inventory, cfg.film_path.identifier.learn_inventory);
   set_if(o.model_bias_ohm, cfg.film_path.model_bias_ohm);
+  if (o.model_bias_table.given && !o.model_bias_table.value) cfg.film_path.model_bias_table = {};
   set_if(o.relinearise_inventory, cfg.film_path.relinearise_inventory);
   set_if(o.hold_until_settled, cfg.film_path.hold_until_settled);
   set_if(o.spread_anode_i0_rel, cfg.film_path.spread.anode_i0_rel);

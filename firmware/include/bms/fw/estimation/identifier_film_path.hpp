@@ -14,6 +14,7 @@
 #include "bms/fw/estimation/film_path.hpp"
 #include "bms/fw/estimation/learning_gate.hpp"
 #include "bms/fw/estimation/state_resync.hpp"
+#include "bms/fw/model/model_bias_table.hpp"
 #include "bms/fw/model/reduced_cell.hpp"
 
 namespace bms::fw {
@@ -32,6 +33,10 @@ class IdentifierFilmPath {
     // scripts/calibrate-model-bias.sh). In CC a bias is collinear with the film, so without it the
     // film would carry it (about 2.7 % of R_film for the paper cell).
     Scalar model_bias_ohm = Scalar(0);
+    // The state-of-charge-dependent part of the same bias (ModelBiasTable over the model's mean
+    // anode stoichiometry), added to model_bias_ohm; off by default (the constant alone). A model
+    // that does not give its mean anode stoichiometry runs on the constant alone.
+    ModelBiasTable<Scalar> model_bias_table{};
     // A re-synchronisation that moves the model's inventory by more than this (relative)
     // restarts the film parameters' learning (FilmGrowthIdentifier::relinearise).
     Scalar relinearise_inventory = Scalar(1e-3);
@@ -165,14 +170,15 @@ class IdentifierFilmPath {
     if (t.probed) {
       const bool start = gate.should_start_identifying(t.probed);
       if (start) identifier_.begin_charge();
-      l.status |= innovation_test(t.z_v + c_.model_bias_ohm * t.current_a, start, t.dt_s);
+      const Scalar bias_ohm = model_bias_ohm_of(model);
+      l.status |= innovation_test(t.z_v + bias_ohm * t.current_a, start, t.dt_s);
       l.inventory_sensitivity_v = (t.v_probe_v - t.r.voltage_v) / kInventoryProbe;
       const Scalar per_k = (v_warm_v_ - t.r.voltage_v) / (kTemperatureProbeK * t.r.markov_v_per_ohm_m2);
       if (c_.temperature_sd_k > Scalar(0) && std::isfinite(per_k)) film_per_kelvin_ohm_m2_ = std::fabs(per_k);
       update_spread(model, t.r);
       update_voltage_offset_term(t.r.markov_v_per_ohm_m2);
       l.status |= identifier_.learn(t.u_ohm_m2, t.z_v, t.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
-                                    resync.inventory_deviation_model(), -c_.model_bias_ohm * t.current_a);
+                                    resync.inventory_deviation_model(), -bias_ohm * t.current_a);
       l.active = (l.status & kIdentifierRejectMask) == 0u;
       learned_since_restart_ = true;
       if (holding_ && !restarted_charge_ && identifier_.settled()) holding_ = false;
@@ -279,6 +285,18 @@ class IdentifierFilmPath {
 
   const Identifier& identifier() const { return identifier_; }
   const Config& config() const { return c_; }
+
+  // The design-time bias per ampere of charge current at the model's state [ohm]: the constant,
+  // plus the table at the model's mean anode stoichiometry where the table is on.
+  template <class Model>
+  Scalar model_bias_ohm_of(const Model& model) const {
+    if constexpr (kGivesStoichiometry<Model, Scalar>) {
+      if (c_.model_bias_table.on()) return c_.model_bias_ohm + c_.model_bias_table.at(model.mean_stoich_neg());
+    } else {
+      (void)model;
+    }
+    return c_.model_bias_ohm;
+  }
 
  private:
   // The innovation test (Config::innovation_*) on this learning tick's bias-corrected residual.

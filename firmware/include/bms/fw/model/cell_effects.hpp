@@ -235,6 +235,11 @@ class EffectsModel {
   }
   Scalar li_loss_ah() const { return inner_.li_loss_ah(); }
   Scalar li_loss_mol() const { return inner_.li_loss_mol(); }
+  // The inner model's mean anode stoichiometry, where it gives one (ModelBiasTable's abscissa).
+  template <typename I = Inner>
+  auto mean_stoich_neg() const -> decltype(std::declval<const I&>().mean_stoich_neg()) {
+    return inner_.mean_stoich_neg();
+  }
   Scalar hysteresis_v() const { return h_v_; }
   Inner& inner() { return inner_; }
   const Inner& inner() const { return inner_; }

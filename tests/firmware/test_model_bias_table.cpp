@@ -1,0 +1,117 @@
+// The design-time bias as a function of the state of charge (ModelBiasTable): its lookup (linear
+// between evenly spaced knots, the end knot's value outside, 0 when off) and its use in the
+// identifier's path (the constant plus the table at the model's mean anode stoichiometry; a path
+// without a table, or a model without a stoichiometry, runs on the constant bit for bit), and that
+// a charge whose model error varies with the state of charge is identified right with the table
+// and wrong with its median alone.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "bms/fw/estimation/identifier_film_path.hpp"
+#include "bms/fw/estimation/learning_gate.hpp"
+#include "bms/fw/estimation/state_resync.hpp"
+#include "bms/fw/model/model_bias_table.hpp"
+
+namespace {
+
+using Table = bms::fw::ModelBiasTable<double>;
+using Path = bms::fw::IdentifierFilmPath<double>;
+constexpr int kN = Table::kKnots;
+
+// Knots 0.2 .. 0.7, bias -0.5 .. +0.5 mohm, a kink at the middle knot.
+Table ramp() {
+  Table t;
+  t.x_first = 0.2;
+  t.x_last = 0.7;
+  for (int k = 0; k < kN; ++k) t.ohm[k] = k <= kN / 2 ? 1e-3 * (double(k) / (kN - 1) - 0.5) : 2e-4;
+  return t;
+}
+
+struct StoichModel {
+  double x;
+  double mean_stoich_neg() const { return x; }
+};
+struct PlainModel {};
+
+TEST(ModelBiasTable, OffIsZeroAndValid) {
+  const Table off;
+  EXPECT_FALSE(off.on());
+  EXPECT_TRUE(off.valid());
+  EXPECT_EQ(off.at(0.5), 0.0);
+}
+
+TEST(ModelBiasTable, LinearBetweenKnotsEndValuesOutside) {
+  const Table t = ramp();
+  ASSERT_TRUE(t.on());
+  ASSERT_TRUE(t.valid());
+  const double step = (t.x_last - t.x_first) / (kN - 1);
+  for (int k = 0; k < kN; ++k) EXPECT_NEAR(t.at(t.x_first + k * step), t.ohm[k], 1e-15) << "knot " << k;
+  for (int k = 0; k + 1 < kN; ++k) {
+    const double x = t.x_first + (k + 0.25) * step;
+    EXPECT_NEAR(t.at(x), 0.75 * t.ohm[k] + 0.25 * t.ohm[k + 1], 1e-15) << "between knots " << k << " and " << k + 1;
+  }
+  EXPECT_EQ(t.at(0.0), t.ohm[0]);
+  EXPECT_EQ(t.at(1.0), t.ohm[kN - 1]);
+  EXPECT_EQ(t.at(std::numeric_limits<double>::quiet_NaN()), 0.0);
+  const auto f = t.as<float>();
+  EXPECT_NEAR(f.at(0.33f), t.at(0.33), 1e-9);
+}
+
+TEST(ModelBiasTable, InvalidTablesAreSaid) {
+  Table t = ramp();
+  t.ohm[3] = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(t.valid());
+  t = ramp();
+  t.x_last = 0.1;  // decreasing span
+  EXPECT_FALSE(t.valid());
+}
+
+TEST(ModelBiasTable, PathAddsTheTableAtTheModelsStoichiometry) {
+  Path::Config pc;
+  pc.model_bias_ohm = 3.0e-4;
+  const Path constant_only(pc, 0.2);
+  EXPECT_EQ(constant_only.model_bias_ohm_of(StoichModel{0.4}), 3.0e-4) << "no table: the constant, bit for bit";
+  pc.model_bias_table = ramp();
+  const Path with_table(pc, 0.2);
+  for (double x : {0.1, 0.25, 0.45, 0.6, 0.9})
+    EXPECT_EQ(with_table.model_bias_ohm_of(StoichModel{x}), 3.0e-4 + ramp().at(x)) << "x = " << x;
+  EXPECT_EQ(with_table.model_bias_ohm_of(PlainModel{}), 3.0e-4) << "a model without a stoichiometry: the constant";
+}
+
+// One CC charge at 2 A whose model error is the table's shape over x = 0.2 .. 0.7: z = H (u - R) +
+// S (0 - nu) + b(x) I_charge. Returns the identified film's relative error.
+double film_error_of_charge(const Path::Config& pc) {
+  constexpr double kFilm = 3.7e-3, kH = 1.0, kI = -2.0;
+  Path path(pc, 0.2);
+  bms::fw::LearningGate<double> gate(bms::fw::LearningGate<double>::Config{});
+  const bms::fw::StateResync<double> resync(bms::fw::StateResync<double>::Config{});
+  constexpr int kTicks = 6000;
+  for (int k = 0; k < kTicks; ++k) {
+    const double x = 0.2 + 0.5 * k / (kTicks - 1);
+    const double s_v = 0.3 + 0.5 * k / kTicks;
+    const double u = path.film_in_use(true);
+    const double z = kH * (u - kFilm) - ramp().at(x) * kI;
+    bms::fw::ModelTickResult<double> r{3.5, kI, -1e3, kH, 0u, true, true};
+    const bms::fw::FilmTick<double> t{r, kI, u, z, 3.5 + s_v * 1e-3, 0.2, 1.0, true, true};
+    path.learn(t, StoichModel{x}, gate, resync);
+  }
+  return (path.identifier().film_ohm_m2() - kFilm) / kFilm;
+}
+
+TEST(ModelBiasTable, ChargeWithAStateDependentErrorIsIdentifiedWithTheTable) {
+  Path::Config pc;
+  pc.identifier.r_film_nominal_ohm_m2 = 3.4e-3;
+  pc.identifier.growth_nominal_ohm_m2_per_a_m3_s = 1e-12;
+  pc.temperature_sd_k = 0.0;
+  pc.model_bias_table = ramp();
+  const double with_table = film_error_of_charge(pc);
+  pc.model_bias_table = Table{};
+  pc.model_bias_ohm = ramp().at(0.45);  // the table's median over the charge, as a constant
+  const double constant_only = film_error_of_charge(pc);
+  EXPECT_LT(std::fabs(with_table), 1e-3) << "the table removes the model's error";
+  EXPECT_GT(std::fabs(constant_only), 0.02) << "the median alone leaves its shape in the film";
+}
+
+}  // namespace
