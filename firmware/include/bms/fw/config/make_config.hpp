@@ -106,12 +106,12 @@ constexpr bool runs_path_of(Profile p) {
 
 /// The nominal cell as the firmware knows it.
 struct NominalCell {
-  double inventory_mol;                     ///< cyclable lithium of the nominal cell
-  double initial_film_ohm_m2;               ///< film resistance at the start of life
-  double growth_ohm_m2_per_a_m3_s;          ///< nominal Ramadass constant per side current
-  double model_bias_ohm;                    ///< the reduced model's design-time film bias
-  double lower_voltage_v;                   ///< the cell's voltage window
-  double upper_voltage_v;
+  double inventory_mol{};                     ///< cyclable lithium of the nominal cell
+  double initial_film_ohm_m2{};               ///< film resistance at the start of life
+  double growth_ohm_m2_per_a_m3_s{};          ///< nominal Ramadass constant per side current
+  double model_bias_ohm{};                    ///< the reduced model's design-time film bias
+  double lower_voltage_v{};                   ///< the cell's voltage window
+  double upper_voltage_v{};
   /// The state-of-charge-dependent part of the design-time bias, added to model_bias_ohm (off:
   /// the constant alone, as for the paper cell).
   ModelBiasTable<double> model_bias_table{};

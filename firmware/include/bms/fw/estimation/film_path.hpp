@@ -38,15 +38,15 @@ inline const char* film_path_name(FilmPathKind k) { return k == FilmPathKind::rc
 // What step 9 hands the path: this tick's model step and residual.
 template <typename Scalar>
 struct FilmTick {
-  ModelTickResult<Scalar> r;     // the model's step
-  Scalar current_a;              // the measured current, in the model's units (AreaScale: / a)
-  Scalar u_ohm_m2;               // the film the model ran with (step 5)
-  Scalar z_v;                    // y_hat - y
-  Scalar v_probe_v;              // the model's voltage at the probed inventory (probes only)
-  Scalar dt_s;
-  Scalar nominal_inventory_mol;
-  bool open;                     // the learning window is open
-  bool probed;                   // learns_from_probes() was true: the probes ran
+  ModelTickResult<Scalar> r{};     // the model's step
+  Scalar current_a{};              // the measured current, in the model's units (AreaScale: / a)
+  Scalar u_ohm_m2{};               // the film the model ran with (step 5)
+  Scalar z_v{};                    // y_hat - y
+  Scalar v_probe_v{};              // the model's voltage at the probed inventory (probes only)
+  Scalar dt_s{};
+  Scalar nominal_inventory_mol{};
+  bool open{};                     // the learning window is open
+  bool probed{};                   // learns_from_probes() was true: the probes ran
   Scalar area_scale = Scalar(1);  // the identified electrode-capacity scale (AreaScale): the capacity's factor
   // The model's inventory plus its loss at the span that measured the scale (NaN: none yet).
   Scalar area_inventory_mol = Scalar(0) / Scalar(0);
