@@ -14,7 +14,7 @@
 // reaction took dL more lithium. In the nominal cell's units the anode moved -Q / a - dL, so each
 // span measures a = -Q / (dA + dL). Spans are combined with weights Q^2 (the pins' error is a
 // fixed amount of lithium, so a's error falls as 1 / Q) and a memory that lets later spans (the
-// offset removed, the model on the new area) count more.
+// offset removed, the model on the updated area) count more.
 //
 // What the two end pins cannot do is tell a from the inventory: at the upper end the steep
 // electrode is the cathode, so the pinned anode moves with the inventory one to one, and a span
@@ -55,7 +55,7 @@ class AreaScale {
     Scalar min_span_of_capacity = Scalar(0.5);
     Scalar min_span_mol = Scalar(0);
     Scalar limit = Scalar(0.1);   // |a - 1| admitted; a span outside is dropped
-    Scalar memory = Scalar(0.5);  // weight kept of the earlier spans at each new one
+    Scalar memory = Scalar(0.5);  // weight kept of the earlier spans at each later one
     Scalar dt_s = Scalar(0.2);
   };
 
