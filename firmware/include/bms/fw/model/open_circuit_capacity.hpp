@@ -30,18 +30,28 @@
 
 namespace bms::fw {
 
+// The anode stoichiometries [lo, hi] an inventory admits with both electrodes inside (1e-6 from
+// either end); false when there are none.
+template <typename Scalar>
+bool admissible_stoich_neg(Scalar inventory_mol, Scalar cap_neg_mol, Scalar cap_pos_mol, Scalar& lo, Scalar& hi) {
+  const Scalar edge = Scalar(1e-6);
+  lo = (inventory_mol - cap_pos_mol * (Scalar(1) - edge)) / cap_neg_mol;
+  hi = (inventory_mol - cap_pos_mol * edge) / cap_neg_mol;
+  if (lo < edge) lo = edge;
+  if (hi > Scalar(1) - edge) hi = Scalar(1) - edge;
+  return lo < hi;
+}
+
 // Stoichiometry of the anode at which the resting cell holding `inventory_mol` shows `voltage_v`,
 // NaN when no admissible pair exists.
 template <typename Scalar, typename OcpNeg, typename OcpPos>
 Scalar equilibrium_stoich_neg(Scalar inventory_mol, Scalar cap_neg_mol, Scalar cap_pos_mol, Scalar voltage_v,
                               const OcpNeg& ocp_neg_v, const OcpPos& ocp_pos_v) {
   constexpr int kIterations = std::numeric_limits<Scalar>::digits;  // the interval to the last bit
-  const Scalar edge = Scalar(1e-6);
-  Scalar lo = (inventory_mol - cap_pos_mol * (Scalar(1) - edge)) / cap_neg_mol;
-  Scalar hi = (inventory_mol - cap_pos_mol * edge) / cap_neg_mol;
-  if (lo < edge) lo = edge;
-  if (hi > Scalar(1) - edge) hi = Scalar(1) - edge;
-  if (!(lo < hi)) return std::numeric_limits<Scalar>::quiet_NaN();
+  Scalar lo = Scalar(0);
+  Scalar hi = Scalar(0);
+  if (!admissible_stoich_neg(inventory_mol, cap_neg_mol, cap_pos_mol, lo, hi))
+    return std::numeric_limits<Scalar>::quiet_NaN();
   auto excess = [&](Scalar x) {
     const Scalar y = (inventory_mol - x * cap_neg_mol) / cap_pos_mol;
     return ocp_pos_v(y) - ocp_neg_v(x) - voltage_v;
@@ -65,12 +75,10 @@ Scalar equilibrium_stoich_neg(Scalar inventory_mol, Scalar cap_neg_mol, Scalar c
 template <typename Scalar, typename OcpNeg, typename OcpPos>
 Scalar window_end_stoich_neg(Scalar inventory_mol, Scalar cap_neg_mol, Scalar cap_pos_mol, Scalar voltage_v,
                              const OcpNeg& ocp_neg_v, const OcpPos& ocp_pos_v) {
-  const Scalar edge = Scalar(1e-6);
-  Scalar lo = (inventory_mol - cap_pos_mol * (Scalar(1) - edge)) / cap_neg_mol;
-  Scalar hi = (inventory_mol - cap_pos_mol * edge) / cap_neg_mol;
-  if (lo < edge) lo = edge;
-  if (hi > Scalar(1) - edge) hi = Scalar(1) - edge;
-  if (!(lo < hi)) return std::numeric_limits<Scalar>::quiet_NaN();
+  Scalar lo = Scalar(0);
+  Scalar hi = Scalar(0);
+  if (!admissible_stoich_neg(inventory_mol, cap_neg_mol, cap_pos_mol, lo, hi))
+    return std::numeric_limits<Scalar>::quiet_NaN();
   const Scalar y_lo = (inventory_mol - lo * cap_neg_mol) / cap_pos_mol;
   const Scalar y_hi = (inventory_mol - hi * cap_neg_mol) / cap_pos_mol;
   const Scalar at_lo = ocp_pos_v(y_lo) - ocp_neg_v(lo) - voltage_v;
