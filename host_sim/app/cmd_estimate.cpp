@@ -78,6 +78,7 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--no-bias-table", v.model_bias_table);
   g("--relinearise", v.relinearise_inventory);
   g("--no-hold", v.hold_until_settled);
+  g("--hold-restarted-charge", v.hold_restarted_charge);
   g("--innovation-reject", v.innovation_rejects);
   g("--innovation-gate", v.innovation_gate);
   g("--spread-anode-i0", v.spread_anode_i0_rel);
@@ -287,6 +288,10 @@ Runner add_estimate(CLI::App& app) {
                 "--settings best only: report the identifier's film, parameters and capacity from the first "
                 "learning tick after the start or a relinearisation, not the prior's (held, propagated) until the "
                 "restarted fit has settled (ablation: the first seconds swing tens of percent)");
+  sub->add_flag("--hold-restarted-charge", c->o.overrides.hold_restarted_charge.value,
+                "--settings best only: hold a restarted fit's outputs through the whole CC charge it restarts in, "
+                "not only until it settles (helps under a current gain; off by default: where the inventory "
+                "settles over several charges each charge then reports the previous one's end)");
   sub->add_option("--innovation-reject", c->o.overrides.innovation_rejects.value,
                   "--settings best only: on|off, whether a learning tick whose regression innovation (the residual "
                   "less what the fitted film, gain and inventory explain), averaged over 60 s, fails the innovation "

@@ -10,8 +10,7 @@
 # - with the front end's stated accuracy (--voltage-offset-sd-mv 0.2887, 0.5 mV / sqrt(3)) the
 #   same film (byte for byte) inside 2 sd on >= 90 % (100 %);
 # - with --voltage-offset the offset measured from cycle 2's CC discharge within 0.1 mV of 0.4 mV,
-#   and cycle 4's film within 3 % (measured 0.34 %; cycle 3 is the charge the offset's change
-#   restarted the fit in, and the restarted fit is held through it: 11.6 %, 3.8 % with --no-hold);
+#   and cycle 4's film within 3 % (cycle 3 is the charge the offset's change restarted the fit in);
 # - the same truth without an offset: --voltage-offset changes nothing (estimates.csv identical).
 set -u
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
