@@ -200,6 +200,8 @@ const std::vector<Arm>& arms() {
       {"best-area-in-model", "--settings best --area-scale-in-model", P::best,
        [](O& o) { o.area_scale_model_sees = true; }},
       {"best-no-hold", "--settings best --no-hold", P::best, [](O& o) { o.hold_until_settled = false; }},
+      {"best-hold-restarted", "--settings best --hold-restarted-charge", P::best,
+       [](O& o) { o.hold_restarted_charge = true; }},
       {"best-window1", "--settings best --resync-window 1", P::best, [](O& o) { o.resync_window_ticks = 1u; }},
       {"best-no-resync", "--settings best --no-resync", P::best, [](O& o) { o.resync = false; }},
       // Set 4's spread stated as a datasheet would: a uniform +-a tolerance as its 1-sigma a / sqrt(3)
