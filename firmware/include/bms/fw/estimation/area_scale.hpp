@@ -30,7 +30,10 @@
 // re-synchronisation that moved the inventory by dn read the anode's move at one inventory and
 // the capacity at the other: at the upper end the anode moves with dn, so a and C_nom(n_span) each
 // took dn, and a current gain, which the fit's inventory takes up, reached the capacity twice
-// (measured: docs/results/envelope.md, "A current gain enters the capacity once").
+// (measured: docs/results/envelope.md, "A current gain enters the capacity once"). For the same
+// reason spans at different inventories are combined as capacities: before a span at n is
+// combined, the kept scale (measured at the last span's inventory n') is carried to n by
+// C_nom(n') / C_nom(n), so that a C_nom(n) keeps each span's own product.
 // Measured and left out (docs/results/envelope.md, "Capacity"): a power-up pin (at rest on a flat
 // OCV it pins the anode poorly: a 3-4 % off on two of six spread truths), and pinning only where
 // the re-synchronisation succeeds (with the area off, the inventory takes it up, the CV-charge
@@ -116,18 +119,24 @@ class AreaScale {
 
   // Step 7: a CV end. `end` is the model as the voltage-driven CV phase left it (the span's end,
   // at the span's inventory), `next` after this CV end's re-synchronisation (the next span's
-  // start; `end` where none moved it). Returns true when a span measured a and the scale moved.
-  bool pin(const Pin& end, const Pin& next) {
+  // start; `end` where none moved it). Returns true when a span measured a.
+  // `capacity_ah(n)` is the nominal electrodes' open-circuit capacity at inventory n (less the
+  // model's loss), called twice when a span is measured at an inventory other than the last one's.
+  template <class CapacityOf>
+  bool pin(const Pin& end, const Pin& next, const CapacityOf& capacity_ah) {
     if (!c_.enabled || !finite(end) || !finite(next)) return false;
-    bool moved = false;
+    bool measured = false;
     const Scalar q = s_.counted_mol + s_.counted_carry_mol;
     const Scalar span_inventory_mol = end.inventory_mol + end.loss_mol;
     const bool one_inventory =
         std::fabs(span_inventory_mol - s_.pinned_inventory_mol) <= c_.inventory_tolerance * s_.pinned_inventory_mol;
     if ((s_.flags & 1u) && one_inventory && std::fabs(q) >= c_.min_span_mol && c_.min_span_mol > Scalar(0)) {
       const Scalar moved_mol = (end.anode_mol - s_.pinned_anode_mol) + (end.loss_mol - s_.pinned_loss_mol);
+      if ((s_.flags & 2u) && span_inventory_mol != s_.span_inventory_mol) {
+        carry_to(capacity_ah(s_.span_inventory_mol - end.loss_mol) / capacity_ah(span_inventory_mol - end.loss_mol));
+      }
       if (take_span(-q / moved_mol, q)) {
-        moved = true;
+        measured = true;
         s_.span_inventory_mol = span_inventory_mol;
         s_.flags |= 2u;
       }
@@ -138,9 +147,13 @@ class AreaScale {
     s_.counted_mol = Scalar(0);
     s_.counted_carry_mol = Scalar(0);
     s_.flags |= 1u;
-    return moved;
+    return measured;
   }
 
+  // A model without a capacity: spans are combined as scales.
+  bool pin(const Pin& end, const Pin& next) {
+    return pin(end, next, [](Scalar) { return Scalar(1); });
+  }
   // A CV end no re-synchronisation moved the model at.
   bool pin(const Pin& at) { return pin(at, at); }
 
@@ -172,13 +185,18 @@ class AreaScale {
     return std::isfinite(p.anode_mol) && std::isfinite(p.inventory_mol) && std::isfinite(p.loss_mol);
   }
 
+  // The kept scale to another inventory; a ratio that is not a plausible one leaves it.
+  void carry_to(Scalar ratio) {
+    const Scalar carried = s_.scale * ratio;
+    if (std::isfinite(carried) && std::fabs(carried - Scalar(1)) <= c_.limit) s_.scale = carried;
+  }
+
   bool take_span(Scalar a, Scalar q) {
     if (!std::isfinite(a) || !(std::fabs(a - Scalar(1)) <= c_.limit)) return false;
     const Scalar w = q * q, kept = c_.memory * s_.weight;
-    const Scalar before = s_.scale;
     s_.scale = (kept * s_.scale + w * a) / (kept + w);
     s_.weight = kept + w;
-    return s_.scale != before;
+    return true;
   }
 
   Config c_;

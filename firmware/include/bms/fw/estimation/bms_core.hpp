@@ -508,7 +508,11 @@ class BmsCore {
   bool pin_area(const typename AreaScale<Scalar>::Pin& span_end) {
     if constexpr (kGivesAnodeLithium<MainModel, Scalar>) {
       const Scalar before = area_.scale();
-      area_.pin(span_end, area_pin());
+      if constexpr (kGivesCapacity<MainModel, Scalar>) {
+        area_.pin(span_end, area_pin(), [](Scalar n) { return MainModel::open_circuit_capacity_ah(n); });
+      } else {
+        area_.pin(span_end, area_pin());
+      }
       return area_.model_sees() && std::fabs(area_.scale() - before) > path_.relinearise_inventory();
     } else {
       (void)span_end;
