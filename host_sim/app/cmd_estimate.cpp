@@ -78,6 +78,8 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--no-bias-table", v.model_bias_table);
   g("--relinearise", v.relinearise_inventory);
   g("--no-hold", v.hold_until_settled);
+  g("--innovation-reject", v.innovation_rejects);
+  g("--innovation-gate", v.innovation_gate);
   g("--spread-anode-i0", v.spread_anode_i0_rel);
   g("--spread-cathode-i0", v.spread_cathode_i0_rel);
   g("--spread-transport", v.spread_transport_rel);
@@ -286,6 +288,14 @@ Runner add_estimate(CLI::App& app) {
                 "--settings best only: report the identifier's film, parameters and capacity from the first "
                 "learning tick after the start or a relinearisation, not the prior's (held, propagated) until the "
                 "restarted fit has settled (ablation: the first seconds swing tens of percent)");
+  sub->add_option("--innovation-reject", c->o.overrides.innovation_rejects.value,
+                  "--settings best only: on|off, whether a learning tick whose regression innovation (the residual "
+                  "less what the fitted film, gain and inventory explain), averaged over 60 s, fails the innovation "
+                  "gate (5 x 0.3 mV) is left out of the fit, as PX4 EKF2 rejects a fusion");
+  sub->add_option("--innovation-gate", c->o.overrides.innovation_gate.value,
+                  "--settings best only: the innovation test's gate in units of the model's stated residual "
+                  "(0.3 mV; default 5): the reported test and, with --innovation-reject on, the fusion's check")
+      ->check(CLI::Range(0.5, 100.0));
   const std::string spread =
       "--settings best only: the cell's stated spread (a lot tolerance, relative 1-sigma in [0, 0.9], default 0: "
       "a characterised cell) of ";

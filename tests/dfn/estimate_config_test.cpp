@@ -64,6 +64,7 @@ void add_path_fields(const fw::IdentifierFilmPath<double>::Config& c, std::vecto
       {"innovation_time_constant_s", c.innovation_time_constant_s},
       {"innovation_sd_v", c.innovation_sd_v},
       {"innovation_gate", c.innovation_gate},
+      {"innovation_rejects", c.innovation_rejects},
       {"temperature_sd_k", c.temperature_sd_k},
       {"spread.anode_i0_rel", c.spread.anode_i0_rel},
       {"spread.cathode_i0_rel", c.spread.cathode_i0_rel},
@@ -241,6 +242,8 @@ const std::vector<OverrideCase>& override_cases() {
       {"voltage-offset-sd-mv", [](fw::Overrides& o) { o.voltage_offset_sd_mv = 0.3; }},
       {"current-gain-sd-pct", [](fw::Overrides& o) { o.current_gain_sd_pct = 0.3; }},
       {"voltage-offset", [](fw::Overrides& o) { o.voltage_offset = true; }},
+      {"innovation-reject", [](fw::Overrides& o) { o.innovation_rejects = true; }},
+      {"innovation-gate", [](fw::Overrides& o) { o.innovation_gate = 3.0; }},
   };
   return c;
 }
@@ -250,13 +253,15 @@ std::set<std::string> expected_unused(fw::Profile p) {
     case fw::Profile::paper:  // no observer, no bias calibration, no propagation, H given
       return {"reference-after-resyncs", "growth-scale", "no-start-resync", "resync-window", "resync-current",
               "no-inventory", "model-bias-ohm", "relinearise", "spread-anode-i0", "spread-cathode-i0",
-              "spread-transport", "spread-area", "voltage-offset-sd-mv", "current-gain-sd-pct", "voltage-offset"};
+              "spread-transport", "spread-area", "voltage-offset-sd-mv", "current-gain-sd-pct", "voltage-offset",
+              "innovation-reject", "innovation-gate"};
     case fw::Profile::best:  // the eleven, and what only RCSI reads
       return {"nc", "h", "p0", "p0-y0", "lambda", "eta", "theta0", "r-film-init", "calibrate-bias",
               "reference-after-resyncs", "average", "propagate-growth", "growth-scale"};
     case fw::Profile::nominal_growth:  // H from the model; no identifier
       return {"h", "no-inventory", "model-bias-ohm", "relinearise", "spread-anode-i0", "spread-cathode-i0",
-              "spread-transport", "spread-area", "voltage-offset-sd-mv", "current-gain-sd-pct", "voltage-offset"};
+              "spread-transport", "spread-area", "voltage-offset-sd-mv", "current-gain-sd-pct", "voltage-offset",
+              "innovation-reject", "innovation-gate"};
   }
   return {};
 }

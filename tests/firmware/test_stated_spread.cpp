@@ -8,6 +8,7 @@
 
 #include "bms/fw/estimation/identifier_film_path.hpp"
 #include "bms/fw/model/reduced_cell.hpp"
+#include "film_path_learning.hpp"
 
 namespace {
 
@@ -132,7 +133,7 @@ struct SpreadModel {
 static_assert(fw::kGivesSpread<SpreadModel, double>, "the stand-in gives a spread");
 
 using Path = fw::IdentifierFilmPath<double>;
-constexpr double kH = 0.9;  // dV/dR_film [V per ohm m2] at a 1C charge tick, about
+constexpr double kH = fw::test::kPathH;
 
 Path::Config path_config(bool stated) {
   Path::Config c;
@@ -143,35 +144,15 @@ Path::Config path_config(bool stated) {
   return c;
 }
 
-// `ticks` learning ticks on a cell whose film is true_ohm_m2 (z = H (u - R), no noise).
-void learn_ticks(Path& path, int ticks, double true_ohm_m2) {
-  const SpreadModel model{2.0 * kFilmOhmM2 * kH};
-  fw::LearningGate<double> gate(fw::LearningGate<double>::Config{});
-  const fw::StateResync<double> resync(fw::StateResync<double>::Config{});
-  for (int k = 0; k < ticks; ++k) {
-    const double u = path.film_in_use(true);
-    fw::FilmTick<double> t{};
-    t.r = fw::ModelTickResult<double>{3.6, kChargeA, -1.0, kH, 0, true, true};
-    t.current_a = kChargeA;
-    t.u_ohm_m2 = u;
-    t.z_v = kH * (u - true_ohm_m2);
-    t.v_probe_v = t.r.voltage_v;  // no inventory information
-    t.dt_s = kDtS;
-    t.nominal_inventory_mol = 0.0;
-    t.open = true;
-    t.probed = true;
-    path.learn(t, model, gate, resync);
-  }
-}
-
 TEST(StatedSpread, TheReportedFilmIsTheInverseVarianceMeanOfThePriorAndTheFit) {
   const double truth = 1.5 * kFilmOhmM2;
   Path fused(path_config(true), kDtS), plain(path_config(false), kDtS);
   // Before any fit the prior is held: reported as it is, with its own sd.
   EXPECT_EQ(fused.r_film_ohm_m2(), plain.r_film_ohm_m2());
   EXPECT_EQ(fused.film_sd_ohm_m2(), plain.film_sd_ohm_m2());
-  learn_ticks(fused, 200, truth);
-  learn_ticks(plain, 200, truth);
+  const SpreadModel model{2.0 * kFilmOhmM2 * kH};
+  fw::test::learn_ticks(fused, model, 200, truth);
+  fw::test::learn_ticks(plain, model, 200, truth);
   ASSERT_FALSE(fused.holding());
   ASSERT_FALSE(plain.holding());
   // The spread changes what is reported, not what is fitted.

@@ -6,16 +6,17 @@
 #include <cstdio>
 
 #include "bms/fw/estimation/identifier_film_path.hpp"
+#include "film_path_learning.hpp"
 
 namespace {
 
 namespace fw = bms::fw;
 using Path = fw::IdentifierFilmPath<double>;
 
-constexpr double kChargeA = -2.5;  // 1C charge
+constexpr double kChargeA = fw::test::kPathChargeA;
 constexpr double kFilmOhmM2 = 3.391e-3;
-constexpr double kDtS = 0.2;
-constexpr double kH = 0.9;  // dV/dR_film [V per ohm m2] at a 1C charge tick, about
+constexpr double kDtS = fw::test::kPathDtS;
+constexpr double kH = fw::test::kPathH;
 
 struct NoSpreadModel {};
 
@@ -28,35 +29,14 @@ Path::Config path_config(double voltage_sd_v) {
   return c;
 }
 
-// `ticks` learning ticks on a cell whose film is true_ohm_m2 (z = H (u - R), no noise).
-void learn_ticks(Path& path, int ticks, double true_ohm_m2) {
-  const NoSpreadModel model{};
-  fw::LearningGate<double> gate(fw::LearningGate<double>::Config{});
-  const fw::StateResync<double> resync(fw::StateResync<double>::Config{});
-  for (int k = 0; k < ticks; ++k) {
-    const double u = path.film_in_use(true);
-    fw::FilmTick<double> t{};
-    t.r = fw::ModelTickResult<double>{3.6, kChargeA, -1.0, kH, 0, true, true};
-    t.current_a = kChargeA;
-    t.u_ohm_m2 = u;
-    t.z_v = kH * (u - true_ohm_m2);
-    t.v_probe_v = t.r.voltage_v;  // no inventory information
-    t.dt_s = kDtS;
-    t.nominal_inventory_mol = 0.0;
-    t.open = true;
-    t.probed = true;
-    path.learn(t, model, gate, resync);
-  }
-}
-
 // The stated accuracy widens the fitted level's sd by sd_v / H in quadrature and changes nothing
 // else: not the fit, not the reported level (no combination with the prior), not the held prior.
 TEST(VoltageOffsetSd, TheStatedAccuracyOverHEntersTheFittedSdInQuadrature) {
   const double sd_v = 0.2887e-3;
   Path stated(path_config(sd_v), kDtS), plain(path_config(0.0), kDtS);
   EXPECT_EQ(stated.film_sd_ohm_m2(), plain.film_sd_ohm_m2());  // the held prior: the prior's sd
-  learn_ticks(stated, 200, 1.1 * kFilmOhmM2);
-  learn_ticks(plain, 200, 1.1 * kFilmOhmM2);
+  fw::test::learn_ticks(stated, NoSpreadModel{}, 200, 1.1 * kFilmOhmM2);
+  fw::test::learn_ticks(plain, NoSpreadModel{}, 200, 1.1 * kFilmOhmM2);
   ASSERT_FALSE(stated.holding());
   EXPECT_EQ(stated.identifier().film_ohm_m2(), plain.identifier().film_ohm_m2());
   EXPECT_EQ(stated.r_film_ohm_m2(), plain.r_film_ohm_m2());

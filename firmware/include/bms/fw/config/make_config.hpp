@@ -185,6 +185,8 @@ struct Overrides {
   Given<bool> model_bias_table;        // --no-bias-table (false): the constant bias alone
   Given<double> relinearise_inventory; // --relinearise
   Given<bool> hold_until_settled;      // --no-hold (false)
+  Given<bool> innovation_rejects;      // --innovation-reject on|off
+  Given<double> innovation_gate;       // --innovation-gate (in innovation_sd_v units)
   // best: the cell's stated parameter spread (relative 1-sigma, StatedSpread), default 0.
   Given<double> spread_anode_i0_rel;    // --spread-anode-i0
   Given<double> spread_cathode_i0_rel;  // --spread-cathode-i0
@@ -256,6 +258,8 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"no-bias-table", o.model_bias_table.given, id, only_best},
       {"relinearise", o.relinearise_inventory.given, id && observer, id ? no_observer : only_best},
       {"no-hold", o.hold_until_settled.given, id, only_best},
+      {"innovation-reject", o.innovation_rejects.given, id, only_best},
+      {"innovation-gate", o.innovation_gate.given, id, only_best},
       {"spread-anode-i0", o.spread_anode_i0_rel.given, id, only_best},
       {"spread-cathode-i0", o.spread_cathode_i0_rel.given, id, only_best},
       {"spread-transport", o.spread_transport_rel.given, id, only_best},
@@ -412,6 +416,8 @@ void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   if (o.model_bias_table.given && !o.model_bias_table.value) cfg.film_path.model_bias_table = {};
   set_if(o.relinearise_inventory, cfg.film_path.relinearise_inventory);
   set_if(o.hold_until_settled, cfg.film_path.hold_until_settled);
+  set_if(o.innovation_rejects, cfg.film_path.innovation_rejects);
+  set_if(o.innovation_gate, cfg.film_path.innovation_gate);
   set_if(o.spread_anode_i0_rel, cfg.film_path.spread.anode_i0_rel);
   set_if(o.spread_cathode_i0_rel, cfg.film_path.spread.cathode_i0_rel);
   set_if(o.spread_transport_rel, cfg.film_path.spread.transport_rel);

@@ -31,6 +31,7 @@
 #include <cstddef>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <type_traits>
 
 #include <Eigen/Core>
@@ -157,6 +158,19 @@ class FilmGrowthIdentifier {
     growth_ = sum;
   }
 
+  // The regression's a-priori innovation of one learning tick in volts, H (y - phi^T theta): what
+  // the fitted film, gain and inventory leave of this tick's residual (the arguments as learn()'s).
+  // Unlike the residual z, it does not carry the model's distance from the fitted inventory (the
+  // model moves to it only at the next re-synchronisation). NaN where learn() would reject.
+  Scalar innovation_v(Scalar u_hat_ohm_m2, Scalar z_v, Scalar h_v_per_ohm_m2, Scalar s_v, Scalar nu_model,
+                      Scalar bias_v) const {
+    if (!std::isfinite(z_v) || !std::isfinite(h_v_per_ohm_m2) || !(h_v_per_ohm_m2 > Scalar(0)))
+      return std::numeric_limits<Scalar>::quiet_NaN();
+    const Real y = regressand(u_hat_ohm_m2, z_v, h_v_per_ohm_m2, s_v, nu_model, bias_v);
+    const Real e = y - regressor(h_v_per_ohm_m2, s_v).dot(rls_.theta());
+    return static_cast<Scalar>(static_cast<Real>(h_v_per_ohm_m2) * e);
+  }
+
   // One learning tick. u_hat: the film the model used; z = y_hat - y [V]; H = dV/dR_film [V per
   // ohm m2]; S = dV/dnu [V] (0 or non-finite: no inventory information); nu_model: the inventory
   // deviation the model was placed at; bias_v: the model's design-time bias at this current.
@@ -164,16 +178,31 @@ class FilmGrowthIdentifier {
                    Scalar bias_v) {
     if (!std::isfinite(z_v) || !std::isfinite(h_v_per_ohm_m2) || !(h_v_per_ohm_m2 > Scalar(0)))
       return bit(FwStatus::kRejectedNonFinite);
-    const Scalar s_over_h = config_.learn_inventory && std::isfinite(s_v) ? s_v / h_v_per_ohm_m2 : Scalar(0);
-    const Scalar u_star = u_hat_ohm_m2 - (z_v - bias_v) / h_v_per_ohm_m2;
-    const Real within_charge = rls_.theta()(1) * static_cast<Real>(growth_ - growth_at_charge_);
-    typename RlsType::Vector phi;
-    phi << Real(1), static_cast<Real>(growth_at_charge_), static_cast<Real>(s_over_h);
-    const StatusWord st = rls_.update(phi, static_cast<Real>(u_star) + static_cast<Real>(s_over_h * nu_model) - within_charge);
+    const StatusWord st = rls_.update(regressor(h_v_per_ohm_m2, s_v),
+                                      regressand(u_hat_ohm_m2, z_v, h_v_per_ohm_m2, s_v, nu_model, bias_v));
     refresh();
     return st;
   }
 
+
+ private:
+  // phi = [1, G_c, S/H] and y = u* + (S/H) nu_model - g^ (G - G_c) of one tick (the header).
+  Scalar s_over_h(Scalar h_v_per_ohm_m2, Scalar s_v) const {
+    return config_.learn_inventory && std::isfinite(s_v) ? s_v / h_v_per_ohm_m2 : Scalar(0);
+  }
+  typename RlsType::Vector regressor(Scalar h_v_per_ohm_m2, Scalar s_v) const {
+    typename RlsType::Vector phi;
+    phi << Real(1), static_cast<Real>(growth_at_charge_), static_cast<Real>(s_over_h(h_v_per_ohm_m2, s_v));
+    return phi;
+  }
+  Real regressand(Scalar u_hat_ohm_m2, Scalar z_v, Scalar h_v_per_ohm_m2, Scalar s_v, Scalar nu_model,
+                  Scalar bias_v) const {
+    const Scalar u_star = u_hat_ohm_m2 - (z_v - bias_v) / h_v_per_ohm_m2;
+    const Real within_charge = rls_.theta()(1) * static_cast<Real>(growth_ - growth_at_charge_);
+    return static_cast<Real>(u_star) + static_cast<Real>(s_over_h(h_v_per_ohm_m2, s_v) * nu_model) - within_charge;
+  }
+
+ public:
   // The model was moved to an inventory far from where the data so far were linearised (S is
   // a tangent: 1 % of inventory is 3-12 mV over a charge, and the tangent's error on it is read
   // as film and as inventory): forget what was learned, keep the values as the prior mean.

@@ -60,6 +60,9 @@ enum class FwStatus : StatusWord {
   // The innovation test of a learning tick failed (BmsCore::Config::innovation_*): the model's
   // residual, averaged, is beyond what its own error explains; the estimate is not to be trusted.
   kModelMisfit = 1u << 17,
+  // The identifier did not learn from this tick: its regression's averaged a-priori innovation
+  // failed the consistency check (IdentifierFilmPath::Config::innovation_rejects).
+  kInnovationRejected = 1u << 18,
 };
 
 inline constexpr StatusWord kTickRejectMask = (1u << 8) | (1u << 9) | (1u << 10);

@@ -65,6 +65,14 @@ class IdentifierFilmPath {
     Scalar innovation_time_constant_s = Scalar(60);
     Scalar innovation_sd_v = Scalar(3e-4);
     Scalar innovation_gate = Scalar(5);
+    // Innovation consistency check on the fusion (PX4 EKF2 rejects a measurement whose test ratio
+    // exceeds 1): the regression's own a-priori innovation (FilmGrowthIdentifier::innovation_v:
+    // the residual less what the fitted film, gain and inventory explain), averaged as above, is
+    // compared with the same gate; a tick above it is not learned from. Where the reduced model
+    // leaves the cell (the knee at a charge's end on a flat-OCP cell: 1-100 mV) its residual is
+    // not film, and fitted it moved the film's level by several percent in the charge's last
+    // minutes, differently in each charge as the inventory settled. false: every tick is learned.
+    bool innovation_rejects = false;
     // 1-sigma of the temperature sensor [K]: in CC charge a temperature error is nearly collinear
     // with the film (measured about 5 % of the paper cell's film per K), so it enters the film's sd
     // as |dV/dT / H| x this (the model's sensitivity, probed at each learning tick). A stated
@@ -183,9 +191,14 @@ class IdentifierFilmPath {
       if (c_.temperature_sd_k > Scalar(0) && std::isfinite(per_k)) film_per_kelvin_ohm_m2_ = std::fabs(per_k);
       update_spread(model, t.r);
       update_voltage_offset_term(t.r.markov_v_per_ohm_m2);
-      l.status |= identifier_.learn(t.u_ohm_m2, t.z_v, t.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
-                                    resync.inventory_deviation_model(), -bias_ohm * t.current_a);
-      l.active = (l.status & kIdentifierRejectMask) == 0u;
+      const Scalar nu_model = resync.inventory_deviation_model(), bias_v = -bias_ohm * t.current_a;
+      if (fusion_rejected(t, l.inventory_sensitivity_v, nu_model, bias_v, start)) {
+        l.status |= bit(FwStatus::kInnovationRejected);
+      } else {
+        l.status |= identifier_.learn(t.u_ohm_m2, t.z_v, t.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
+                                      nu_model, bias_v);
+        l.active = (l.status & kIdentifierRejectMask) == 0u;
+      }
       learned_since_restart_ = true;
       if (holding_ && !restarted_charge_ && identifier_.settled()) holding_ = false;
     }
@@ -315,6 +328,18 @@ class IdentifierFilmPath {
     return innovation_ratio_ > Scalar(1) ? bit(FwStatus::kModelMisfit) : 0u;
   }
 
+  // The consistency check on the fusion (Config::innovation_rejects): true when this tick's
+  // averaged regression innovation fails the gate. The mean restarts at each learning window.
+  bool fusion_rejected(const FilmTick<Scalar>& t, Scalar s_v, Scalar nu_model, Scalar bias_v, bool window_start) {
+    if (!c_.innovation_rejects || !(c_.innovation_sd_v > Scalar(0))) return false;
+    const Scalar e = identifier_.innovation_v(t.u_ohm_m2, t.z_v, t.r.markov_v_per_ohm_m2, s_v, nu_model, bias_v);
+    if (!std::isfinite(e)) return false;  // learn() rejects it and says why
+    const Scalar a = t.dt_s / (c_.innovation_time_constant_s + t.dt_s);
+    fusion_mean_v_ = window_start ? e : fusion_mean_v_ + a * (e - fusion_mean_v_);
+    const Scalar limit = c_.innovation_gate * c_.innovation_sd_v;
+    return (fusion_mean_v_ / limit) * (fusion_mean_v_ / limit) > Scalar(1);
+  }
+
   // The stated spread's film equivalent at this learning tick: the model's voltage 1-sigma for it
   // over the film's sensitivity H (as the temperature sensor's term).
   template <class Model>
@@ -386,6 +411,7 @@ class IdentifierFilmPath {
   Scalar capacity_sd_ah_ = std::numeric_limits<Scalar>::quiet_NaN();
   Scalar innovation_mean_v_ = Scalar(0);
   Scalar innovation_ratio_ = Scalar(0);
+  Scalar fusion_mean_v_ = Scalar(0);  // the regression innovation's mean (fusion_rejected)
   bool identifying_ = false;
   Scalar v_warm_v_ = Scalar(0);                // this tick's voltage at +kTemperatureProbeK
   Scalar film_per_kelvin_ohm_m2_ = Scalar(0);  // |dV/dT / H| of the last learning tick
