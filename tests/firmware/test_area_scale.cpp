@@ -125,14 +125,14 @@ TEST(AreaScale, ACountedChargeGainReachesTheCapacityOnce) {
   EXPECT_NEAR(q2 / cell_window_mol - 1, g, 1e-9);
 }
 
-// A span whose two pins saw the model at different inventories (moved between CV ends: a
-// power-up re-synchronisation after a gap) measures nothing: at the upper end the move would
-// read as area.
+// A span over a model moved between its CV ends (a power-up re-synchronisation after a gap:
+// unpin()) measures nothing: at the upper end the move would read as area.
 TEST(AreaScale, ASpanOverAModelMovedBetweenItsPinsMeasuresNothing) {
   Area a(config());
   a.pin(at(0.004, 0.0, 0.1));
   const double q = drive(a, -2.6, 18000);
-  EXPECT_FALSE(a.pin(at(0.004 - q, 0.0, 0.1001)));  // 0.1 % of inventory moved between the pins
+  a.unpin();
+  EXPECT_FALSE(a.pin(at(0.004 - q, 0.0, 0.1001)));
   EXPECT_EQ(a.scale(), 1.0);
   EXPECT_TRUE(std::isnan(a.span_inventory_mol()));
   const double q2 = drive(a, 2.6, 18000);  // the next span starts at the last pin: measured

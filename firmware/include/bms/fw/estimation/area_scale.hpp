@@ -67,10 +67,6 @@ class AreaScale {
     Scalar min_span_mol = Scalar(0);
     Scalar limit = Scalar(0.1);   // |a - 1| admitted; a span outside is dropped
     Scalar memory = Scalar(0.5);  // weight kept of the earlier spans at each later one
-    // Relative difference of the model's inventory (plus loss) between a span's two pins above
-    // which the span is dropped: the model was moved between them other than at a pin (a
-    // power-up re-synchronisation after a gap); at the upper end it would read as area.
-    Scalar inventory_tolerance = Scalar(1e-4);
     Scalar dt_s = Scalar(0.2);
   };
 
@@ -82,7 +78,6 @@ class AreaScale {
     Scalar counted_carry_mol;
     Scalar pinned_anode_mol;
     Scalar pinned_loss_mol;
-    Scalar pinned_inventory_mol;  // the model's inventory plus its loss at the last pin (after its re-synchronisation)
     Scalar span_inventory_mol;  // the model's inventory plus its loss at the end pin of the last span that measured a
     std::uint32_t flags;    // bit 0: a pin exists, bit 1: a span has measured a
   };
@@ -128,9 +123,7 @@ class AreaScale {
     bool measured = false;
     const Scalar q = s_.counted_mol + s_.counted_carry_mol;
     const Scalar span_inventory_mol = end.inventory_mol + end.loss_mol;
-    const bool one_inventory =
-        std::fabs(span_inventory_mol - s_.pinned_inventory_mol) <= c_.inventory_tolerance * s_.pinned_inventory_mol;
-    if ((s_.flags & 1u) && one_inventory && std::fabs(q) >= c_.min_span_mol && c_.min_span_mol > Scalar(0)) {
+    if ((s_.flags & 1u) && std::fabs(q) >= c_.min_span_mol && c_.min_span_mol > Scalar(0)) {
       const Scalar moved_mol = (end.anode_mol - s_.pinned_anode_mol) + (end.loss_mol - s_.pinned_loss_mol);
       if ((s_.flags & 2u) && span_inventory_mol != s_.span_inventory_mol) {
         carry_to(capacity_ah(s_.span_inventory_mol - end.loss_mol) / capacity_ah(span_inventory_mol - end.loss_mol));
@@ -143,7 +136,6 @@ class AreaScale {
     }
     s_.pinned_anode_mol = next.anode_mol;
     s_.pinned_loss_mol = next.loss_mol;
-    s_.pinned_inventory_mol = next.inventory_mol + next.loss_mol;
     s_.counted_mol = Scalar(0);
     s_.counted_carry_mol = Scalar(0);
     s_.flags |= 1u;
@@ -164,6 +156,11 @@ class AreaScale {
     return (s_.flags & 2u) ? s_.span_inventory_mol : std::numeric_limits<Scalar>::quiet_NaN();
   }
 
+  // The model was moved other than at a CV end (a power-up re-synchronisation after a gap): the
+  // last pin no longer holds at its inventory (at the upper end the move would read as area), so
+  // the next CV end starts a span instead of ending one.
+  void unpin() { s_.flags &= ~1u; }
+
   // The current sensor's offset in use changed: the spans counted with the old one are dropped
   // (the scale in use is kept as the start; the next span replaces it).
   void forget() { s_.weight = Scalar(0); }
@@ -172,8 +169,7 @@ class AreaScale {
   bool restore(const State& s) {
     const bool ok = std::isfinite(s.scale) && std::fabs(s.scale - Scalar(1)) <= c_.limit && std::isfinite(s.weight) &&
                     s.weight >= Scalar(0) && std::isfinite(s.counted_mol) && std::isfinite(s.counted_carry_mol) &&
-                    std::isfinite(s.pinned_anode_mol) && std::isfinite(s.pinned_loss_mol) && std::isfinite(s.pinned_inventory_mol) &&
-                    std::isfinite(s.span_inventory_mol) && (s.flags & ~3u) == 0u;
+                    std::isfinite(s.pinned_anode_mol) && std::isfinite(s.pinned_loss_mol) && std::isfinite(s.span_inventory_mol) && (s.flags & ~3u) == 0u;
     if (!ok) return false;
     s_ = s;
     return true;
@@ -200,7 +196,7 @@ class AreaScale {
   }
 
   Config c_;
-  State s_{Scalar(1), Scalar(0), Scalar(0), Scalar(0), Scalar(0), Scalar(0), Scalar(0), Scalar(0), 0u};
+  State s_{Scalar(1), Scalar(0), Scalar(0), Scalar(0), Scalar(0), Scalar(0), Scalar(0), 0u};
 };
 
 }  // namespace bms::fw

@@ -494,6 +494,7 @@ class BmsCore {
       return bit(FwStatus::kResyncFailed);
     }
     bool relinearise = resync_.succeeded(nu, path_.relinearise_inventory());
+    if (power_up) area_.unpin();
     if (!power_up) relinearise = pin_area(span_end) || relinearise;
     if (relinearise) path_.relinearise();
     return 0u;

@@ -293,7 +293,6 @@ constexpr std::uint32_t state_schema(Type<AreaScale<S>> /*tag*/) {
                          BMS_SCHEMA_FIELD(St, counted_carry_mol),
                          BMS_SCHEMA_FIELD(St, pinned_anode_mol),
                          BMS_SCHEMA_FIELD(St, pinned_loss_mol),
-                         BMS_SCHEMA_FIELD(St, pinned_inventory_mol),
                          BMS_SCHEMA_FIELD(St, span_inventory_mol),
                          BMS_SCHEMA_FIELD(St, flags)};
   static_assert(covers(f, sizeof(St), alignof(St)), "AreaScale::State changed: update its schema table");
