@@ -86,6 +86,7 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--spread-transport", v.spread_transport_rel);
   g("--spread-area", v.spread_area_rel);
   g("--voltage-offset-sd-mv", v.voltage_offset_sd_mv);
+  g("--current-gain-sd-pct", v.current_gain_sd_pct);
   g("--no-current-offset", v.current_offset);
   g("--voltage-offset", v.voltage_offset);
   g("--no-area-scale", v.area_scale);
@@ -317,6 +318,10 @@ Runner add_estimate(CLI::App& app) {
                   "--settings best only: the voltage sensor's stated offset accuracy (the front end's datasheet "
                   "1-sigma in mV, in [0, 10], default 0); in CC charge an offset reads as film, so this over "
                   "dV/dR_film enters r_film_sd_ohm_m2 in quadrature");
+  sub->add_option("--current-gain-sd-pct", c->o.overrides.current_gain_sd_pct.value,
+                  "--settings best only: the current sensor's stated gain accuracy (the front end's datasheet "
+                  "1-sigma in percent, in [0, 5], default 0); the capacity is counted in the sensor's amperes, so "
+                  "this times the capacity enters capacity_sd_ah in quadrature");
   sub->add_flag("!--no-current-offset", c->o.overrides.current_offset.value,
                 "Do not remove the current sensor's offset (default with --settings best: measured between two CV "
                 "end points of the same kind, where the cell is in the same state, as the counted charge over the "

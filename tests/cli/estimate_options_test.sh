@@ -74,6 +74,19 @@ import json, sys
 s = json.load(open(sys.argv[1]))["options"]["voltage_offset_sd_mv"]
 assert abs(s - 0.2887) < 1e-12, s
 PY
+# The current sensor's stated gain accuracy: the capacity's sd; refused where RCSI learns, outside
+# [0, 5] % exit 2 naming the option, recorded in summary.json.
+for p in paper nominal-growth; do refused "$p" current-gain-sd-pct 0.3; done
+for val in -0.1 6; do
+  check_input_error "best-current-gain-sd-range-$val" "--current-gain-sd-pct" "$WORK/o" -- \
+    "$BMSSIM" estimate --data short.csv --settings best --current-gain-sd-pct "$val" --quiet --out "$WORK/o"
+done
+accepted best --current-gain-sd-pct 0.2887
+python3 - "$WORK/a/summary.json" <<'PY' && pass "summary records the current gain sd" || fail "current gain sd" "see above"
+import json, sys
+s = json.load(open(sys.argv[1]))["options"]["current_gain_sd_pct"]
+assert abs(s - 0.2887) < 1e-12, s
+PY
 # --settings nominal-growth: H from the model, no identifier.
 for o in "h 0.02" "no-inventory" "model-bias-ohm 0" "relinearise 1"; do
   # shellcheck disable=SC2086

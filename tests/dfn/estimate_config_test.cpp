@@ -71,7 +71,8 @@ void add_path_fields(const fw::IdentifierFilmPath<double>::Config& c, std::vecto
       {"spread.cathode_i0_rel", c.spread.cathode_i0_rel},
       {"spread.transport_rel", c.spread.transport_rel},
       {"spread.area_rel", c.spread.area_rel},
-      {"voltage_offset_sd_v", c.voltage_offset_sd_v}};
+      {"voltage_offset_sd_v", c.voltage_offset_sd_v},
+      {"current_gain_sd", c.current_gain_sd}};
   f.insert(f.end(), g.begin(), g.end());
 }
 
@@ -240,6 +241,7 @@ const std::vector<OverrideCase>& override_cases() {
       {"spread-transport", [](fw::Overrides& o) { o.spread_transport_rel = 0.1; }},
       {"spread-area", [](fw::Overrides& o) { o.spread_area_rel = 0.01; }},
       {"voltage-offset-sd-mv", [](fw::Overrides& o) { o.voltage_offset_sd_mv = 0.3; }},
+      {"current-gain-sd-pct", [](fw::Overrides& o) { o.current_gain_sd_pct = 0.3; }},
       {"voltage-offset", [](fw::Overrides& o) { o.voltage_offset = true; }},
       {"innovation-reject", [](fw::Overrides& o) { o.innovation_rejects = true; }},
       {"innovation-gate", [](fw::Overrides& o) { o.innovation_gate = 3.0; }},
@@ -253,15 +255,15 @@ std::set<std::string> expected_unused(fw::Profile p) {
     case fw::Profile::paper:  // no observer, no bias calibration, no propagation, H given
       return {"reference-after-resyncs", "growth-scale", "no-start-resync", "resync-window", "resync-current",
               "no-inventory", "model-bias-ohm", "relinearise", "spread-anode-i0", "spread-cathode-i0",
-              "spread-transport", "spread-area", "voltage-offset-sd-mv", "voltage-offset", "innovation-reject",
-              "innovation-gate", "hold-restarted-charge"};
+              "spread-transport", "spread-area", "voltage-offset-sd-mv", "current-gain-sd-pct", "voltage-offset",
+              "innovation-reject", "innovation-gate", "hold-restarted-charge"};
     case fw::Profile::best:  // the eleven, and what only RCSI reads
       return {"nc", "h", "p0", "p0-y0", "lambda", "eta", "theta0", "r-film-init", "calibrate-bias",
               "reference-after-resyncs", "average", "propagate-growth", "growth-scale"};
     case fw::Profile::nominal_growth:  // H from the model; no identifier
       return {"h", "no-inventory", "model-bias-ohm", "relinearise", "spread-anode-i0", "spread-cathode-i0",
-              "spread-transport", "spread-area", "voltage-offset-sd-mv", "voltage-offset", "innovation-reject",
-              "innovation-gate", "hold-restarted-charge"};
+              "spread-transport", "spread-area", "voltage-offset-sd-mv", "current-gain-sd-pct", "voltage-offset",
+              "innovation-reject", "innovation-gate", "hold-restarted-charge"};
   }
   return {};
 }

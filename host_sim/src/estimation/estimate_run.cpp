@@ -456,6 +456,8 @@ void check_estimate_options(const EstimateOptions& o) {
       throw InputError(fmt::format("--{} must be a relative 1-sigma in [0, 0.9] (got {})", name, g->value));
   if (bad(v.voltage_offset_sd_mv, [](double x) { return x >= 0.0 && x <= 10.0; }))
     throw InputError(fmt::format("--voltage-offset-sd-mv must be a 1-sigma in [0, 10] mV (got {})", v.voltage_offset_sd_mv.value));
+  if (bad(v.current_gain_sd_pct, [](double x) { return x >= 0.0 && x <= 5.0; }))
+    throw InputError(fmt::format("--current-gain-sd-pct must be a 1-sigma in [0, 5] % (got {})", v.current_gain_sd_pct.value));
 }
 
 namespace {

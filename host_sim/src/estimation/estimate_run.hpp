@@ -115,6 +115,7 @@ struct EstimateConfigSummary {
   fw::StatedSpread<double> spread{};  // the cell's stated parameter spread (relative 1-sigma)
   fw::ModelBiasTable<double> model_bias_table{};  // the bias's state-of-charge-dependent part (off: none)
   double voltage_offset_sd_v = 0;     // the voltage sensor's stated offset accuracy (1-sigma)
+  double current_gain_sd = 0;         // the current sensor's stated gain accuracy (relative 1-sigma)
   bool voltage_offset = false;        // the voltage sensor's offset measured and removed
 };
 
@@ -156,6 +157,7 @@ EstimateConfigSummary summarise_config(const Config& c, int nc) {
     s.spread = {double(p.spread.anode_i0_rel), double(p.spread.cathode_i0_rel), double(p.spread.transport_rel),
                 double(p.spread.area_rel)};
     s.voltage_offset_sd_v = double(p.voltage_offset_sd_v);
+    s.current_gain_sd = double(p.current_gain_sd);
   }
   return s;
 }

@@ -195,6 +195,8 @@ struct Overrides {
   Given<double> spread_area_rel;        // --spread-area
   // best: the voltage sensor's stated offset accuracy (1-sigma), default 0.
   Given<double> voltage_offset_sd_mv;   // --voltage-offset-sd-mv
+  // best: the current sensor's stated gain accuracy (1-sigma, percent), default 0.
+  Given<double> current_gain_sd_pct;    // --current-gain-sd-pct
   Given<bool> voltage_offset;           // --voltage-offset (true): the sensor offset from CC discharges (off by default)
 };
 
@@ -265,6 +267,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"spread-transport", o.spread_transport_rel.given, id, only_best},
       {"spread-area", o.spread_area_rel.given, id, only_best},
       {"voltage-offset-sd-mv", o.voltage_offset_sd_mv.given, id, only_best},
+      {"current-gain-sd-pct", o.current_gain_sd_pct.given, id, only_best},
       {"voltage-offset", o.voltage_offset.given, id, only_best},
   };
   for (const Use& u : uses)
@@ -424,6 +427,8 @@ void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   set_if(o.spread_area_rel, cfg.film_path.spread.area_rel);
   if (o.voltage_offset_sd_mv.given)
     cfg.film_path.voltage_offset_sd_v = static_cast<decltype(cfg.film_path.voltage_offset_sd_v)>(o.voltage_offset_sd_mv.value * 1e-3);
+  if (o.current_gain_sd_pct.given)
+    cfg.film_path.current_gain_sd = static_cast<decltype(cfg.film_path.current_gain_sd)>(o.current_gain_sd_pct.value * 1e-2);
 }
 
 }  // namespace detail

@@ -19,10 +19,21 @@
 // What the two end pins cannot do is tell a from the inventory: at the upper end the steep
 // electrode is the cathode, so the pinned anode moves with the inventory one to one, and a span
 // measures only the product a x (the model's window at its inventory), i.e. the capacity. So the
-// capacity is a C_nom(n_span) with n_span the model's inventory at the span's end pin (the same
-// inventory the span was measured at: consistent, about the counted charge between the limits),
-// not with the identified inventory of the fit. The split between a and the inventory is the
-// CC charge's voltage shape's (the identifier's inventory, with the model on I / a).
+// capacity is a C_nom(n_span) with n_span the model's inventory over the span, not the
+// identified inventory of the fit. The split between a and the inventory is the CC charge's
+// voltage shape's (the identifier's inventory, with the model on I / a).
+//
+// Both pins of a span must see the model at one inventory, and that inventory is n_span: a
+// re-synchronisation at a CV end moves the model's inventory to the fit's, so the span ends on
+// the model as the voltage-driven CV phase left it (before the re-synchronisation) and the next
+// span starts after it. Pinned after it at both ends (the earlier form), a span ending on a
+// re-synchronisation that moved the inventory by dn read the anode's move at one inventory and
+// the capacity at the other: at the upper end the anode moves with dn, so a and C_nom(n_span) each
+// took dn, and a current gain, which the fit's inventory takes up, reached the capacity twice
+// (measured: docs/results/envelope.md, "A current gain enters the capacity once"). For the same
+// reason spans at different inventories are combined as capacities: before a span at n is
+// combined, the kept scale (measured at the last span's inventory n') is carried to n by
+// C_nom(n') / C_nom(n), so that a C_nom(n) keeps each span's own product.
 // Measured and left out (docs/results/envelope.md, "Capacity"): a power-up pin (at rest on a flat
 // OCV it pins the anode poorly: a 3-4 % off on two of six spread truths), and pinning only where
 // the re-synchronisation succeeds (with the area off, the inventory takes it up, the CV-charge
@@ -30,7 +41,7 @@
 //
 // A current sensor's gain g is the same as an area scale in counted charge: a reads a (1 + g),
 // the model then runs on the right current density, and the capacity is reported in the
-// sensor's amperes (1 + g times the cell's).
+// sensor's amperes (1 + g times the cell's): once, the floor of a BMS that counts its charge.
 // Header-only C++17: no heap, no exceptions, no RTTI.
 #include <cmath>
 #include <cstdint>
@@ -72,6 +83,14 @@ class AreaScale {
   };
   static_assert(std::is_trivially_copyable<State>::value, "State must be trivially copyable");
 
+  // The model's lithium at a pin [mol]: its anode's, its solid inventory's, and what its side
+  // reaction has taken.
+  struct Pin {
+    Scalar anode_mol = Scalar(0);
+    Scalar inventory_mol = Scalar(0);
+    Scalar loss_mol = Scalar(0);
+  };
+
   explicit AreaScale(const Config& c) : c_(c) {}
 
   bool enabled() const { return c_.enabled; }
@@ -93,34 +112,54 @@ class AreaScale {
     s_.counted_mol = sum;
   }
 
-  // Step 7: the model was re-synchronised at a CV end; its anode holds anode_mol and it has lost
-  // loss_mol to the side reaction. Returns true when a span measured a and the scale moved.
-  bool pin(Scalar anode_mol, Scalar loss_mol, Scalar inventory_mol) {
-    if (!c_.enabled || !std::isfinite(anode_mol) || !std::isfinite(loss_mol)) return false;
-    bool moved = false;
+  // Step 7: a CV end. `end` is the model as the voltage-driven CV phase left it (the span's end,
+  // at the span's inventory), `next` after this CV end's re-synchronisation (the next span's
+  // start; `end` where none moved it). Returns true when a span measured a.
+  // `capacity_ah(n)` is the nominal electrodes' open-circuit capacity at inventory n (less the
+  // model's loss), called twice when a span is measured at an inventory other than the last one's.
+  template <class CapacityOf>
+  bool pin(const Pin& end, const Pin& next, const CapacityOf& capacity_ah) {
+    if (!c_.enabled || !finite(end) || !finite(next)) return false;
+    bool measured = false;
     const Scalar q = s_.counted_mol + s_.counted_carry_mol;
+    const Scalar span_inventory_mol = end.inventory_mol + end.loss_mol;
     if ((s_.flags & 1u) && std::fabs(q) >= c_.min_span_mol && c_.min_span_mol > Scalar(0)) {
-      const Scalar moved_mol = (anode_mol - s_.pinned_anode_mol) + (loss_mol - s_.pinned_loss_mol);
+      const Scalar moved_mol = (end.anode_mol - s_.pinned_anode_mol) + (end.loss_mol - s_.pinned_loss_mol);
+      if ((s_.flags & 2u) && span_inventory_mol != s_.span_inventory_mol) {
+        carry_to(capacity_ah(s_.span_inventory_mol - end.loss_mol) / capacity_ah(span_inventory_mol - end.loss_mol));
+      }
       if (take_span(-q / moved_mol, q)) {
-        moved = true;
-        s_.span_inventory_mol = inventory_mol + loss_mol;
+        measured = true;
+        s_.span_inventory_mol = span_inventory_mol;
         s_.flags |= 2u;
       }
     }
-    s_.pinned_anode_mol = anode_mol;
-    s_.pinned_loss_mol = loss_mol;
+    s_.pinned_anode_mol = next.anode_mol;
+    s_.pinned_loss_mol = next.loss_mol;
     s_.counted_mol = Scalar(0);
     s_.counted_carry_mol = Scalar(0);
     s_.flags |= 1u;
-    return moved;
+    return measured;
   }
 
-  // The model's inventory (plus its lithium loss) at the span that measured a: the capacity's
+  // A model without a capacity: spans are combined as scales.
+  bool pin(const Pin& end, const Pin& next) {
+    return pin(end, next, [](Scalar) { return Scalar(1); });
+  }
+  // A CV end no re-synchronisation moved the model at.
+  bool pin(const Pin& at) { return pin(at, at); }
+
+  // The model's inventory (plus its lithium loss) over the span that measured a: the capacity's
   // inventory, consistent with a (the span's charge is a times the model's anode move at that
   // inventory); NaN before any span.
   Scalar span_inventory_mol() const {
     return (s_.flags & 2u) ? s_.span_inventory_mol : std::numeric_limits<Scalar>::quiet_NaN();
   }
+
+  // The model was moved other than at a CV end (a power-up re-synchronisation after a gap): the
+  // last pin no longer holds at its inventory (at the upper end the move would read as area), so
+  // the next CV end starts a span instead of ending one.
+  void unpin() { s_.flags &= ~1u; }
 
   // The current sensor's offset in use changed: the spans counted with the old one are dropped
   // (the scale in use is kept as the start; the next span replaces it).
@@ -138,13 +177,22 @@ class AreaScale {
   const Config& config() const { return c_; }
 
  private:
+  static bool finite(const Pin& p) {
+    return std::isfinite(p.anode_mol) && std::isfinite(p.inventory_mol) && std::isfinite(p.loss_mol);
+  }
+
+  // The kept scale to another inventory; a ratio that is not a plausible one leaves it.
+  void carry_to(Scalar ratio) {
+    const Scalar carried = s_.scale * ratio;
+    if (std::isfinite(carried) && std::fabs(carried - Scalar(1)) <= c_.limit) s_.scale = carried;
+  }
+
   bool take_span(Scalar a, Scalar q) {
     if (!std::isfinite(a) || !(std::fabs(a - Scalar(1)) <= c_.limit)) return false;
     const Scalar w = q * q, kept = c_.memory * s_.weight;
-    const Scalar before = s_.scale;
     s_.scale = (kept * s_.scale + w * a) / (kept + w);
     s_.weight = kept + w;
-    return s_.scale != before;
+    return true;
   }
 
   Config c_;

@@ -488,28 +488,48 @@ class BmsCore {
     if (!resync_.collect(in.voltage_v, in.current_a, m)) return 0u;
     const Scalar nu = path_.inventory_deviation();
     const Scalar target_mol = config_.nominal_inventory_mol * (Scalar(1) + nu) - model_.li_loss_mol();
+    const typename AreaScale<Scalar>::Pin span_end = area_pin();
     if (!model_.resync(m.voltage_v, area_.model_current_a(m.current_a), u, config_.dt_s, target_mol)) {
-      if (!power_up && pin_area()) path_.relinearise();
+      if (!power_up && pin_area(span_end)) path_.relinearise();
       return bit(FwStatus::kResyncFailed);
     }
     bool relinearise = resync_.succeeded(nu, path_.relinearise_inventory());
-    if (!power_up) relinearise = pin_area() || relinearise;
+    if (power_up) area_.unpin();
+    if (!power_up) relinearise = pin_area(span_end) || relinearise;
     if (relinearise) path_.relinearise();
     return 0u;
   }
 
   // Step 7: a CV end is one of AreaScale's pins, re-synchronised or not (the voltage-driven CV
-  // phase has held the model's state to the measured voltage); true when the scale the model runs
-  // with moved by more than the path's relinearisation limit (what it learned was on the model's
-  // old current density and stoichiometry rate).
-  bool pin_area() {
+  // phase has held the model's state to the measured voltage). `span_end` is the model before
+  // this CV end's re-synchronisation: the span ends at the inventory it started at (AreaScale's
+  // header), the next one starts after it. True when the scale the model runs with moved by more
+  // than the path's relinearisation limit (what it learned was on the model's old current
+  // density and stoichiometry rate).
+  bool pin_area(const typename AreaScale<Scalar>::Pin& span_end) {
     if constexpr (kGivesAnodeLithium<MainModel, Scalar>) {
       const Scalar before = area_.scale();
-      area_.pin(model_.anode_lithium_mol(), model_.li_loss_mol(), model_.solid_inventory_mol());
+      if constexpr (kGivesCapacity<MainModel, Scalar>) {
+        area_.pin(span_end, area_pin(), [](Scalar n) { return MainModel::open_circuit_capacity_ah(n); });
+      } else {
+        area_.pin(span_end, area_pin());
+      }
       return area_.model_sees() && std::fabs(area_.scale() - before) > path_.relinearise_inventory();
     } else {
+      (void)span_end;
       return false;
     }
+  }
+
+  // The model's lithium as AreaScale pins it (zeros for a model that gives no anode lithium).
+  typename AreaScale<Scalar>::Pin area_pin() const {
+    typename AreaScale<Scalar>::Pin p{};
+    if constexpr (kGivesAnodeLithium<MainModel, Scalar>) {
+      p.anode_mol = model_.anode_lithium_mol();
+      p.inventory_mol = model_.solid_inventory_mol();
+      p.loss_mol = model_.li_loss_mol();
+    }
+    return p;
   }
 
   // Step 7: CurrentOffset's end points. When the offset in use moves by more than its dead band

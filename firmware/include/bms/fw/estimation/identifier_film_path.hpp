@@ -96,6 +96,12 @@ class IdentifierFilmPath {
     // sd as this / |H| in quadrature, as the stated spread does (not on the held prior: the prior
     // reads no voltage). A stated accuracy, not learned; 0 leaves it out.
     Scalar voltage_offset_sd_v = Scalar(0);
+    // Relative 1-sigma of the current sensor's gain (the front end's stated accuracy, never this
+    // unit's actual gain): the capacity is counted in the sensor's amperes (AreaScale), so a gain
+    // g moves it by g, which no measurement of I and V can tell from the electrode area. It
+    // enters capacity_sd_ah as this x the capacity in quadrature. A stated accuracy, not learned;
+    // 0 leaves it out.
+    Scalar current_gain_sd = Scalar(0);
   };
 
   // Trivially copyable, for the NVM image.
@@ -384,6 +390,10 @@ class IdentifierFilmPath {
       // The capacity moves with the inventory nearly one to one near the nominal cell (0.98:
       // tests/firmware/test_temperature.cpp): its relative sd is the inventory's.
       capacity_sd_ah_ = capacity_ah_ * reported().inventory_sd() * n0 / n;
+      if (c_.current_gain_sd > Scalar(0)) {
+        const Scalar gain_sd_ah = capacity_ah_ * c_.current_gain_sd;
+        capacity_sd_ah_ = std::sqrt(capacity_sd_ah_ * capacity_sd_ah_ + gain_sd_ah * gain_sd_ah);
+      }
     }
   }
 
