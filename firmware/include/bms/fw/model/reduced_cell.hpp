@@ -572,7 +572,7 @@ class ReducedCell {
   static Scalar regula_falsi(Mismatch& mismatch, Scalar a, Scalar b, Scalar fa, Scalar fb, int& used) {
     Scalar fx = fa;
     int side = 0;
-    for (; used < kResyncIterations;) {
+    while (used < kResyncIterations) {
       const Scalar x = (a * fb - b * fa) / (fb - fa);
       fx = mismatch(x);
       ++used;
