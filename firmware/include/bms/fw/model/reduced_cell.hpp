@@ -457,8 +457,11 @@ class ReducedCell {
   // voltage; the electrolyte is scaled back to its initial mean (salt is conserved). The two
   // shifts are tied by (1), which leaves one unknown; V rises monotonically with lithium moved
   // into the anode, so a bracketed regula falsi (Illinois) with a fixed iteration cap solves
-  // (2). Returns false and leaves the state unchanged when no bracket exists.
+  // (2). Returns false and leaves the state unchanged when no bracket exists, and at once when
+  // the voltage falls as lithium moves into the anode on the way from the present state (see
+  // bracket_near: the premise fails there, so a root found further on would not be the state).
   bool resync(Scalar voltage_v, Scalar current_a, Scalar r_film_ohm_m2, Scalar dt_s, Scalar inventory_mol) {
+    resync_evaluations_ = 0;
     if (!std::isfinite(voltage_v) || !std::isfinite(current_a) || !std::isfinite(inventory_mol)) return false;
     // Only a voltage inside the cell's window is a state to synchronise to.
     if (voltage_v < Scalar(Cell::kLowerVoltageV - 0.5) || voltage_v > Scalar(Cell::kUpperVoltageV + 0.5)) return false;
@@ -505,15 +508,23 @@ class ReducedCell {
     Scalar a = lo, b = hi, fa = Scalar(0), fb = Scalar(0);
     // Every evaluation counts against kResyncIterations: the tick's cost has a fixed bound.
     int used = 0;
-    if (!bracket_near(mismatch, lo, hi, a, b, fa, fb, used)) {
+    const Bracket near = bracket_near(mismatch, lo, hi, a, b, fa, fb, used);
+    resync_evaluations_ = used;
+    if (near == Bracket::not_monotone) {
+      s_ = base;
+      return false;
+    }
+    if (near == Bracket::none_near) {
       a = lo; b = hi; fa = mismatch(a); fb = mismatch(b);
       used += 2;
+      resync_evaluations_ = used;
     }
     if (!std::isfinite(fa) || !std::isfinite(fb) || fa > Scalar(0) || fb < Scalar(0)) {
       s_ = base;
       return false;
     }
     const Scalar fx = regula_falsi(mismatch, a, b, fa, fb, used);
+    resync_evaluations_ = used;
     // s_ already holds the state at the last point (mismatch applied it).
     if (!(std::fabs(fx) < Scalar(kResyncAcceptV))) {
       s_ = base;
@@ -542,6 +553,11 @@ class ReducedCell {
   static constexpr double kResyncAcceptV = 1e-4;
   static constexpr double kResyncFirstStep = 1e-3;  // anode stoichiometry: about 1-10 mV
   static constexpr int kResyncBracketSteps = 6;
+  // Most model evaluations a re-synchronisation that gives up on a voltage that does not rise
+  // with anode lithium can spend: the present state and the bracket's steps (bracket_near).
+  static constexpr int kResyncNotMonotoneEvaluations = 1 + kResyncBracketSteps;
+  // Model evaluations (peek_voltage) the last resync() spent, for its cost bound's test.
+  int resync_evaluations() const { return resync_evaluations_; }
 
  private:
   void shift(Scalar d_stoich_neg, Scalar d_stoich_pos) {
@@ -553,12 +569,13 @@ class ReducedCell {
   // kResyncToleranceV or the evaluations reach kResyncIterations; returns the last f (non-
   // finite when an evaluation was).
   template <typename Mismatch>
-  static Scalar regula_falsi(Mismatch& mismatch, Scalar a, Scalar b, Scalar fa, Scalar fb, int used) {
+  static Scalar regula_falsi(Mismatch& mismatch, Scalar a, Scalar b, Scalar fa, Scalar fb, int& used) {
     Scalar fx = fa;
     int side = 0;
-    for (int it = used; it < kResyncIterations; ++it) {
+    while (used < kResyncIterations) {
       const Scalar x = (a * fb - b * fa) / (fb - fa);
       fx = mismatch(x);
+      ++used;
       if (!std::isfinite(fx) || std::fabs(fx) < Scalar(kResyncToleranceV)) break;
       if (fx < Scalar(0)) {
         a = x; fa = fx;
@@ -577,41 +594,50 @@ class ReducedCell {
   // is usually within a few mV of the cell), found by secant steps from 0 that overshoot the
   // predicted root, within [lo, hi]. The regula falsi then starts a few evaluations from its
   // tolerance instead of halving its way in from the whole admissible range (which took 25
-  // evaluations). Adds its evaluations to `used`; false when no bracket was found (the caller
-  // falls back to [lo, hi]).
+  // evaluations). Adds its evaluations to `used`; none_near when no bracket was found (the caller
+  // falls back to [lo, hi]). not_monotone when a step towards the root moved the mismatch away
+  // from zero: the voltage fell (or stayed) as lithium moved into the anode. The method's
+  // premise fails there: both electrodes' open-circuit potentials are flat (LFP against a
+  // graphite plateau) and the overpotentials' own dependence on the stoichiometry, opposite in
+  // sign, dominates; a root beyond it lies at an electrode's end, where the voltage is matched
+  // by a state far from the cell's, and the regula falsi over the whole range spent its cap
+  // before reaching it (About:Energy at power-up under 2 A: 40 evaluations, about 400 000
+  // instructions on the M7). The caller gives up at once (status kResyncFailed).
+  enum class Bracket { found, none_near, not_monotone };
   template <typename Mismatch>
-  static bool bracket_near(Mismatch& mismatch, Scalar lo, Scalar hi, Scalar& a, Scalar& b, Scalar& fa, Scalar& fb,
-                           int& used) {
-    if (!(lo < Scalar(0) && hi > Scalar(0))) return false;
+  static Bracket bracket_near(Mismatch& mismatch, Scalar lo, Scalar hi, Scalar& a, Scalar& b, Scalar& fa,
+                              Scalar& fb, int& used) {
+    if (!(lo < Scalar(0) && hi > Scalar(0))) return Bracket::none_near;
     Scalar x = Scalar(0), fx = mismatch(x);
     ++used;
-    if (!std::isfinite(fx)) return false;
+    if (!std::isfinite(fx)) return Bracket::none_near;
     Scalar step = fx < Scalar(0) ? Scalar(kResyncFirstStep) : Scalar(-kResyncFirstStep);
     for (int n = 1; n <= kResyncBracketSteps; ++n) {
       Scalar xn = x + step;
       xn = xn < lo ? lo : (xn > hi ? hi : xn);
       const Scalar fn = mismatch(xn);
       ++used;
-      if (!std::isfinite(fn)) return false;
+      if (!std::isfinite(fn)) return Bracket::none_near;
       if ((fn < Scalar(0)) != (fx < Scalar(0))) {
         if (fn < Scalar(0)) {
           a = xn; fa = fn; b = x; fb = fx;
         } else {
           a = x; fa = fx; b = xn; fb = fn;
         }
-        return true;
+        return Bracket::found;
       }
-      // Secant prediction of the root from the last two points, overshot so the next point
-      // lands beyond it; at least doubling the step when the slope says nothing.
       const Scalar slope = (fn - fx) / (xn - x);
-      Scalar next = slope != Scalar(0) ? -fn / slope * Scalar(2) : step * Scalar(2);
+      if (!(slope > Scalar(0))) return Bracket::not_monotone;
+      // Secant prediction of the root from the last two points, overshot so the next point
+      // lands beyond it.
+      Scalar next = -fn / slope * Scalar(2);
       if (std::fabs(next) < std::fabs(step) * Scalar(2) || (next > Scalar(0)) != (step > Scalar(0))) next = step * Scalar(2);
       x = xn;
       fx = fn;
       step = next;
-      if (x == lo || x == hi) return false;
+      if (x == lo || x == hi) return Bracket::none_near;
     }
-    return false;
+    return Bracket::none_near;
   }
 
   // At a re-synchronised state: the voltage's slopes to a uniform shift of each particle, and
@@ -1011,6 +1037,7 @@ class ReducedCell {
   Scalar temperature_k_ = Scalar(0), d_temperature_k_ = Scalar(0), frt_ = Scalar(0);
   Scalar ds_neg_ = Scalar(0), ds_pos_ = Scalar(0), i0_coef_neg_ = Scalar(0), i0_coef_pos_ = Scalar(0);
   Scalar side_exchange_a_m2_ = Scalar(0);
+  int resync_evaluations_ = 0;
 };
 
 }  // namespace bms::fw
