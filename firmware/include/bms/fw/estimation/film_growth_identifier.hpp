@@ -184,7 +184,6 @@ class FilmGrowthIdentifier {
     return st;
   }
 
-
  private:
   // phi = [1, G_c, S/H] and y = u* + (S/H) nu_model - g^ (G - G_c) of one tick (the header).
   Scalar s_over_h(Scalar h_v_per_ohm_m2, Scalar s_v) const {

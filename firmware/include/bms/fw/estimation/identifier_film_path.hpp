@@ -56,9 +56,9 @@ class IdentifierFilmPath {
     // start from the prior (power-up) is held as before (there is no fitted value to hold).
     // Off by default (--hold-restarted-charge): where the inventory settles over several charges
     // (About:Energy's flat LFP curve: every CV end restarts the fit for four charges) each charge
-    // then reports the previous charge's end, and the film of cycles 3-5 went 1.3 -> 5.5 %; with
-    // no gain a 10 mA offset's cycle 3 went 0.41 -> 0.76 %; and the current gain's film it helps
-    // stays above 2 % on set 5 either way (docs/results/envelope.md).
+    // then reports the previous charge's end (measured, film of cycles 3-5: 5.5 % held, 1.3 % not;
+    // a 10 mA offset without a gain, cycle 3: 0.76 % held, 0.41 % not), and the gain truths' film
+    // it helps stays above 2 % on set 5 either way (docs/results/envelope.md).
     bool hold_through_restarted_charge = false;
     // Innovation test of the learning ticks (as PX4 EKF2 gates a fusion): the residual less the
     // design-time bias, averaged over innovation_time_constant_s (an exponential mean restarted
