@@ -271,7 +271,9 @@ Runner add_diagnose(CLI::App& app) {
                   "parameter re-fits diffusivity_positive/negative, conductivity, electrolyte_diffusivity, "
                   "i0_positive/negative, initial_soc, and diffusivity_profile_positive: a cathode solid diffusivity "
                   "that falls log-linearly in stoichiometry from a knee to full lithiation, two knobs, the factor "
-                  "at x = 1 and the knee), listed (contact_resistance, hysteresis, current_offset, "
+                  "at x = 1 and the knee, and resistive_reactant_positive: a cathode reaction resistance that grows "
+                  "log-linearly with the particles' mean stoichiometry from a knee, three knobs), listed "
+                  "(contact_resistance, hysteresis, current_offset, "
                   "current_gain, thermal), or a comma-separated list (particle_size only when listed)")
       ->capture_default_str();
   sub->add_option("--max-effects", o->max_effects, "Forward selection: at most this many effects combined")
@@ -308,7 +310,8 @@ Runner add_diagnose(CLI::App& app) {
   sub->add_option("--write-cell", o->write_cell,
                   "Also write DIR/cell.bpx.json: the --cell's BPX file with the effects the answer names, at their "
                   "sizes fitted on all the data (re-fits scale the BPX fields; contact_resistance, hysteresis, thermal, "
-                  "particle_size and diffusivity_profile_positive go into User-defined keys the BPX reader reads), for any --cell. Written only "
+                  "particle_size, diffusivity_profile_positive and resistive_reactant_positive go into User-defined keys the BPX "
+                  "reader reads), for any --cell. Written only "
                   "when the answer is explained, unless --write-cell-partial. A sensor error, time skew, RC branch or "
                   "start state is not a property of the cell: then no cell is written and the exit code is 1. DIR may "
                   "be the --out folder; else it gets its own summary.json. Not with --cell paper (no BPX file)");

@@ -44,7 +44,11 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
                  "3 populations, same surface area), particle_size_negative (the same for the anode; not with the side "
                  "reaction), diffusivity_profile_positive (cathode solid diffusivity falling towards full lithiation: "
                  "VALUE = log10 of the factor on D at stoichiometry 1, log-linear from the knee, e.g. -2), "
-                 "diffusivity_profile_positive_knee (the knee stoichiometry, default 0.5), none");
+                 "diffusivity_profile_positive_knee (the knee stoichiometry, default 0.5), resistive_reactant_positive "
+                 "(cathode resistive reactant: an ohmic drop j R in each cathode particle's overpotential; VALUE = R in "
+                 "ohm m2 of particle surface below the knee, e.g. 0.2), resistive_reactant_positive_log10 (decades R "
+                 "rises from the knee to full lithiation, at the particle's mean stoichiometry), "
+                 "resistive_reactant_positive_knee (default 0.5), none");
   sub.add_option("--set", o.set,
                  "Hidden truth parameter NAME=VALUE (repeatable; the truth only, never the estimator), e.g. "
                  "film_growth_scale=2, inventory_scale=0.97, temperature_k=288.15; `bmssim simulate --list-params` "

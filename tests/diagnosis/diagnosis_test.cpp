@@ -465,6 +465,40 @@ TEST_F(Synthetic, DiffusivityProfileIsFoundAndAConstantFactorIsNotEnough) {
   EXPECT_NEAR(knob_value(r.model, Effect::diffusivity_profile_knee), 0.6, 0.05);
 }
 
+// A cathode whose reaction resistance rises as its particles fill (About:Energy cell, 0.05 ohm m2
+// below a knee at 0.6, 316x at x = 1), the record deep in the discharge: the resistive reactant
+// is named with its size, and neither a contact resistance (the same drop everywhere) nor the
+// diffusivity profile (a rate-dependent knee) explains it.
+TEST_F(Synthetic, ResistiveReactantIsFoundAgainstContactAndProfile) {
+  bms::CellParameters cell = bms::load_cell("aboutenergy");
+  bms::ModelEffects fx;
+  fx.resistive_reactant_positive_ohm_m2 = 0.05;
+  fx.resistive_reactant_positive_log10 = 2.5;
+  fx.resistive_reactant_positive_knee = 0.6;
+  const Record data = make_data(fx, false, cell, 2.0, 1.2);
+  const auto r = diagnose(cell, {data},
+                          settings({Effect::resistive_reactant_positive, Effect::contact_resistance,
+                                    Effect::diffusivity_profile_positive}));
+  std::printf("answer %s, held-out %.3f -> %.3f mV, R %.4g ohm m2, rise %.3f, knee %.3f: %s\n", effect_name(r.answer),
+              r.heldout_before_mv, r.heldout_after_mv, knob_value(r.model, Effect::resistive_reactant_positive),
+              knob_value(r.model, Effect::resistive_reactant_log10), knob_value(r.model, Effect::resistive_reactant_knee),
+              r.reason.substr(0, 300).c_str());
+  for (const auto& c : r.candidates) std::printf("  %s %.3f mV\n", effect_name(c.effect), c.heldout_rmse_mv);
+  EXPECT_GT(r.heldout_before_mv, 1.0);
+  EXPECT_EQ(r.answer, Effect::resistive_reactant_positive) << r.reason;
+  EXPECT_TRUE(r.explained) << r.reason;
+  EXPECT_LE(r.heldout_after_mv, 0.2 * r.heldout_before_mv);
+  // The resistance where the record ends (x about 0.9): within 20 % of the truth's.
+  const auto resistance_at = [](double r0, double rise, double knee, double x) {
+    return r0 * std::pow(10.0, rise * std::clamp((x - knee) / (1.0 - knee), 0.0, 1.0));
+  };
+  const double truth = resistance_at(0.05, 2.5, 0.6, 0.9);
+  EXPECT_NEAR(resistance_at(knob_value(r.model, Effect::resistive_reactant_positive),
+                            knob_value(r.model, Effect::resistive_reactant_log10),
+                            knob_value(r.model, Effect::resistive_reactant_knee), 0.9),
+              truth, 0.2 * truth);
+}
+
 TEST_F(Synthetic, OffListHysteresisAndContactTogetherAreNotOneName) {
   // Two listed effects at once, only one candidate allowed: the single name would leave a
   // large part of the residual.

@@ -466,5 +466,27 @@ TEST(BpxReader, StoichiometryDependentDiffusivityAndItsProfileKeys) {
   EXPECT_THROW(read_bpx_text(j.dump(), "lfp.json"), InputError);
 }
 
+// The cathode's resistive reactant: three User-defined keys, read with their ranges; absent is off.
+TEST(BpxReader, ResistiveReactantKeys) {
+  json j = lfp_json();
+  EXPECT_EQ(read_bpx_text(j.dump(), "lfp.json").effects.resistive_reactant_positive_ohm_m2, 0.0);
+  auto& u = j["Parameterisation"]["User-defined"];
+  u["Positive resistive reactant resistance [Ohm.m2]"] = 0.02;
+  u["Positive resistive reactant log10 rise at full lithiation [-]"] = 2.5;
+  u["Positive resistive reactant knee stoichiometry [-]"] = 0.65;
+  const CellParameters p = read_bpx_text(j.dump(), "lfp.json");
+  EXPECT_EQ(p.effects.resistive_reactant_positive_ohm_m2, 0.02);
+  EXPECT_EQ(p.effects.resistive_reactant_positive_log10, 2.5);
+  EXPECT_EQ(p.effects.resistive_reactant_positive_knee, 0.65);
+  EXPECT_TRUE(p.effects.any());
+  u["Positive resistive reactant log10 rise at full lithiation [-]"] = 9.0;
+  try {
+    read_bpx_text(j.dump(), "lfp.json");
+    FAIL() << "a rise of 9 decades was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("Positive resistive reactant log10 rise"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace bms

@@ -94,9 +94,13 @@ struct CellEffectParameters {
   // The cathode's knee diffusivity profile (cell/diffusivity_profile.hpp):
   double diffusivity_profile_positive = 0.0;       // "Positive diffusivity profile log10 factor at full lithiation [-]"
   double diffusivity_profile_positive_knee = 0.5;  // "Positive diffusivity profile knee stoichiometry [-]"
+  // The cathode's resistive reactant (ModelEffects, dfn/dfn_model.hpp):
+  double resistive_reactant_positive_ohm_m2 = 0.0;  // "Positive resistive reactant resistance [Ohm.m2]"
+  double resistive_reactant_positive_log10 = 0.0;   // "Positive resistive reactant log10 rise at full lithiation [-]"
+  double resistive_reactant_positive_knee = 0.5;    // "Positive resistive reactant knee stoichiometry [-]"
   bool any() const {
     return contact_resistance_ohm > 0.0 || hysteresis_v > 0.0 || thermal_h_w_per_k > 0.0 || particle_size_sigma > 0.0 ||
-           diffusivity_profile_positive != 0.0;
+           diffusivity_profile_positive != 0.0 || resistive_reactant_positive_ohm_m2 > 0.0;
   }
 };
 

@@ -132,6 +132,8 @@ ReducedCellRecord make_reduced_cell_record(const CellParameters& c) {
   if (fx.diffusivity_profile_positive != 0.0 || c.positive.solid_diffusivity_factor || c.negative.solid_diffusivity_factor)
     r.notes += "the solid diffusivities are constant (their values at x = 0.5; the dependence on stoichiometry is the "
                "truth model's only); ";
+  if (fx.resistive_reactant_positive_ohm_m2 > 0.0)
+    r.notes += "the cathode's resistive reactant is not used (the truth model's only); ";
   return r;
 }
 

@@ -85,6 +85,14 @@ void check_effects(const CellParameters& cell, const ModelEffects& effects, doub
     bad("diffusivity_profile_positive: log10 of the factor at full lithiation must be in [-4, 2]");
   if (!(effects.diffusivity_profile_positive_knee >= 0.0 && effects.diffusivity_profile_positive_knee <= 0.99))
     bad("diffusivity_profile_positive_knee: the knee stoichiometry must be in [0, 0.99]");
+  // Up to 100 ohm m2 of particle surface (40 ohm at the cell level on an 18650's 25 m2 of cathode
+  // surface: past any cell that still discharges); up to six decades of rise to x = 1.
+  if (!(effects.resistive_reactant_positive_ohm_m2 >= 0.0 && effects.resistive_reactant_positive_ohm_m2 <= 100.0))
+    bad("resistive_reactant_positive: the resistance below the knee must be in [0, 100] ohm m2");
+  if (!(effects.resistive_reactant_positive_log10 >= 0.0 && effects.resistive_reactant_positive_log10 <= 6.0))
+    bad("resistive_reactant_positive_log10: decades of rise to full lithiation must be in [0, 6]");
+  if (!(effects.resistive_reactant_positive_knee >= 0.0 && effects.resistive_reactant_positive_knee <= 0.99))
+    bad("resistive_reactant_positive_knee: the knee stoichiometry must be in [0, 0.99]");
   // The lithium loss is read back from the film through the growth factor: it must not be 0.
   if (!(std::isfinite(cell.side.film_growth_scale) && cell.side.film_growth_scale > 0.0))
     throw InputError("film_growth_scale: must be a finite value > 0");
@@ -106,6 +114,11 @@ ModelEffects with_cell_effects(const CellParameters& cell, ModelEffects effects)
   if (effects.diffusivity_profile_positive == 0.0) {
     effects.diffusivity_profile_positive = c.diffusivity_profile_positive;
     effects.diffusivity_profile_positive_knee = c.diffusivity_profile_positive_knee;
+  }
+  if (effects.resistive_reactant_positive_ohm_m2 == 0.0) {
+    effects.resistive_reactant_positive_ohm_m2 = c.resistive_reactant_positive_ohm_m2;
+    effects.resistive_reactant_positive_log10 = c.resistive_reactant_positive_log10;
+    effects.resistive_reactant_positive_knee = c.resistive_reactant_positive_knee;
   }
   return effects;
 }
@@ -418,6 +431,7 @@ struct DfnResidual {
   void electrode(int e);
   void particle(int e, int pop, const T& j, const T& phis, const T& phie, const T& ce, const T& arr_ds);
   T shells(int e, int pop, const ElectrodeParameters& p, const T& flux_out, const T& arr_ds);
+  T resistive_reactant(int e, int pop, const ElectrodeParameters& p) const;
   void closing_rows(double t, HeatRates* heat);
 };
 
@@ -547,6 +561,21 @@ T DfnResidual<T>::shells(int e, int pop, const ElectrodeParameters& p, const T& 
   return surface_drop;
 }
 
+// The resistive reactant's resistance (ohm m2) of a cathode particle at its mean stoichiometry.
+template <typename T>
+T DfnResidual<T>::resistive_reactant(int e, int pop, const ElectrodeParameters& p) const {
+  const int nr = m.mesh_.n_r;
+  const int side = m.geom(e, pop);
+  const double radius = p.particle_radius_m * m.pop_scale_[m.side_of(e)][pop];
+  const double per_volume = 3.0 / (radius * radius * radius * p.max_concentration_mol_m3);
+  T x_mean = T(0.0);
+  for (int r = 0; r < nr; ++r) x_mean = x_mean + y[m.idx_cs_pop(e, pop, r)] * (m.shell_vol_[side * nr + r] * per_volume);
+  const ModelEffects& fx = m.effects_;
+  const double knee = fx.resistive_reactant_positive_knee;
+  const T above = clamp_between((x_mean - knee) / (1.0 - knee), 0.0, 1.0);
+  return fx.resistive_reactant_positive_ohm_m2 * exp(above * (fx.resistive_reactant_positive_log10 * std::log(10.0)));
+}
+
 // Population pop of node e's particles: finite volumes in r, the molar flux out of the surface
 // from the intercalation part, and the kinetics at the surface.
 template <typename T>
@@ -572,6 +601,7 @@ void DfnResidual<T>::particle(int e, int pop, const T& j, const T& phis, const T
   if (temp_dep && p.entropic_v_k) ocp = ocp + (temp - m.cell_.thermal.reference_temperature_k) * dudt;
   T eta = phis - phie - ocp;
   if (neg) eta = eta - jp * r_film;
+  if (!neg && m.effects_.resistive_reactant_on()) eta = eta - jp * resistive_reactant(e, pop, p);
   // Saturating the exponent keeps wild Newton trial states (consistent initialisation after
   // a large current step) finite; converged states are far inside the limit.
   g[m.idx_j_pop(e, pop)] = jp - (2.0 * i0 * sinh(clamp_between(half_f * eta, -60.0, 60.0)) + js);

@@ -65,11 +65,21 @@ struct ModelEffects {
   // knee stoichiometry below which the factor is 1. The radial flux takes D on each shell face.
   double diffusivity_profile_positive = 0.0;
   double diffusivity_profile_positive_knee = 0.5;
+  // Resistive reactant (Thomas-Alyea 2008; Safari and Delacourt 2011 for LiFePO4): the lithiated
+  // phase conducts poorly, so each cathode particle's reaction meets a resistance that grows as
+  // the particle fills. An ohmic drop j R(x_mean) in the particle's overpotential, R in ohm m2 of
+  // particle surface, at the particle's mean stoichiometry (the share of the reacted phase, not
+  // the surface's): R = R_0 10^(s clamp((x - x_k) / (1 - x_k), 0, 1)), constant R_0 below the
+  // knee x_k, s decades higher at x = 1. 0 = off.
+  double resistive_reactant_positive_ohm_m2 = 0.0;
+  double resistive_reactant_positive_log10 = 0.0;
+  double resistive_reactant_positive_knee = 0.5;
 
   bool hysteresis_on() const { return hysteresis_v > 0.0; }
   bool thermal_on() const { return thermal_h_w_per_k > 0.0; }
   bool particle_size_on() const { return particle_size_sigma > 0.0 || particle_size_negative_sigma > 0.0; }
   bool diffusivity_profile_on() const { return diffusivity_profile_positive != 0.0; }
+  bool resistive_reactant_on() const { return resistive_reactant_positive_ohm_m2 > 0.0; }
 };
 
 // The effects a run switches on plus the cell's own (CellParameters::effects): the contact

@@ -353,12 +353,13 @@ DfnSolver::Impl::Structure build_structure(const DfnModel& m, const std::vector<
 // built many times, as in studies and benchmarks, pays for them once).
 const DfnSolver::Impl::Structure& jacobian_structure(DfnModel& m, const std::vector<double>& y0) {
   static std::mutex mutex;
-  using Key = std::tuple<int, int, int, int, bool, bool, bool, bool, int, int>;
+  using Key = std::tuple<int, int, int, int, bool, bool, bool, bool, int, int, bool>;
   static std::map<Key, std::unique_ptr<const DfnSolver::Impl::Structure>> cache;
   const auto& mesh = m.mesh();
   const Key key = std::make_tuple(mesh.n_neg, mesh.n_sep, mesh.n_pos, mesh.n_r, m.side_reaction_enabled(),
                                   m.idx_hysteresis() >= 0, m.idx_temperature() >= 0, m.temperature_dependent(),
-                                  m.size(), m.n_populations(0));  // tells the particle populations apart
+                                  m.size(), m.n_populations(0),  // tells the particle populations apart
+                                  m.effects().resistive_reactant_on());  // a cathode reaction row reads every shell
   {
     std::lock_guard<std::mutex> lock(mutex);
     if (auto it = cache.find(key); it != cache.end()) return *it->second;

@@ -32,6 +32,9 @@ const char* user_key(Effect e) {
     case Effect::particle_size: return "Positive particle-size log-normal standard deviation [-]";
     case Effect::diffusivity_profile_positive: return "Positive diffusivity profile log10 factor at full lithiation [-]";
     case Effect::diffusivity_profile_knee: return "Positive diffusivity profile knee stoichiometry [-]";
+    case Effect::resistive_reactant_positive: return "Positive resistive reactant resistance [Ohm.m2]";
+    case Effect::resistive_reactant_log10: return "Positive resistive reactant log10 rise at full lithiation [-]";
+    case Effect::resistive_reactant_knee: return "Positive resistive reactant knee stoichiometry [-]";
     default: return nullptr;
   }
 }

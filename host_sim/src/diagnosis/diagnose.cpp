@@ -68,6 +68,11 @@ SearchSpace search_space(Effect e, double max_abs_current_a, double dt_s) {
     // Three decades slower to one faster at full lithiation; the knee inside the LFP plateau.
     case Effect::diffusivity_profile_positive: return {-3.0, 1.0, 2e-3, false};
     case Effect::diffusivity_profile_knee: return {0.3, 0.95, 1e-3, false};
+    // 1 mohm m2 to 10 ohm m2 of particle surface below the knee (an 18650's 25 m2 of cathode
+    // surface: 0.04 to 400 mohm at the cell), rising up to four decades to full lithiation.
+    case Effect::resistive_reactant_positive: return {-3.0, 1.0, 2e-3, true};
+    case Effect::resistive_reactant_log10: return {0.0, 4.0, 2e-3, false};
+    case Effect::resistive_reactant_knee: return {0.3, 0.95, 1e-3, false};
     default: break;
   }
   return {-1.3, 1.0, 2e-3, true};  // factors on the cell's parameters
@@ -76,7 +81,7 @@ SearchSpace search_space(Effect e, double max_abs_current_a, double dt_s) {
 // The value a knob has before it is fitted: no effect.
 double neutral_value(Effect e) {
   if (e == Effect::rc_time_constant) return 100.0;
-  if (e == Effect::diffusivity_profile_knee) return 0.5;
+  if (e == Effect::diffusivity_profile_knee || e == Effect::resistive_reactant_knee) return 0.5;
   return truth_parameter_of(e)[0] != '\0' ? 1.0 : 0.0;
 }
 
@@ -452,6 +457,32 @@ int seed_profile(Context& ctx, Hypothesis& h, const Fold& fold) {
   return runs;
 }
 
+// The resistive reactant has the profile's trouble (its rise and knee do nothing while the
+// resistance is off, and the rise moves the end of a discharge by minutes): a coarse grid over
+// its three knobs picks the start; returns the runs it took.
+int seed_reactant(Context& ctx, Hypothesis& h, const Fold& fold) {
+  static constexpr double kOhmM2[] = {0.01, 0.1, 0.3}, kLog10[] = {1.0, 2.0, 3.0}, kKnee[] = {0.3, 0.6, 0.75};
+  double best_f = train_rmse(ctx, h, fold);
+  int runs = 1;
+  Hypothesis best = h;
+  for (double r : kOhmM2)
+    for (double s : kLog10)
+      for (double k : kKnee) {
+        Hypothesis t = h;
+        set_knob(t, Effect::resistive_reactant_positive, r);
+        set_knob(t, Effect::resistive_reactant_log10, s);
+        set_knob(t, Effect::resistive_reactant_knee, k);
+        const double f = train_rmse(ctx, t, fold);
+        ++runs;
+        if (f < best_f) {
+          best_f = f;
+          best = std::move(t);
+        }
+      }
+  h = std::move(best);
+  return runs;
+}
+
 // Knobs that need model runs are fitted by Gauss-Newton (a few runs each); knobs applied to
 // the model's voltage only by the grid (free).
 FitResult fit_knobs(Context& ctx, Hypothesis h, const std::vector<Effect>& knobs, const Fold& fold, bool narrow) {
@@ -480,6 +511,7 @@ FitResult fit_knobs(Context& ctx, Hypothesis h, const std::vector<Effect>& knobs
     set_knob(h, knobs.front(), sp.value(best_x));
   }
   if (!narrow && knobs.front() == Effect::diffusivity_profile_positive) seed_evaluations += seed_profile(ctx, h, fold);
+  if (!narrow && knobs.front() == Effect::resistive_reactant_positive) seed_evaluations += seed_reactant(ctx, h, fold);
   FitResult out = fit_by_gauss_newton(ctx, std::move(h), knobs, fold);
   out.evaluations += seed_evaluations;
   return out;
@@ -940,6 +972,9 @@ void identifiability(Context& ctx, DiagnosisResult& out) {
     if (k == Effect::rc_time_constant && knob_value(h, Effect::rc_branch) == 0.0) set_knob(h, Effect::rc_branch, 0.005);
     if (k == Effect::diffusivity_profile_knee && knob_value(h, Effect::diffusivity_profile_positive) == 0.0)
       set_knob(h, Effect::diffusivity_profile_positive, -1.0);
+    if ((k == Effect::resistive_reactant_log10 || k == Effect::resistive_reactant_knee) &&
+        knob_value(h, Effect::resistive_reactant_positive) == 0.0)
+      set_knob(h, Effect::resistive_reactant_positive, 0.1);
     const double x0 = std::clamp(sp.x_of(knob_value(h, k)), sp.lo, sp.hi);
     const double dx = 0.01 * (sp.hi - sp.lo) * (x0 + 0.01 * (sp.hi - sp.lo) > sp.hi ? -1.0 : 1.0);
     set_knob(h, k, sp.value(x0 + dx));
@@ -1093,7 +1128,8 @@ DiagnosisResult diagnose(const CellParameters& cell, const std::vector<Record>& 
     // more specific explanation first, and a re-fit can mimic a sensor or wiring fault.
     std::vector<Effect> tier1, tier2;
     for (Effect e : settings.candidates)
-      (knob_kind(e) == KnobKind::parameter || e == Effect::initial_soc || e == Effect::diffusivity_profile_positive
+      (knob_kind(e) == KnobKind::parameter || e == Effect::initial_soc || e == Effect::diffusivity_profile_positive ||
+               e == Effect::resistive_reactant_positive
            ? tier2
            : tier1)
           .push_back(e);

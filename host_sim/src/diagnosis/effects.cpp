@@ -44,6 +44,12 @@ constexpr KnobInfo kKnobs[] = {
      KnobKind::model_switch, ""},
     {Effect::diffusivity_profile_knee, "diffusivity_profile_knee", "diffusivity_profile_positive_knee",
      KnobKind::model_switch, ""},
+    {Effect::resistive_reactant_positive, "resistive_reactant_positive", "resistive_reactant_positive_ohm_m2",
+     KnobKind::model_switch, ""},
+    {Effect::resistive_reactant_log10, "resistive_reactant_log10", "resistive_reactant_positive_log10",
+     KnobKind::model_switch, ""},
+    {Effect::resistive_reactant_knee, "resistive_reactant_knee", "resistive_reactant_positive_knee",
+     KnobKind::model_switch, ""},
     {Effect::unexplained, "unexplained", "", KnobKind::model_switch, ""},
 };
 
@@ -63,6 +69,7 @@ const char* truth_parameter_of(Effect e) { return info(e).truth_name; }
 bool parse_effect(std::string_view name, Effect& out) {
   for (const auto& k : kKnobs) {
     if (name == k.name && k.effect != Effect::rc_time_constant && k.effect != Effect::diffusivity_profile_knee &&
+        k.effect != Effect::resistive_reactant_log10 && k.effect != Effect::resistive_reactant_knee &&
         k.effect != Effect::unexplained) {
       out = k.effect;
       return true;
@@ -75,6 +82,8 @@ std::vector<Effect> knobs_of(Effect candidate) {
   if (candidate == Effect::rc_branch) return {Effect::rc_time_constant, Effect::rc_branch};
   if (candidate == Effect::diffusivity_profile_positive)
     return {Effect::diffusivity_profile_positive, Effect::diffusivity_profile_knee};
+  if (candidate == Effect::resistive_reactant_positive)
+    return {Effect::resistive_reactant_positive, Effect::resistive_reactant_log10, Effect::resistive_reactant_knee};
   return {candidate};
 }
 
@@ -100,6 +109,9 @@ std::string format_value(Effect e, double v) {
     case Effect::initial_soc: return fmt::format("{:+.4g} % SOC", 100.0 * v);
     case Effect::diffusivity_profile_positive: return fmt::format("D x {:.4g} at full lithiation", std::pow(10.0, v));
     case Effect::diffusivity_profile_knee: return fmt::format("knee at x = {:.4g}", v);
+    case Effect::resistive_reactant_positive: return fmt::format("{:.4g} ohm m2 below the knee", v);
+    case Effect::resistive_reactant_log10: return fmt::format("x {:.4g} at full lithiation", std::pow(10.0, v));
+    case Effect::resistive_reactant_knee: return fmt::format("knee at x = {:.4g}", v);
     case Effect::none: return "-";
     default: return fmt::format("x {:.4g}", v);
   }
@@ -124,6 +136,10 @@ std::string plausibility_note(Effect e, double v) {
     case Effect::diffusivity_profile_positive:
     case Effect::diffusivity_profile_knee:
       return "a cathode diffusivity that changes with lithiation (LFP's varies by decades across x)";
+    case Effect::resistive_reactant_positive:
+    case Effect::resistive_reactant_log10:
+    case Effect::resistive_reactant_knee:
+      return "a reaction resistance that grows as the cathode particles fill (LiFePO4 conducts worse than FePO4)";
     default: break;
   }
   if (truth_parameter_of(e)[0] != '\0')

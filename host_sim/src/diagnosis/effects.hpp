@@ -7,8 +7,9 @@
 //  - measurement structure applied to the model's voltage after the run, no re-run needed:
 //    voltage-sensor offset and gain, an extra RC relaxation branch, a time skew between the
 //    voltage and the current samples.
-// A candidate is one knob, except `rc_branch` (resistance and time constant together) and
-// `diffusivity_profile_positive` (the profile's size and its knee).
+// A candidate is one knob, except `rc_branch` (resistance and time constant together),
+// `diffusivity_profile_positive` (the profile's size and its knee) and
+// `resistive_reactant_positive` (the resistance, its rise and its knee).
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -43,6 +44,11 @@ enum class Effect {
   // factor at full lithiation; its knee is the knob diffusivity_profile_knee).
   diffusivity_profile_positive,
   diffusivity_profile_knee,
+  // The cathode's resistive reactant (ModelEffects): the resistance below the knee (ohm m2),
+  // the decades it rises to full lithiation and the knee.
+  resistive_reactant_positive,
+  resistive_reactant_log10,
+  resistive_reactant_knee,
   unexplained,  // an answer, not a knob: a residual remains that no candidate explains
 };
 
@@ -54,7 +60,7 @@ inline constexpr Effect kAllCandidates[] = {
     Effect::thermal,              Effect::voltage_offset, Effect::voltage_gain,          Effect::rc_branch,
     Effect::time_skew,            Effect::diffusivity_positive, Effect::diffusivity_negative, Effect::conductivity,
     Effect::electrolyte_diffusivity, Effect::i0_positive, Effect::i0_negative,            Effect::initial_soc,
-    Effect::diffusivity_profile_positive};
+    Effect::diffusivity_profile_positive, Effect::resistive_reactant_positive};
 // The five listed effects (`--candidates listed`).
 inline constexpr Effect kListedCandidates[] = {Effect::contact_resistance, Effect::hysteresis, Effect::current_offset,
                                                Effect::current_gain, Effect::thermal};
@@ -113,6 +119,9 @@ bool set_model_effect(E& effects, const EffectSetting& s) {
     case Effect::particle_size: effects.particle_size_sigma = s.value; return true;
     case Effect::diffusivity_profile_positive: effects.diffusivity_profile_positive = s.value; return true;
     case Effect::diffusivity_profile_knee: effects.diffusivity_profile_positive_knee = s.value; return true;
+    case Effect::resistive_reactant_positive: effects.resistive_reactant_positive_ohm_m2 = s.value; return true;
+    case Effect::resistive_reactant_log10: effects.resistive_reactant_positive_log10 = s.value; return true;
+    case Effect::resistive_reactant_knee: effects.resistive_reactant_positive_knee = s.value; return true;
     default: return true;  // not a model switch
   }
 }

@@ -98,6 +98,8 @@ constexpr Range kHeatTransfer{0.0, 1e3, false, false};          // W/K; 0.01-1 f
 constexpr Range kParticleSizeSigma{0.0, 1.5, false, false};     // log-space standard deviation; 0.2-0.6
 constexpr Range kProfileLog10{-4.0, 2.0, false, false};         // log10 of D(x = 1) / D(knee)
 constexpr Range kProfileKnee{0.0, 0.99, false, false};          // stoichiometry
+constexpr Range kReactantOhmM2{0.0, 100.0, false, false};        // ohm m2 of particle surface
+constexpr Range kReactantLog10{0.0, 6.0, false, false};          // decades of rise to x = 1
 
 // A unit written another way than the schema's: spellings of the same unit (factor 1) and
 // scaled ones, per schema unit. Compared without spaces, '^' and '*' ("kJ mol^-1" = "kJ.mol-1").
@@ -503,6 +505,12 @@ void read_cell_effects(const Section& params, CellParameters& p) {
       u.number_or("Positive diffusivity profile log10 factor at full lithiation [-]", kProfileLog10, 0.0);
   e.diffusivity_profile_positive_knee =
       u.number_or("Positive diffusivity profile knee stoichiometry [-]", kProfileKnee, 0.5);
+  e.resistive_reactant_positive_ohm_m2 =
+      u.number_or("Positive resistive reactant resistance [Ohm.m2]", kReactantOhmM2, 0.0);
+  e.resistive_reactant_positive_log10 =
+      u.number_or("Positive resistive reactant log10 rise at full lithiation [-]", kReactantLog10, 0.0);
+  e.resistive_reactant_positive_knee =
+      u.number_or("Positive resistive reactant knee stoichiometry [-]", kProfileKnee, 0.5);
 }
 
 }  // namespace

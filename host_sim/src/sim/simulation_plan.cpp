@@ -143,10 +143,23 @@ void apply_effect(const std::string& e, ModelEffects& effects, MeasurementModel&
     if (!(value >= 0.0 && value <= 0.99))
       throw InputError("--effect diffusivity_profile_positive_knee: the knee stoichiometry must be in [0, 0.99]");
     effects.diffusivity_profile_positive_knee = value;
+  } else if (name == "resistive_reactant_positive") {
+    if (!(value >= 0.0 && value <= 100.0))
+      throw InputError("--effect resistive_reactant_positive: the resistance below the knee must be in [0, 100] ohm m2");
+    effects.resistive_reactant_positive_ohm_m2 = value;
+  } else if (name == "resistive_reactant_positive_log10") {
+    if (!(value >= 0.0 && value <= 6.0))
+      throw InputError("--effect resistive_reactant_positive_log10: decades of rise to full lithiation must be in [0, 6]");
+    effects.resistive_reactant_positive_log10 = value;
+  } else if (name == "resistive_reactant_positive_knee") {
+    if (!(value >= 0.0 && value <= 0.99))
+      throw InputError("--effect resistive_reactant_positive_knee: the knee stoichiometry must be in [0, 0.99]");
+    effects.resistive_reactant_positive_knee = value;
   } else if (name != "none") {
     throw InputError("--effect '" + name +
                      "': unknown; use contact_resistance, hysteresis, current_offset, current_gain, temperature_offset, voltage_offset, thermal, "
-                     "particle_size, particle_size_negative, diffusivity_profile_positive, diffusivity_profile_positive_knee or none");
+                     "particle_size, particle_size_negative, diffusivity_profile_positive, diffusivity_profile_positive_knee, "
+                     "resistive_reactant_positive, resistive_reactant_positive_log10, resistive_reactant_positive_knee or none");
   }
 }
 

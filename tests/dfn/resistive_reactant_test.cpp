@@ -1,0 +1,125 @@
+// The cathode's resistive reactant (ModelEffects::resistive_reactant_positive_*): off is the plain
+// model bit for bit, a constant resistance is an ohmic drop of its share of the cell, a
+// resistance that rises as the particles fill brings the knee of a discharge earlier and makes
+// it gradual, and lithium is conserved.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "dfn/dfn_solver.hpp"
+#include "io/input_error.hpp"
+#include "sim/cell_catalog.hpp"
+#include "sim/cycler.hpp"
+
+namespace bms {
+namespace {
+
+const DfnMesh kCoarse{6, 3, 6, 8};
+
+CellParameters ae_cell() {
+  CellParameters c = load_cell("aboutenergy");
+  c.side.enabled = false;
+  return c;
+}
+
+// The discharge at current_a from full to 2.0 V: (end s, voltage every 60 s, inventory drift).
+struct Discharge {
+  double end_s = 0.0;
+  std::vector<double> v;
+  double inventory_drift = 0.0;
+};
+
+Discharge discharge(const CellParameters& cell, const ModelEffects& effects, double current_a) {
+  DfnModel m(cell, kCoarse, 298.15, effects);
+  DfnSolver solver(m, SolverSettings{});
+  m.set_control({ControlKind::current, 0.0});
+  const auto ic = default_initial_conditions(cell);
+  solver.start(0.0, m.initial_state(ic.stoich_neg, ic.stoich_pos, ic.electrolyte_mol_m3, 0.0));
+  const double inventory0 = m.lithium_inventory_mol(solver.y().data());
+  StopConditions stop;
+  stop.voltage_below_v = 2.0;
+  solver.switch_control({ControlKind::current, current_a}, stop);
+  Discharge d;
+  for (double t = 60.0; t < 20000.0; t += 60.0) {
+    const auto r = solver.advance_to(t);
+    d.v.push_back(m.terminal_voltage_v(solver.y().data()));
+    if (r == DfnSolver::Result::stopped) break;
+  }
+  d.end_s = solver.t();
+  d.inventory_drift = std::abs(m.lithium_inventory_mol(solver.y().data()) - inventory0) / inventory0;
+  return d;
+}
+
+// The cathode's particle surface in the cell (m2): a L A.
+double cathode_surface_m2(const CellParameters& c) {
+  return c.positive.surface_area_per_volume_m() * c.positive.thickness_m * c.electrode_area_m2;
+}
+
+TEST(ResistiveReactant, ZeroResistanceIsThePlainModelBitForBit) {
+  const CellParameters cell = ae_cell();
+  ModelEffects shaped;  // a rise and a knee without a resistance: off
+  shaped.resistive_reactant_positive_log10 = 2.0;
+  shaped.resistive_reactant_positive_knee = 0.6;
+  const Discharge a = discharge(cell, {}, 2.0), b = discharge(cell, shaped, 2.0);
+  EXPECT_EQ(a.end_s, b.end_s);
+  ASSERT_EQ(a.v.size(), b.v.size());
+  for (size_t k = 0; k < a.v.size(); ++k) ASSERT_EQ(a.v[k], b.v[k]) << "sample " << k;
+}
+
+// With no rise the drop is j R in every particle: the same current through the cathode's
+// surface, so about I R / (a L A) at the terminals (the reaction spreads a little more evenly).
+TEST(ResistiveReactant, ConstantResistanceIsAnOhmicDropOfItsShare) {
+  const CellParameters cell = ae_cell();
+  ModelEffects flat;
+  flat.resistive_reactant_positive_ohm_m2 = 0.5;
+  const Discharge plain = discharge(cell, {}, 2.0), rr = discharge(cell, flat, 2.0);
+  const double expected_v = 2.0 * 0.5 / cathode_surface_m2(cell);
+  ASSERT_GT(plain.v.size(), 20u);
+  for (size_t k : {size_t{5}, plain.v.size() / 3, plain.v.size() / 2})
+    EXPECT_NEAR(plain.v[k] - rr.v[k], expected_v, 0.15 * expected_v) << "sample " << k;
+  EXPECT_GT(expected_v, 0.03);  // the check is not lost in the solver's tolerance
+}
+
+TEST(ResistiveReactant, RisingResistanceBringsTheKneeEarlierAndConservesLithium) {
+  const CellParameters cell = ae_cell();
+  ModelEffects low, rising;
+  low.resistive_reactant_positive_ohm_m2 = rising.resistive_reactant_positive_ohm_m2 = 0.05;
+  rising.resistive_reactant_positive_log10 = 2.5;  // 316 x at x = 1
+  rising.resistive_reactant_positive_knee = 0.6;
+  const Discharge flat = discharge(cell, low, 2.0), risen = discharge(cell, rising, 2.0);
+  EXPECT_LT(risen.inventory_drift, 1e-6);
+  // The knee (the fall through 3.0 V) comes earlier; the end at 2.0 V, set by the cathode's
+  // potential cliff, hardly moves.
+  const auto below_3v_s = [](const Discharge& d) {
+    for (size_t k = 0; k < d.v.size(); ++k)
+      if (d.v[k] < 3.0) return 60.0 * static_cast<double>(k + 1);
+    return d.end_s;
+  };
+  EXPECT_LT(below_3v_s(risen), below_3v_s(flat) - 120.0) << below_3v_s(risen) << " vs " << below_3v_s(flat);
+  // Below the knee (the first third of the discharge) nothing changes.
+  EXPECT_NEAR(risen.v[risen.v.size() / 4], flat.v[risen.v.size() / 4], 1e-3);
+  // The rise is gradual: ten minutes before its end the risen cell is already 20 mV below
+  // the flat one, and still above 2.8 V.
+  const size_t early = risen.v.size() - 11;
+  EXPECT_LT(risen.v[early], flat.v[early] - 0.02);
+  EXPECT_GT(risen.v[early], 2.8);
+}
+
+TEST(ResistiveReactant, BadValuesAreInputErrors) {
+  const CellParameters cell = ae_cell();
+  ModelEffects eff;
+  eff.resistive_reactant_positive_ohm_m2 = -0.1;
+  EXPECT_THROW(DfnModel(cell, kCoarse, 298.15, eff), InputError);
+  eff.resistive_reactant_positive_ohm_m2 = NAN;
+  EXPECT_THROW(DfnModel(cell, kCoarse, 298.15, eff), InputError);
+  eff.resistive_reactant_positive_ohm_m2 = 0.1;
+  eff.resistive_reactant_positive_log10 = 7.0;
+  EXPECT_THROW(DfnModel(cell, kCoarse, 298.15, eff), InputError);
+  eff.resistive_reactant_positive_log10 = 2.0;
+  eff.resistive_reactant_positive_knee = 1.0;
+  EXPECT_THROW(DfnModel(cell, kCoarse, 298.15, eff), InputError);
+}
+
+}  // namespace
+}  // namespace bms
