@@ -1,0 +1,121 @@
+#!/usr/bin/env bash
+# The cathode's resistive reactant on the About:Energy LFP 18650 records (docs/results/diagnosis.md,
+# "A resistive reactant"): the truth DFN on each measured current (`simulate --protocol csv:RECORD`,
+# mesh 20) with the effect's three knobs (resistance below the knee, its rise in decades to x = 1,
+# the knee), alone and with the cathode diffusivity and both exchange-current factors, fitted by
+# Nelder-Mead on the whole-record RMSE of two records and scored on the third (leave one record
+# out; every fold starts from the same neutral point, no fold sees its held-out record). Then all
+# three knob sets fitted on all records (in-sample) and plotted beside the plain DFN.
+# A measurement, not a test: about 10 minutes on this machine.
+#
+# Usage: scripts/resistive-reactant-aboutenergy.sh [OUT_DIR]   (default out/resistive-reactant)
+# Environment: BMSSIM=path to use a given binary instead of `./bms sim`; SHARED=path of ../shared;
+# ITERS=Nelder-Mead iterations per fit (default 150).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+out=${1:-$root/out/resistive-reactant}
+shared=$(cd "${SHARED:-$root/../shared}" && pwd)
+data=$shared/data/aboutenergy-lfp18650
+if [ -n "${BMSSIM:-}" ]; then sim="$BMSSIM"; else sim="$root/bms sim"; fi
+mkdir -p "$out"
+/usr/bin/python3 - "$out" "$data" "$sim" "${ITERS:-150}" <<'PY'
+import csv, math, os, shlex, shutil, subprocess, sys
+out, data, sim, iters = sys.argv[1], sys.argv[2], shlex.split(sys.argv[3]), int(sys.argv[4])
+recs = ["1C", "2C", "Co20"]
+meas = {r: [float(x["U[V]"]) for x in csv.DictReader(open(f"{data}/LFP_25degC_{r}.csv"))] for r in recs}
+factors = {"dp": "diffusivity_scale_positive", "ip": "i0_scale_positive", "in": "i0_scale_negative"}
+def decode(x, keys):
+    sets, eff = {}, {}
+    for k, v in zip(keys, x):
+        if k in factors: sets[factors[k]] = min(max(10 ** v, 0.01), 10.0)
+        elif k == "r": eff["resistive_reactant_positive"] = min(10 ** v, 100.0)
+        elif k == "s": eff["resistive_reactant_positive_log10"] = min(max(v, 0.0), 6.0)
+        elif k == "k": eff["resistive_reactant_positive_knee"] = min(max(v, 0.0), 0.99)
+    return sets, eff
+def run(r, sets, eff, keep=None):
+    d = keep or f"{out}/scratch_{r}"
+    shutil.rmtree(d, ignore_errors=True)
+    cmd = sim + ["simulate", "--cell", "aboutenergy", "--protocol", f"csv:{data}/LFP_25degC_{r}.csv", "--quiet", "--out", d]
+    for k, v in sets.items(): cmd += ["--set", f"{k}={v}"]
+    for k, v in eff.items(): cmd += ["--effect", f"{k}={v}"]
+    if subprocess.run(cmd, capture_output=True).returncode != 0: return []
+    return [float(x["voltage_v"]) for x in csv.DictReader(open(f"{d}/truth.csv"))]
+def mse(r, v):  # the model stops at its voltage limit: the rest is scored with its last value (as diagnose does)
+    if not v: return float("inf")
+    return sum((1e3 * (v[min(i, len(v) - 1)] - m)) ** 2 for i, m in enumerate(meas[r])) / len(meas[r])
+def cost(x, keys, rs):
+    sets, eff = decode(x, keys)
+    return math.sqrt(sum(mse(r, run(r, sets, eff)) for r in rs) / len(rs))
+def nelder_mead(f, x0, step=0.3):
+    n = len(x0)
+    pts = [list(x0)] + [[x0[j] + (step if j == i else 0.0) for j in range(n)] for i in range(n)]
+    vals = [f(p) for p in pts]
+    for _ in range(iters):
+        order = sorted(range(n + 1), key=lambda i: vals[i])
+        pts, vals = [pts[i] for i in order], [vals[i] for i in order]
+        if vals[-1] - vals[0] < 0.05: break
+        c = [sum(p[j] for p in pts[:-1]) / n for j in range(n)]
+        xr = [c[j] + (c[j] - pts[-1][j]) for j in range(n)]; fr = f(xr)
+        if fr < vals[0]:
+            xe = [c[j] + 2 * (c[j] - pts[-1][j]) for j in range(n)]; fe = f(xe)
+            pts[-1], vals[-1] = (xe, fe) if fe < fr else (xr, fr)
+        elif fr < vals[-2]:
+            pts[-1], vals[-1] = xr, fr
+        else:
+            xc = [c[j] + 0.5 * (pts[-1][j] - c[j]) for j in range(n)]; fc = f(xc)
+            if fc < vals[-1]:
+                pts[-1], vals[-1] = xc, fc
+            else:
+                for i in range(1, n + 1):
+                    pts[i] = [pts[0][j] + 0.5 * (pts[i][j] - pts[0][j]) for j in range(n)]; vals[i] = f(pts[i])
+    i = min(range(n + 1), key=lambda i: vals[i])
+    return pts[i], vals[i]
+plain = {r: math.sqrt(mse(r, run(r, {}, {}))) for r in recs}
+pooled = lambda d: math.sqrt(sum(d[r] ** 2 * len(meas[r]) for r in recs) / sum(len(meas[r]) for r in recs))
+print(f"plain DFN: " + ", ".join(f"{r} {plain[r]:.1f} mV" for r in recs) + f"; pooled {pooled(plain):.2f} mV")
+sets_of_knobs = {"reactant": (["r", "s", "k"], [-1.5, 3.0, 0.4]),
+                 "reactant + D_pos, i0_pos, i0_neg": (["r", "s", "k", "dp", "ip", "in"], [-1.5, 3.0, 0.4, 0.0, 0.0, 0.0])}
+print("| knobs | held-out record | fitted on | fitted knobs | RMSE fitted records mV | held-out RMSE mV | plain DFN mV |")
+print("|---|---|---|---|---|---|---|")
+for name, (keys, x0) in sets_of_knobs.items():
+    held = {}
+    for h in recs:
+        train = [r for r in recs if r != h]
+        x, v = nelder_mead(lambda x: cost(x, keys, train), x0)
+        sets, eff = decode(x, keys)
+        held[h] = math.sqrt(mse(h, run(h, sets, eff)))
+        knobs = ", ".join(f"{k} {val:.4g}" for k, val in {**eff, **sets}.items())
+        print(f"| {name} | {h} | {' + '.join(train)} | {knobs} | {v:.1f} | {held[h]:.1f} | {plain[h]:.1f} |", flush=True)
+    print(f"| {name} | pooled | | | | {pooled(held):.2f} | {pooled(plain):.2f} |", flush=True)
+    x, v = nelder_mead(lambda x: cost(x, keys, recs), x0)
+    sets, eff = decode(x, keys)
+    tag = "all" if len(keys) > 3 else "alone"
+    fit = {r: run(r, sets, eff, keep=f"{out}/fit_{tag}_{r}") for r in recs}
+    print(f"in-sample on all three ({name}): " + ", ".join(f"{r} {math.sqrt(mse(r, fit[r])):.1f} mV" for r in recs) +
+          "; " + ", ".join(f"{k} {val:.4g}" for k, val in {**eff, **sets}.items()), flush=True)
+plain_runs = {r: run(r, {}, {}, keep=f"{out}/plain_{r}") for r in recs}
+for r in recs:
+    t = [float(x["Time [s]"]) for x in csv.DictReader(open(f"{data}/LFP_25degC_{r}.csv"))]
+    cols = [plain_runs[r]] + [[float(x["voltage_v"]) for x in csv.DictReader(open(f"{out}/fit_{tag}_{r}/truth.csv"))]
+                               for tag in ("alone", "all")]
+    with open(f"{out}/curves_{r}.dat", "w") as f:
+        f.write("# t_s measured plain reactant reactant+factors (V)\n")
+        for i, m in enumerate(meas[r]):
+            f.write(f"{t[i]} {m} " + " ".join(f"{c[min(i, len(c) - 1)]:.5f}" for c in cols) + "\n")
+for d in os.listdir(out):
+    if d.startswith("scratch_"): shutil.rmtree(f"{out}/{d}")
+PY
+cat > "$out/plot.gp" <<GP
+set terminal pngcairo size 1500,450 font ",10"
+set output "$out/resistive_reactant_aboutenergy.png"
+set multiplot layout 1,3 title "About:Energy LFP 18650 (CC BY-SA 4.0, (c) About:Energy): measured, plain DFN and the resistive reactant (in-sample fits on all three records)"
+set xlabel "t (s)"; set ylabel "voltage (V)"; set yrange [2.0:3.6]; set key bottom left
+do for [r in "1C 2C Co20"] {
+  set title r
+  plot "$out/curves_".r.".dat" u 1:2 w l lw 2 lc rgb "black" t "measured", "" u 1:3 w l lc rgb "blue" t "plain DFN", \
+       "" u 1:4 w l lc rgb "orange" t "+ resistive reactant", "" u 1:5 w l lc rgb "red" t "+ reactant, D_{pos}, i0 factors"
+}
+unset multiplot
+GP
+gnuplot "$out/plot.gp"
+echo "plot: $out/resistive_reactant_aboutenergy.png"
