@@ -80,6 +80,7 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--no-hold", v.hold_until_settled);
   g("--hold-restarted-charge", v.hold_restarted_charge);
   g("--innovation-reject", v.innovation_rejects);
+  g("--stop-film-move", v.stop_film_move);
   g("--innovation-gate", v.innovation_gate);
   g("--spread-anode-i0", v.spread_anode_i0_rel);
   g("--spread-cathode-i0", v.spread_cathode_i0_rel);
@@ -297,6 +298,12 @@ Runner add_estimate(CLI::App& app) {
                   "--settings best only: on|off, whether a learning tick whose regression innovation (the residual "
                   "less what the fitted film, gain and inventory explain), averaged over 60 s, fails the innovation "
                   "gate (5 x 0.3 mV) is left out of the fit, as PX4 EKF2 rejects a fusion");
+  sub->add_option("--stop-film-move", c->o.overrides.stop_film_move.value,
+                  "--settings best only: K in units of the stated film model bound (0.6 % of the film; default 0: "
+                  "off): a CC charge's learning stops for the rest of that charge once, after the fit settled in "
+                  "it, the film moves from its settled value by more than K x the bound (keeps a flat-OCP cell's "
+                  "end-of-charge knee out of the fit)")
+      ->check(CLI::Range(0.0, 100.0));
   sub->add_option("--innovation-gate", c->o.overrides.innovation_gate.value,
                   "--settings best only: the innovation test's gate in units of the model's stated residual "
                   "(0.3 mV; default 5): the reported test and, with --innovation-reject on, the fusion's check")
