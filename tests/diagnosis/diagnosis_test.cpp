@@ -319,11 +319,8 @@ INSTANTIATE_TEST_SUITE_P(Shapes, ListedEffect,
                          ::testing::ValuesIn(listed_on_shapes({Shape::cccv_without_rests, Shape::rest_pulse})),
                          shape_case_name);
 
-// The drive cycle takes 50-100 s a case (every candidate re-fitted over a current that never
-// repeats): a measurement, not a CI test. Run with --gtest_also_run_disabled_tests
-// --gtest_filter='DISABLED_DriveCycle*'; the results are in docs/results/diagnosis.md (the
-// current-sensor offset and gain are not found there yet).
-INSTANTIATE_TEST_SUITE_P(DISABLED_DriveCycle, ListedEffect, ::testing::ValuesIn(listed_on_shapes({Shape::drive_cycle})),
+// The drive cycle: 9-15 s a case (every candidate re-fitted over a current that never repeats).
+INSTANTIATE_TEST_SUITE_P(DriveCycle, ListedEffect, ::testing::ValuesIn(listed_on_shapes({Shape::drive_cycle})),
                          shape_case_name);
 
 TEST_F(Synthetic, AnswersNoneWithoutAnEffect) {

@@ -14,7 +14,7 @@
 namespace bms::diagnosis {
 
 // Standard deviation of the voltage noise in mV from second differences of the measured
-// voltage away from current steps (robust: median absolute deviation), not below the ADC's
+// voltage where the current is flat (robust: median absolute deviation), not below the ADC's
 // resolution (the smallest voltage step, uniformly distributed rounding).
 double measurement_noise_mv(const Record& r);
 
