@@ -63,7 +63,7 @@ int run_cell_config(const CellConfigCli& c) {
       {"source", cell.source},
       {"header", header},
       {"traits", "bms::fw::cells::" + type},
-      {"record_crc32", fmt::format("0x{:08X}", record_crc32(record))},
+      {"record_crc32", fmt::format("0x{:08X}", record_crc32(record, bias.bias_ohm, bias.table))},
       {"model_bias_ohm", bias.bias_ohm},
       {"model_bias_from", std::isfinite(c.bias_ohm) ? "--model-bias-ohm" : "nominal DFN, 3 CCCV cycles at 1C (CV to C/10), 40/40 volumes, rtol 1e-9"},
       {"model_bias_ticks", bias.ticks},

@@ -8,6 +8,8 @@ through bms/fw/config/cell_choice.hpp, first over the committed header (the cont
 compile), then over copies of it placed first on the include path, each changed one way:
   - one number of the record changed in its last bits (kAreaM2) -> the CRC static_assert;
   - one value of the OCP table changed, last bits                      -> the CRC static_assert;
+  - the design-time bias changed, last bits (kModelBiasOhm)          -> the CRC static_assert;
+  - one knot of the bias table changed, last bits (kModelBiasTableOhm) -> the CRC static_assert;
   - the schema the header states changed (1 -> 2)                   -> the schema static_assert;
   - a field removed (kSideAlpha)                                    -> an error naming kSideAlpha.
 Each must fail to compile with its message. Exit 0 when all do, 1 otherwise.
@@ -63,6 +65,11 @@ def main():
          re.sub(r"(kAreaM2 = )([0-9.e+-]+)", lambda m: m.group(1) + nudge(m.group(2)), text, count=1), r"CRC-32 of the header's numbers"),
         ("an OCP table value changed",
          re.sub(r"(kOcpPos\{[^{]*\{)([0-9.e+-]+)", lambda m: m.group(1) + nudge(m.group(2)), text, count=1), r"CRC-32 of the header's numbers"),
+        ("the model bias changed (kModelBiasOhm)",
+         re.sub(r"(kModelBiasOhm = )([0-9.e+-]+)", lambda m: m.group(1) + nudge(m.group(2)), text, count=1), r"CRC-32 of the header's numbers"),
+        ("a bias table knot changed (kModelBiasTableOhm)",
+         re.sub(r"(kModelBiasTableOhm\[[0-9]+\] = \{\s*)([0-9.e+-]+)", lambda m: m.group(1) + nudge(m.group(2)), text, count=1),
+         r"CRC-32 of the header's numbers"),
         ("the schema changed",
          text.replace("static_assert(kCellConfigSchema == 1", "static_assert(kCellConfigSchema == 2"),
          r"generated for cell configuration schema"),

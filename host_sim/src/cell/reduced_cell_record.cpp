@@ -196,7 +196,8 @@ std::string table_text(const fw::HermiteTable<N>& t) {
 
 }  // namespace
 
-std::uint32_t record_crc32(const ReducedCellRecord& r) {
+std::uint32_t record_crc32(const ReducedCellRecord& r, double model_bias_ohm,
+                           const fw::ModelBiasTable<double>& model_bias_table) {
   Crc32 c;
   for (double v : {r.area_m2, r.temperature_k, r.transference, r.electrolyte_init_mol_m3, r.separator_thickness_m,
                    r.separator_porosity, r.transport_efficiency_neg, r.transport_efficiency_sep,
@@ -210,6 +211,10 @@ std::uint32_t record_crc32(const ReducedCellRecord& r) {
   c.add(r.ocp_pos);
   c.add(r.diffusivity);
   c.add(r.conductivity);
+  c.add(model_bias_ohm);
+  c.add(model_bias_table.x_first);
+  c.add(model_bias_table.x_last);
+  for (double v : model_bias_table.ohm) c.add(v);
   return c.value();
 }
 
@@ -262,7 +267,7 @@ std::string cell_header_text(const ReducedCellRecord& r, const std::string& type
   for (int k = 0; k < fw::ModelBiasTable<double>::kKnots; ++k)
     s += (k == 0 ? " " : k % 4 == 0 ? ",\n      " : ", ") + num(model_bias_table.ohm[k]);
   s += "};\n";
-  s += fmt::format("  static constexpr std::uint32_t kRecordCrc32 = 0x{:08X}u;\n", record_crc32(r));
+  s += fmt::format("  static constexpr std::uint32_t kRecordCrc32 = 0x{:08X}u;\n", record_crc32(r, model_bias_ohm, model_bias_table));
   s += fmt::format("  static constexpr HermiteTable<{}> kOcpNeg{};\n", kOcpTableNodes, table_text(r.ocp_neg));
   s += fmt::format("  static constexpr HermiteTable<{}> kOcpPos{};\n", kOcpTableNodes, table_text(r.ocp_pos));
   s += fmt::format("  static constexpr HermiteTable<{}> kDiffusivity{};\n", kElectrolyteTableNodes,

@@ -7,8 +7,9 @@
 //
 // A generated configuration (bms/fw/cells/*_cell.hpp, `bmssim cell-config`) states the schema
 // it was written for (a static_assert in the header) and the CRC-32 of its numbers
-// (kRecordCrc32); GeneratedCell recomputes that CRC at compile time from the numbers the
-// header holds, so an edited or damaged header does not compile. The state a model of that
+// (kRecordCrc32), the design-time bias (kModelBiasOhm, kModelBiasTable*) included; GeneratedCell
+// recomputes that CRC at compile time from the numbers the header holds, so an edited or damaged
+// header does not compile. The state a model of that
 // cell saves to NVM is tagged with the same CRC (nvm/state_schema.hpp: CellIdentity), so a
 // state saved under one cell is refused under another.
 // Firmware rules: constexpr only, no heap.
@@ -96,7 +97,9 @@ constexpr std::uint32_t add(std::uint32_t crc, const HermiteTable<N>& t) {
 }  // namespace cell_crc
 
 /// The CRC-32 of a generated configuration's numbers, in the generator's order
-/// (host_sim/src/cell/reduced_cell_record.cpp: record_crc32).
+/// (host_sim/src/cell/reduced_cell_record.cpp: record_crc32): the record's, then the design-time
+/// bias (the constant, its table's range and knots), which the firmware applies to every tick's
+/// voltage as much as the cell's own numbers.
 template <class Cell>
 constexpr std::uint32_t cell_config_crc32() {
   std::uint32_t crc = 0xFFFFFFFFu;
@@ -110,6 +113,9 @@ constexpr std::uint32_t cell_config_crc32() {
   crc = cell_crc::add(cell_crc::add(crc, Cell::kNeg), Cell::kPos);
   crc = cell_crc::add(cell_crc::add(crc, Cell::kOcpNeg), Cell::kOcpPos);
   crc = cell_crc::add(cell_crc::add(crc, Cell::kDiffusivity), Cell::kConductivity);
+  crc = cell_crc::add(crc, Cell::kModelBiasOhm);
+  crc = cell_crc::add(cell_crc::add(crc, Cell::kModelBiasTableFirst), Cell::kModelBiasTableLast);
+  for (double v : Cell::kModelBiasTableOhm) crc = cell_crc::add(crc, v);
   return ~crc;
 }
 
