@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "cell/diffusivity_profile.hpp"
+#include "ae_discharge.hpp"
 #include "dfn/dfn_solver.hpp"
 #include "io/expression.hpp"
 #include "io/input_error.hpp"
@@ -17,40 +18,12 @@
 namespace bms {
 namespace {
 
-const DfnMesh kCoarse{6, 3, 6, 8};
-
-CellParameters ae_cell() {
-  CellParameters c = load_cell("aboutenergy");
-  c.side.enabled = false;
-  return c;
-}
-
-// The discharge at current_a from full to 2.5 V: (time s, voltage every 60 s, inventory drift).
-struct Discharge {
-  double end_s = 0.0;
-  std::vector<double> v;
-  double inventory_drift = 0.0;
-};
+using ae_discharge::ae_cell;
+using ae_discharge::Discharge;
+using ae_discharge::kCoarse;
 
 Discharge discharge(const CellParameters& cell, const ModelEffects& effects, double current_a) {
-  DfnModel m(cell, kCoarse, 298.15, effects);
-  DfnSolver solver(m, SolverSettings{});
-  m.set_control({ControlKind::current, 0.0});
-  const auto ic = default_initial_conditions(cell);
-  solver.start(0.0, m.initial_state(ic.stoich_neg, ic.stoich_pos, ic.electrolyte_mol_m3, 0.0));
-  const double inventory0 = m.lithium_inventory_mol(solver.y().data());
-  StopConditions stop;
-  stop.voltage_below_v = 2.5;
-  solver.switch_control({ControlKind::current, current_a}, stop);
-  Discharge d;
-  for (double t = 60.0; t < 20000.0; t += 60.0) {
-    const auto r = solver.advance_to(t);
-    d.v.push_back(m.terminal_voltage_v(solver.y().data()));
-    if (r == DfnSolver::Result::stopped) break;
-  }
-  d.end_s = solver.t();
-  d.inventory_drift = std::abs(m.lithium_inventory_mol(solver.y().data()) - inventory0) / inventory0;
-  return d;
+  return ae_discharge::discharge(cell, effects, current_a, 2.5);
 }
 
 TEST(DiffusivityProfile, ConstantFactorIsTheScalarPathBitForBit) {

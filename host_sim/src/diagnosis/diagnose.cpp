@@ -433,54 +433,46 @@ FitResult fit_by_gauss_newton(Context& ctx, Hypothesis h, const std::vector<Effe
   return out;
 }
 
-// The diffusivity profile moves the end of a discharge by many minutes, and its knee does
-// nothing while the profile is flat: Gauss-Newton from the plain model stayed at it on records
-// made with a profile. A coarse grid over both knobs picks the start; returns the runs it took.
-int seed_profile(Context& ctx, Hypothesis& h, const Fold& fold) {
-  static constexpr double kLog10[] = {-2.0, -1.0, -0.5}, kKnee[] = {0.5, 0.7, 0.85};
+// A coarse grid over several knobs (their values per axis, the first axis outermost) picks the
+// start: the best point, or h itself when no point is better; returns the runs it took.
+using GridAxis = std::pair<Effect, std::vector<double>>;
+int seed_by_grid(Context& ctx, Hypothesis& h, const Fold& fold, const std::vector<GridAxis>& axes) {
   double best_f = train_rmse(ctx, h, fold);
   int runs = 1;
   Hypothesis best = h;
-  for (double s : kLog10)
-    for (double k : kKnee) {
-      Hypothesis t = h;
-      set_knob(t, Effect::diffusivity_profile_positive, s);
-      set_knob(t, Effect::diffusivity_profile_knee, k);
-      const double f = train_rmse(ctx, t, fold);
-      ++runs;
-      if (f < best_f) {
-        best_f = f;
-        best = std::move(t);
-      }
+  std::vector<std::size_t> at(axes.size(), 0);
+  for (;;) {
+    Hypothesis t = h;
+    for (std::size_t a = 0; a < axes.size(); ++a) set_knob(t, axes[a].first, axes[a].second[at[a]]);
+    const double f = train_rmse(ctx, t, fold);
+    ++runs;
+    if (f < best_f) {
+      best_f = f;
+      best = std::move(t);
     }
+    std::size_t a = axes.size();
+    while (a > 0 && ++at[a - 1] == axes[a - 1].second.size()) at[--a] = 0;
+    if (a == 0) break;
+  }
   h = std::move(best);
   return runs;
 }
 
-// The resistive reactant has the profile's trouble (its rise and knee do nothing while the
-// resistance is off, and the rise moves the end of a discharge by minutes): a coarse grid over
-// its three knobs picks the start; returns the runs it took.
+// The diffusivity profile moves the end of a discharge by many minutes, and its knee does
+// nothing while the profile is flat: Gauss-Newton from the plain model stayed at it on records
+// made with a profile. The resistive reactant has the same trouble (its rise and knee do nothing
+// while its resistance is off). A coarse grid over their knobs picks the start.
+int seed_profile(Context& ctx, Hypothesis& h, const Fold& fold) {
+  return seed_by_grid(ctx, h, fold,
+                      {{Effect::diffusivity_profile_positive, {-2.0, -1.0, -0.5}},
+                       {Effect::diffusivity_profile_knee, {0.5, 0.7, 0.85}}});
+}
+
 int seed_reactant(Context& ctx, Hypothesis& h, const Fold& fold) {
-  static constexpr double kOhmM2[] = {0.01, 0.1, 0.3}, kLog10[] = {1.0, 2.0, 3.0}, kKnee[] = {0.3, 0.6, 0.75};
-  double best_f = train_rmse(ctx, h, fold);
-  int runs = 1;
-  Hypothesis best = h;
-  for (double r : kOhmM2)
-    for (double s : kLog10)
-      for (double k : kKnee) {
-        Hypothesis t = h;
-        set_knob(t, Effect::resistive_reactant_positive, r);
-        set_knob(t, Effect::resistive_reactant_log10, s);
-        set_knob(t, Effect::resistive_reactant_knee, k);
-        const double f = train_rmse(ctx, t, fold);
-        ++runs;
-        if (f < best_f) {
-          best_f = f;
-          best = std::move(t);
-        }
-      }
-  h = std::move(best);
-  return runs;
+  return seed_by_grid(ctx, h, fold,
+                      {{Effect::resistive_reactant_positive, {0.01, 0.1, 0.3}},
+                       {Effect::resistive_reactant_log10, {1.0, 2.0, 3.0}},
+                       {Effect::resistive_reactant_knee, {0.3, 0.6, 0.75}}});
 }
 
 // Knobs that need model runs are fitted by Gauss-Newton (a few runs each); knobs applied to
