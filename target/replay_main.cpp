@@ -77,11 +77,10 @@ int main() {
   // The beyond-paper paths the paper-settings replay does not take: a state
   // re-synchronisation, and the tick after a 2-minute gap (last: it changes the firmware).
   const std::uint64_t r0 = bms::target::platform_instructions();
-  int resync_evaluations = 0;
-  const bool resync_ok = bms::target::resync_probe(fw, resync_evaluations);
+  const bool resync_ok = bms::target::resync_probe(fw);
   const std::uint64_t r1 = bms::target::platform_instructions();
-  std::printf("# resync_probe converged %u instructions %lu evaluations %d\n", resync_ok ? 1u : 0u,
-              static_cast<unsigned long>(r1 - r0), resync_evaluations);
+  std::printf("# resync_probe converged %u instructions %lu\n", resync_ok ? 1u : 0u,
+              static_cast<unsigned long>(r1 - r0));
   const std::size_t last = kReplayTicks - 1u;
   const Scalar last_v = static_cast<Scalar>(static_cast<double>(bms_replay_voltage_10uv[last]) * 1e-5);
   const Scalar last_i = static_cast<Scalar>(static_cast<double>(bms_replay_current_100ua[last]) * 1e-4);

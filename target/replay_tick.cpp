@@ -50,14 +50,12 @@ bms::fw::ModelTickResult<Scalar> newton_cap_probe(const ReplayFirmware& fw) {
   return probe.step_voltage(Scalar(5), fw.core.r_film_ohm_m2(), fw.core.config().dt_s);
 }
 
-bool resync_probe(const ReplayFirmware& fw, int& evaluations) {
+bool resync_probe(const ReplayFirmware& fw) {
   Model probe = fw.model;
   const Scalar film = fw.core.r_film_ohm_m2();
   const Scalar dt = fw.core.config().dt_s;
   const Scalar voltage_v = probe.peek_voltage(Scalar(0.2), film, dt) + Scalar(0.005);
-  const bool converged = probe.resync(voltage_v, Scalar(0.2), film, dt, probe.solid_inventory_mol() * Scalar(1.005));
-  evaluations = probe.resync_evaluations();
-  return converged;
+  return probe.resync(voltage_v, Scalar(0.2), film, dt, probe.solid_inventory_mol() * Scalar(1.005));
 }
 
 TickOutput catch_up_probe(ReplayFirmware& fw, unsigned gap, Scalar voltage_v, Scalar current_a) {

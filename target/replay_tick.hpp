@@ -60,9 +60,8 @@ bms::fw::ModelTickResult<Scalar> newton_cap_probe(const ReplayFirmware& fw);
 
 /// Cost of the beyond-paper state re-synchronisation (once per CV phase): a copy of the model
 /// re-synchronised to 5 mV above its own voltage at 0.2 A and 0.5 % more lithium, so that the
-/// regula falsi has to work. Returns whether it converged and sets `evaluations` to the model
-/// evaluations it spent; the firmware is not changed.
-bool resync_probe(const ReplayFirmware& fw, int& evaluations);
+/// regula falsi has to work. Returns whether it converged; the firmware is not changed.
+bool resync_probe(const ReplayFirmware& fw);
 
 /// The tick in which samples return after `gap` ticks without one (the catch-up,
 /// BmsCore::Config::catch_up_max_steps). Changes the firmware: call it last.

@@ -308,8 +308,6 @@ def cmd_cost(a):
     if len(resync) >= 4:
         # A re-synchronisation runs after the tick's own model step: bound = probe + worst tick.
         res["resync_probe"] = {"converged": resync[1] == "1", "instructions": int(resync[3])}
-        if len(resync) >= 6:
-            res["resync_probe"]["evaluations"] = int(resync[5])
         res["resync_tick_bound"] = res["resync_probe"]["instructions"] + max(cost)
     gap = run.summary.get("catch_up_probe", "").split()
     if len(gap) >= 6:

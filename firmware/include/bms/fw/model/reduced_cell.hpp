@@ -553,10 +553,6 @@ class ReducedCell {
   static constexpr double kResyncAcceptV = 1e-4;
   static constexpr double kResyncFirstStep = 1e-3;  // anode stoichiometry: about 1-10 mV
   static constexpr int kResyncBracketSteps = 6;
-  // Largest factor by which a bracket step may exceed the one before (bracket_near). Its two
-  // steps from the present state then reach 1 + 4 = 5 times the first (about 5-50 mV) and six
-  // reach 1365 times, past either electrode's admissible range.
-  static constexpr double kResyncMaxGrowth = 4.0;
   // Most model evaluations a re-synchronisation that gives up on a voltage that does not rise
   // with anode lithium can spend: the present state and the bracket's steps (bracket_near).
   static constexpr int kResyncNotMonotoneEvaluations = 1 + kResyncBracketSteps;
@@ -633,15 +629,9 @@ class ReducedCell {
       const Scalar slope = (fn - fx) / (xn - x);
       if (!(slope > Scalar(0))) return Bracket::not_monotone;
       // Secant prediction of the root from the last two points, overshot so the next point
-      // lands beyond it, but at most kResyncMaxGrowth times the last step: the voltage is convex
-      // in the shift towards an electrode's limit, so a secant from two points near the present
-      // state predicts a root too far out, and the overshot point landed where a particle's
-      // outer shell nears its limit (About:Energy, the board's resync_probe: the third point at
-      // +252 V against -0.19 V, the root at a fifth of that distance). Illinois then halved
-      // that end's mismatch once per evaluation: 15 of the 18 evaluations.
+      // lands beyond it.
       Scalar next = -fn / slope * Scalar(2);
       if (std::fabs(next) < std::fabs(step) * Scalar(2) || (next > Scalar(0)) != (step > Scalar(0))) next = step * Scalar(2);
-      if (std::fabs(next) > std::fabs(step) * Scalar(kResyncMaxGrowth)) next = step * Scalar(kResyncMaxGrowth);
       x = xn;
       fx = fn;
       step = next;
