@@ -9,6 +9,7 @@
 // ask for (docs/results/diagnosis.md); LFP's apparent diffusivity from titration measurements is
 // known to vary by orders of magnitude with x. The shape is this project's choice and its two
 // numbers are fitted (`diagnose`), not taken from a source. x_k = 0: log-linear over all x.
+// The same knee shape is the resistive reactant's rise over its resistance (dfn/dfn_model.hpp).
 #include <algorithm>
 #include <cmath>
 #include <memory>

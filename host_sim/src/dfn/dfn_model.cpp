@@ -132,6 +132,9 @@ DfnModel::DfnModel(const CellParameters& cell, const DfnMesh& mesh, double tempe
   cell_.positive.solid_diffusivity_factor =
       with_knee_profile(cell_.positive.solid_diffusivity_factor, effects_.diffusivity_profile_positive,
                         effects_.diffusivity_profile_positive_knee);
+  if (effects_.resistive_reactant_on())
+    reactant_factor_ = std::make_shared<KneeDiffusivityProfile>(effects_.resistive_reactant_positive_log10,
+                                                                effects_.resistive_reactant_positive_knee);
   if (effects_.thermal_on()) {
     const auto& th = cell.thermal;
     heat_capacity_j_k_ = th.specific_heat_j_kg_k * th.density_kg_m3 * th.volume_m3;
@@ -570,10 +573,7 @@ T DfnResidual<T>::resistive_reactant(int e, int pop, const ElectrodeParameters& 
   const double per_volume = 3.0 / (radius * radius * radius * p.max_concentration_mol_m3);
   T x_mean = T(0.0);
   for (int r = 0; r < nr; ++r) x_mean = x_mean + y[m.idx_cs_pop(e, pop, r)] * (m.shell_vol_[side * nr + r] * per_volume);
-  const ModelEffects& fx = m.effects_;
-  const double knee = fx.resistive_reactant_positive_knee;
-  const T above = clamp_between((x_mean - knee) / (1.0 - knee), 0.0, 1.0);
-  return fx.resistive_reactant_positive_ohm_m2 * exp(above * (fx.resistive_reactant_positive_log10 * std::log(10.0)));
+  return m.effects_.resistive_reactant_positive_ohm_m2 * apply(*m.reactant_factor_, x_mean);
 }
 
 // Population pop of node e's particles: finite volumes in r, the molar flux out of the surface

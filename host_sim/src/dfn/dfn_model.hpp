@@ -227,6 +227,9 @@ class DfnModel {
   std::vector<double> mass_, atol_scale_;
   Control control_;
   ModelEffects effects_;
+  // The resistive reactant's rise over R_0 at a particle's mean stoichiometry (the knee profile
+  // of cell/diffusivity_profile.hpp); null while the reactant is off.
+  ScalarFunctionPtr reactant_factor_;
   bool film_frozen_ = false;
 };
 
