@@ -1,7 +1,8 @@
-// The cost of a re-synchronisation that cannot succeed: bounded, so the tick that runs it stays
+// The cost of a re-synchronisation, failing or converged: bounded, so the tick that runs it stays
 // inside the board's instruction budget (docs/results/target.md "Per cell").
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 
 #include "bms/fw/config/cell_choice.hpp"
@@ -51,5 +52,29 @@ TEST(ResyncCost, ReachableTargetOnTheSameCellStillConverges) {
   EXPECT_NEAR(m.peek_voltage(0.0, kFilm, 0.2), v0 + 2e-3, 1e-4);
   EXPECT_LE(m.resync_evaluations(), Model::kResyncIterations);
 }
+
+// The board's resync_probe (target/replay_tick.cpp) on About:Energy at the model's initial state:
+// 5 mV above the model's voltage at 0.2 A with 0.5 % more lithium. The bracket search's third
+// point lands where a cathode shell nears its limit (+273 V against -0.22 V, the root a fifth of
+// the way across); the regula falsi's Illinois step halved that end once per evaluation: 18
+// evaluations in double, 17 in float. Bisecting while an end is beyond kResyncFarEndV: 12 in
+// both. Bound 13: with the two of the inventory direction (about 11 700 instructions each on the
+// Cortex-M4F) and the cell's worst tick (131 000) the tick stays below 300 000.
+template <typename M, typename S>
+void expect_cheap_probe() {
+  const S film = S(kFilm), dt = S(0.2), current = S(0.2);
+  M m;
+  m.init_default();
+  const S target_v = m.peek_voltage(current, film, dt) + S(0.005);
+  const S inventory = m.solid_inventory_mol() * S(1.005);
+  ASSERT_TRUE(m.resync(target_v, current, film, dt, inventory));
+  EXPECT_LE(m.resync_evaluations(), 13);
+  // What it solves is unchanged: the voltage within the regula falsi's tolerance, the inventory held.
+  EXPECT_LT(std::fabs(m.peek_voltage(current, film, dt) - target_v), S(M::kResyncToleranceV));
+  EXPECT_NEAR(m.solid_inventory_mol() / inventory, S(1), S(sizeof(S) >= sizeof(double) ? 1e-12 : 1e-5));
+}
+
+TEST(ResyncCost, ConvergedProbeOnAboutEnergyIsCheapDouble) { expect_cheap_probe<Model, double>(); }
+TEST(ResyncCost, ConvergedProbeOnAboutEnergyIsCheapFloat) { expect_cheap_probe<ModelF, float>(); }
 
 }  // namespace

@@ -553,6 +553,9 @@ class ReducedCell {
   static constexpr double kResyncAcceptV = 1e-4;
   static constexpr double kResyncFirstStep = 1e-3;  // anode stoichiometry: about 1-10 mV
   static constexpr int kResyncBracketSteps = 6;
+  // A bracket end's mismatch beyond which the regula falsi bisects (far_end): above any the
+  // method meets near a cell's state (the target lies within 0.5 V of the cell's window).
+  static constexpr double kResyncFarEndV = 1.0;
   // Most model evaluations a re-synchronisation that gives up on a voltage that does not rise
   // with anode lithium can spend: the present state and the bracket's steps (bracket_near).
   static constexpr int kResyncNotMonotoneEvaluations = 1 + kResyncBracketSteps;
@@ -573,7 +576,7 @@ class ReducedCell {
     Scalar fx = fa;
     int side = 0;
     while (used < kResyncIterations) {
-      const Scalar x = (a * fb - b * fa) / (fb - fa);
+      const Scalar x = far_end(fa, fb) ? (a + b) / Scalar(2) : (a * fb - b * fa) / (fb - fa);
       fx = mismatch(x);
       ++used;
       if (!std::isfinite(fx) || std::fabs(fx) < Scalar(kResyncToleranceV)) break;
@@ -588,6 +591,15 @@ class ReducedCell {
       }
     }
     return fx;
+  }
+
+  // An end whose mismatch exceeds kResyncFarEndV is a point where a particle's shell nears its
+  // limit, not a guide to the root: the secant point then lands next to the other end and moves
+  // it by little, while Illinois halves the far end's mismatch once per evaluation (About:Energy,
+  // the board's resync_probe: +273 V against -0.22 V, the root a fifth of the way across; ten of
+  // 18 evaluations went to halving). The regula falsi bisects while either end is that far.
+  static bool far_end(Scalar fa, Scalar fb) {
+    return std::fabs(fa) > Scalar(kResyncFarEndV) || std::fabs(fb) > Scalar(kResyncFarEndV);
   }
 
   // A bracket [a, b] of the re-synchronisation's root near the present state (dn = 0: the model
