@@ -2,15 +2,18 @@
 # The cathode's resistive reactant on the About:Energy LFP 18650 records (docs/results/diagnosis.md,
 # "A resistive reactant"): the truth DFN on each measured current (`simulate --protocol csv:RECORD`,
 # mesh 20) with the effect's three knobs (resistance below the knee, its rise in decades to x = 1,
-# the knee), alone and with the cathode diffusivity and both exchange-current factors, fitted by
+# the knee), alone, with the cathode diffusivity and both exchange-current factors, or with the
+# lumped self-heating (`--effect thermal`, its heat-transfer coefficient a knob), fitted by
 # Nelder-Mead on the whole-record RMSE of two records and scored on the third (leave one record
 # out; every fold starts from the same neutral point, no fold sees its held-out record). Then all
-# three knob sets fitted on all records (in-sample) and plotted beside the plain DFN.
+# three records fitted with each knob set (in-sample) and plotted beside the plain DFN.
 # A measurement, not a test: about 10 minutes on this machine.
 #
 # Usage: scripts/resistive-reactant-aboutenergy.sh [OUT_DIR]   (default out/resistive-reactant)
 # Environment: BMSSIM=path to use a given binary instead of `./bms sim`; SHARED=path of ../shared;
-# ITERS=Nelder-Mead iterations per fit (default 150).
+# ITERS=Nelder-Mead iterations per fit (default 150); KNOB_SETS=the knob sets to fit, separated by
+# ';', from "reactant", "reactant + D_pos, i0_pos, i0_neg", "reactant + thermal",
+# "reactant + thermal + i0_pos, i0_neg", "reactant + thermal + D_e" (default the first two).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 out=${1:-$root/out/resistive-reactant}
@@ -23,7 +26,8 @@ import csv, math, os, shlex, shutil, subprocess, sys
 out, data, sim, iters = sys.argv[1], sys.argv[2], shlex.split(sys.argv[3]), int(sys.argv[4])
 recs = ["1C", "2C", "Co20"]
 meas = {r: [float(x["U[V]"]) for x in csv.DictReader(open(f"{data}/LFP_25degC_{r}.csv"))] for r in recs}
-factors = {"dp": "diffusivity_scale_positive", "ip": "i0_scale_positive", "in": "i0_scale_negative"}
+factors = {"dp": "diffusivity_scale_positive", "ip": "i0_scale_positive", "in": "i0_scale_negative",
+           "de": "electrolyte_diffusivity_scale"}
 def decode(x, keys):
     sets, eff = {}, {}
     for k, v in zip(keys, x):
@@ -31,6 +35,7 @@ def decode(x, keys):
         elif k == "r": eff["resistive_reactant_positive"] = min(10 ** v, 100.0)
         elif k == "s": eff["resistive_reactant_positive_log10"] = min(max(v, 0.0), 6.0)
         elif k == "k": eff["resistive_reactant_positive_knee"] = min(max(v, 0.0), 0.99)
+        elif k == "h": eff["thermal"] = min(max(10 ** v, 1e-3), 100.0)
     return sets, eff
 def run(r, sets, eff, keep=None):
     d = keep or f"{out}/scratch_{r}"
@@ -73,11 +78,16 @@ def nelder_mead(f, x0, step=0.3):
 plain = {r: math.sqrt(mse(r, run(r, {}, {}))) for r in recs}
 pooled = lambda d: math.sqrt(sum(d[r] ** 2 * len(meas[r]) for r in recs) / sum(len(meas[r]) for r in recs))
 print(f"plain DFN: " + ", ".join(f"{r} {plain[r]:.1f} mV" for r in recs) + f"; pooled {pooled(plain):.2f} mV")
-sets_of_knobs = {"reactant": (["r", "s", "k"], [-1.5, 3.0, 0.4]),
-                 "reactant + D_pos, i0_pos, i0_neg": (["r", "s", "k", "dp", "ip", "in"], [-1.5, 3.0, 0.4, 0.0, 0.0, 0.0])}
+all_knob_sets = {"reactant": (["r", "s", "k"], [-1.5, 3.0, 0.4]),
+                 "reactant + D_pos, i0_pos, i0_neg": (["r", "s", "k", "dp", "ip", "in"], [-1.5, 3.0, 0.4, 0.0, 0.0, 0.0]),
+                 "reactant + thermal": (["r", "s", "k", "h"], [-1.5, 3.0, 0.4, -1.0]),
+                 "reactant + thermal + i0_pos, i0_neg": (["r", "s", "k", "h", "ip", "in"], [-1.5, 3.0, 0.4, -1.0, 0.0, 0.0]),
+                 "reactant + thermal + D_e": (["r", "s", "k", "h", "de"], [-1.5, 3.0, 0.4, -1.0, 0.0])}
+chosen = os.environ.get("KNOB_SETS", "reactant;reactant + D_pos, i0_pos, i0_neg").split(";")
+sets_of_knobs = {name: all_knob_sets[name] for name in chosen}
 print("| knobs | held-out record | fitted on | fitted knobs | RMSE fitted records mV | held-out RMSE mV | plain DFN mV |")
 print("|---|---|---|---|---|---|---|")
-for name, (keys, x0) in sets_of_knobs.items():
+for tag_index, (name, (keys, x0)) in enumerate(sets_of_knobs.items()):
     held = {}
     for h in recs:
         train = [r for r in recs if r != h]
@@ -89,31 +99,35 @@ for name, (keys, x0) in sets_of_knobs.items():
     print(f"| {name} | pooled | | | | {pooled(held):.2f} | {pooled(plain):.2f} |", flush=True)
     x, v = nelder_mead(lambda x: cost(x, keys, recs), x0)
     sets, eff = decode(x, keys)
-    tag = "all" if len(keys) > 3 else "alone"
+    tag = f"set{tag_index}"
     fit = {r: run(r, sets, eff, keep=f"{out}/fit_{tag}_{r}") for r in recs}
     print(f"in-sample on all three ({name}): " + ", ".join(f"{r} {math.sqrt(mse(r, fit[r])):.1f} mV" for r in recs) +
           "; " + ", ".join(f"{k} {val:.4g}" for k, val in {**eff, **sets}.items()), flush=True)
 plain_runs = {r: run(r, {}, {}, keep=f"{out}/plain_{r}") for r in recs}
 for r in recs:
     t = [float(x["Time [s]"]) for x in csv.DictReader(open(f"{data}/LFP_25degC_{r}.csv"))]
-    cols = [plain_runs[r]] + [[float(x["voltage_v"]) for x in csv.DictReader(open(f"{out}/fit_{tag}_{r}/truth.csv"))]
-                               for tag in ("alone", "all")]
+    cols = [plain_runs[r]] + [[float(x["voltage_v"]) for x in csv.DictReader(open(f"{out}/fit_set{i}_{r}/truth.csv"))]
+                               for i in range(len(sets_of_knobs))]
     with open(f"{out}/curves_{r}.dat", "w") as f:
-        f.write("# t_s measured plain reactant reactant+factors (V)\n")
+        f.write("# t_s measured plain " + " | ".join(sets_of_knobs) + " (V)\n")
         for i, m in enumerate(meas[r]):
             f.write(f"{t[i]} {m} " + " ".join(f"{c[min(i, len(c) - 1)]:.5f}" for c in cols) + "\n")
+with open(f"{out}/set_names.gp", "w") as f:
+    f.write(f"nsets = {len(sets_of_knobs)}\n" + "".join(f'set{i} = "+ {n}"\n' for i, n in enumerate(sets_of_knobs)))
 for d in os.listdir(out):
     if d.startswith("scratch_"): shutil.rmtree(f"{out}/{d}")
 PY
 cat > "$out/plot.gp" <<GP
 set terminal pngcairo size 1500,450 font ",10"
 set output "$out/resistive_reactant_aboutenergy.png"
+load "$out/set_names.gp"
+colours = "orange red dark-green"
 set multiplot layout 1,3 title "About:Energy LFP 18650 (CC BY-SA 4.0, (c) About:Energy): measured, plain DFN and the resistive reactant (in-sample fits on all three records)"
 set xlabel "t (s)"; set ylabel "voltage (V)"; set yrange [2.0:3.6]; set key bottom left
 do for [r in "1C 2C Co20"] {
   set title r
   plot "$out/curves_".r.".dat" u 1:2 w l lw 2 lc rgb "black" t "measured", "" u 1:3 w l lc rgb "blue" t "plain DFN", \
-       "" u 1:4 w l lc rgb "orange" t "+ resistive reactant", "" u 1:5 w l lc rgb "red" t "+ reactant, D_{pos}, i0 factors"
+       for [i=0:nsets-1] "" u 1:(column(4+i)) w l lc rgb word(colours, i+1) t value(sprintf("set%d", i))
 }
 unset multiplot
 GP

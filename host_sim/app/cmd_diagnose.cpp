@@ -44,6 +44,7 @@ struct DiagnoseOptions {
   int max_effects = 3;
   double search_drive_tolerance = 0.0;
   double open_gain = 0.1;
+  int beam = 2;
   int threads = 0;
   std::string initial_soc = "auto";
   std::string current_sign = "by-layout";
@@ -90,6 +91,7 @@ std::string command_line(const DiagnoseOptions& o) {
   if (o.blocks != 8) s += fmt::format(" --blocks {}", o.blocks);
   if (o.max_effects != 3) s += fmt::format(" --max-effects {}", o.max_effects);
   if (o.open_gain != 0.1) s += fmt::format(" --open-gain {}", o.open_gain);
+  if (o.beam != 2) s += fmt::format(" --beam {}", o.beam);
   if (o.search_drive_tolerance > 0) s += fmt::format(" --search-drive-tolerance {}", o.search_drive_tolerance);
   if (o.threads != 0) s += fmt::format(" --threads {}", o.threads);
   if (o.initial_soc != "auto") s += " --initial-soc " + o.initial_soc;
@@ -184,6 +186,7 @@ int run_diagnose(const DiagnoseOptions& o) {
   settings.max_effects = o.max_effects;
   settings.search_drive_tolerance = o.search_drive_tolerance;
   settings.open_gain = o.open_gain;
+  settings.beam = o.beam;
   settings.threads = o.threads;
   const CurrentSign sign = current_sign_option(o.current_sign);
   const CellParameters cell = load_cell(o.cell);
@@ -282,6 +285,10 @@ Runner add_diagnose(CLI::App& app) {
                   "A first effect too weak to be named alone opens a combination when it cuts the held-out RMSE by "
                   "this share (0: always explore combinations from the best single effect)")
       ->capture_default_str()->check(CLI::Range(0.0, 1.0));
+  sub->add_option("--beam", o->beam,
+                  "Such combinations are grown from this many of the best single effects (each path greedy; another "
+                  "start's path is taken only when it cuts the held-out RMSE by the complexity penalty)")
+      ->capture_default_str()->check(CLI::Range(1, 5));
   sub->add_option("--initial-soc", o->initial_soc,
                   "auto (from the first rest voltage when the record does not start in the cell's default state), "
                   "full (the default state) or a state of charge in [0, 1]")

@@ -34,6 +34,8 @@ struct DiagnoseSettings {
   // A first effect too weak to be named alone opens a combination when it cuts the held-out
   // RMSE by this share (0: always explore from the best one).
   double open_gain = 0.1;
+  // Combinations opened so are grown from this many of the best single effects.
+  int beam = 2;
   // The held-out RMSE must fall to this share of the plain model's for `explained`.
   double explained_share = 0.2;
   SelectionRules rules;
