@@ -95,10 +95,9 @@ class IdentifierFilmPath {
     // tick: the reduced model's OCV slope at its own state times the inventory, from the nominal
     // tables, no measurement of the cell. Two tests, either one stops the rest of the charge
     // (latched, the next charge learns again); 0 / false: off (the default).
-    // stop_knee_slope_ratio K: |S| above K x its mean over the charge's learning ticks so far (a knee
-    // on an LFP plateau raises |S| 60-400 fold over the plateau's; a sloped OCV varies it a few fold
-    // over a charge). Not against the charge's smallest |S|: S crosses zero where the two
-    // electrodes' slopes cancel, and on About:Energy that reference tripped 2250 s before the end.
+    // stop_knee_slope_ratio K: |S| above K x its smallest value since the charge's start (the
+    // charge's flattest part: a knee on an LFP plateau raises |S| 60-400 fold; a sloped OCV varies it
+    // a few fold over a charge).
     Scalar stop_knee_slope_ratio = Scalar(0);
     // stop_knee_inventory_sd: |S| x the fit's own inventory 1-sigma (the voltage the model cannot
     // place for want of its inventory) above the innovation gate (innovation_gate x
@@ -228,8 +227,7 @@ class IdentifierFilmPath {
       const Scalar nu_model = resync.inventory_deviation_model(), bias_v = -bias_ohm * t.current_a;
       if (start) {
         stopped_in_charge_ = settled_in_charge_ = false;
-        slope_sum_v_ = Scalar(0);
-        slope_ticks_ = Scalar(0);
+        flattest_slope_v_ = std::numeric_limits<Scalar>::infinity();
       }
       if (knee_stops_charge(l.inventory_sensitivity_v) || stops_charge() ||
           fusion_rejected(t, l.inventory_sensitivity_v, nu_model, bias_v, start)) {
@@ -407,9 +405,8 @@ class IdentifierFilmPath {
     if (stopped_in_charge_) return true;
     const Scalar slope_v = std::fabs(s_v);
     if (!std::isfinite(slope_v)) return false;
-    slope_sum_v_ += slope_v;
-    slope_ticks_ += Scalar(1);
-    const bool steep = ratio && slope_v > c_.stop_knee_slope_ratio * slope_sum_v_ / slope_ticks_;
+    if (slope_v < flattest_slope_v_) flattest_slope_v_ = slope_v;
+    const bool steep = ratio && slope_v > c_.stop_knee_slope_ratio * flattest_slope_v_;
     const Scalar placed_v = slope_v * identifier_.inventory_sd();
     const bool unplaced = c_.stop_knee_inventory_sd && identifier_.settled() &&
                           placed_v > c_.innovation_gate * c_.innovation_sd_v;
@@ -492,8 +489,7 @@ class IdentifierFilmPath {
   bool stopped_in_charge_ = false;    // this charge's learning stopped (Config::stop_film_move)
   bool settled_in_charge_ = false;    // the fit settled in this charge (stops_charge)
   Scalar film_at_settle_ohm_m2_ = Scalar(0);  // the film when the fit settled in this charge (stops_charge)
-  Scalar slope_sum_v_ = Scalar(0);    // sum of |S| over this charge's learning ticks (knee_stops_charge)
-  Scalar slope_ticks_ = Scalar(0);    // their number, as a Scalar: a charge of 0.2 s ticks overflows no float
+  Scalar flattest_slope_v_ = std::numeric_limits<Scalar>::infinity();  // smallest |S| this charge (knee_stops_charge)
   bool identifying_ = false;
   Scalar v_warm_v_ = Scalar(0);                // this tick's voltage at +kTemperatureProbeK
   Scalar film_per_kelvin_ohm_m2_ = Scalar(0);  // |dV/dT / H| of the last learning tick
