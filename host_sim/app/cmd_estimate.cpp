@@ -309,8 +309,8 @@ Runner add_estimate(CLI::App& app) {
   sub->add_option("--stop-knee-ratio", c->o.overrides.stop_knee_ratio.value,
                   "--settings best only: K (default 0: off): a CC charge's learning stops for the rest of that "
                   "charge once the model's own OCV slope at its state (the probed dV/d inventory, from the nominal "
-                  "tables) exceeds K x its smallest value since the charge's start (keeps a flat-OCP cell's "
-                  "end-of-charge knee out of the fit)")
+                  "tables) exceeds K x its smallest value since the charge's start (experimental: trips soon after "
+                  "S crosses zero, not only in a knee)")
       ->check(CLI::Range(0.0, 1e6));
   sub->add_flag("--stop-knee-inventory-sd", c->o.overrides.stop_knee_inventory_sd.value,
                 "--settings best only: a CC charge's learning stops for the rest of that charge once the model's "

@@ -78,7 +78,7 @@ void expect_stops_in_the_knee(double ratio, bool inventory_sd) {
   EXPECT_GT(on.r_film_ohm_m2() - before, bound) << "a new charge learns";
 }
 
-TEST(StopKnee, TheModelsSlopeAboveKTimesTheChargesFlattestStopsTheCharge) { expect_stops_in_the_knee(10.0, false); }
+TEST(StopKnee, TheModelsSlopeAboveKTimesTheChargesSmallestStopsTheCharge) { expect_stops_in_the_knee(10.0, false); }
 
 TEST(StopKnee, TheSlopeTimesTheInventorySdAboveTheGateStopsTheCharge) { expect_stops_in_the_knee(0.0, true); }
 

@@ -95,9 +95,12 @@ class IdentifierFilmPath {
     // tick: the reduced model's OCV slope at its own state times the inventory, from the nominal
     // tables, no measurement of the cell. Two tests, either one stops the rest of the charge
     // (latched, the next charge learns again); 0 / false: off (the default).
-    // stop_knee_slope_ratio K: |S| above K x its smallest value since the charge's start (the
-    // charge's flattest part: a knee on an LFP plateau raises |S| 60-400 fold; a sloped OCV varies it
-    // a few fold over a charge).
+    // stop_knee_slope_ratio K: |S| above K x its smallest value since the charge's start. Measured,
+    // it is not a knee detector: S crosses zero where the two electrodes' slopes cancel, so this
+    // trips soon after that point whatever K (About:Energy: 2250 s before a 3460 s charge's end for
+    // K = 10, 30 and 100; the LCO: 290-490 s before the end), and the charge learns only what came
+    // before. Against the charge's mean |S| instead it trips in the knee (86-110 s before the end)
+    // and does worse on both cells (docs/results/firmware-model.md).
     Scalar stop_knee_slope_ratio = Scalar(0);
     // stop_knee_inventory_sd: |S| x the fit's own inventory 1-sigma (the voltage the model cannot
     // place for want of its inventory) above the innovation gate (innovation_gate x
