@@ -98,7 +98,7 @@ class IdentifierFilmPath {
     // stop_knee_slope_ratio K: |S| above K x its smallest value since the charge's start. Measured,
     // it is not a knee detector: S crosses zero where the two electrodes' slopes cancel, so this
     // trips soon after that point whatever K (About:Energy: 2250 s before a 3460 s charge's end for
-    // K = 10, 30 and 100; the LCO: 290-490 s before the end), and the charge learns only what came
+    // K = 10, 30 and 100; the LCO: 170-490 s before the end), and the charge learns only what came
     // before. Against the charge's mean |S| instead it trips in the knee (86-110 s before the end)
     // and does worse on both cells (docs/results/firmware-model.md).
     Scalar stop_knee_slope_ratio = Scalar(0);
