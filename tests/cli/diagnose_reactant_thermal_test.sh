@@ -23,13 +23,8 @@ cd "$WORK" || exit 1
 failures=0
 fail() { echo "not ok - $1: $2"; failures=$((failures + 1)); }
 
-for i in 1 2 4; do
-  "$BMSSIM" simulate --cell aboutenergy --protocol "Rest for 1 minute; Discharge at $i A for 8000 seconds or until 2.5 V; Rest for 10 minutes" \
-    --dt 2 --points 12 --radial 12 --rtol 1e-7 --noise-v-mv 0.1 --seed 5 --effect resistive_reactant_positive=0.015 \
-    --effect resistive_reactant_positive_log10=3.7 --effect resistive_reactant_positive_knee=0.55 --effect thermal=0.1 \
-    --quiet --out "truth$i" > /dev/null 2> "err_truth$i" ||
-    { echo "not ok - truth $i A: $(head -n 1 "err_truth$i")"; exit 1; }
-done
+discharge_truths "$BMSSIM" 5 --effect resistive_reactant_positive=0.015 --effect resistive_reactant_positive_log10=3.7 \
+  --effect resistive_reactant_positive_knee=0.55 --effect thermal=0.1
 "$BMSSIM" diagnose --data truth1/truth.csv --data truth2/truth.csv --data truth4/truth.csv --cell aboutenergy \
   --candidates resistive_reactant_positive,thermal,electrolyte_diffusivity --open-gain 0 --write-cell cell \
   --write-cell-partial --out diag --quiet 2> err_diag ||
