@@ -458,29 +458,29 @@ int seed_by_grid(Context& ctx, Hypothesis& h, const Fold& fold, const std::vecto
   return runs;
 }
 
-// The diffusivity profile moves the end of a discharge by many minutes, and its knee does
-// nothing while the profile is flat: Gauss-Newton from the plain model stayed at it on records
-// made with a profile. The resistive reactant has the same trouble (its rise and knee do nothing
-// while its resistance is off). A coarse grid over their knobs picks the start.
-std::vector<GridAxis> profile_seed_axes() {
-  return {{Effect::diffusivity_profile_positive, {-2.0, -1.0, -0.5}},
-          {Effect::diffusivity_profile_knee, {0.5, 0.7, 0.85}}};
+// The effects whose start a coarse grid over their knobs picks (empty: none). The diffusivity
+// profile moves the end of a discharge by many minutes, and its knee does nothing while the
+// profile is flat: Gauss-Newton from the plain model stayed at it on records made with a
+// profile. The resistive reactant has the same trouble (its rise and knee do nothing while its
+// resistance is off). Self-heating lowers the resistance as a discharge goes on, and more at a
+// higher rate; from the isothermal model Gauss-Newton sees only its small first-order effect and
+// stayed there on the About:Energy records, where 0.04-0.1 W/K (an 18650 in free air) fits with a
+// resistive reactant.
+std::vector<GridAxis> seed_axes_of(Effect e) {
+  switch (e) {
+    case Effect::diffusivity_profile_positive:
+      return {{Effect::diffusivity_profile_positive, {-2.0, -1.0, -0.5}},
+              {Effect::diffusivity_profile_knee, {0.5, 0.7, 0.85}}};
+    case Effect::resistive_reactant_positive:
+      return {{Effect::resistive_reactant_positive, {0.01, 0.1, 0.3}},
+              {Effect::resistive_reactant_log10, {1.0, 2.0, 3.0}},
+              {Effect::resistive_reactant_knee, {0.3, 0.6, 0.75}}};
+    case Effect::thermal: return {{Effect::thermal, {0.03, 0.1, 0.3, 1.0}}};
+    default: return {};
+  }
 }
 
-std::vector<GridAxis> reactant_seed_axes() {
-  return {{Effect::resistive_reactant_positive, {0.01, 0.1, 0.3}},
-          {Effect::resistive_reactant_log10, {1.0, 2.0, 3.0}},
-          {Effect::resistive_reactant_knee, {0.3, 0.6, 0.75}}};
-}
-
-// Self-heating lowers the resistance as a discharge goes on, and more at a higher rate; from the
-// isothermal model Gauss-Newton sees only its small first-order effect and stayed there on the
-// About:Energy records, where 0.04-0.1 W/K (an 18650 in free air) fits with a resistive reactant.
-std::vector<GridAxis> thermal_seed_axes() { return {{Effect::thermal, {0.03, 0.1, 0.3, 1.0}}}; }
-
-int seed_profile(Context& ctx, Hypothesis& h, const Fold& fold) { return seed_by_grid(ctx, h, fold, profile_seed_axes()); }
-int seed_reactant(Context& ctx, Hypothesis& h, const Fold& fold) { return seed_by_grid(ctx, h, fold, reactant_seed_axes()); }
-int seed_thermal(Context& ctx, Hypothesis& h, const Fold& fold) { return seed_by_grid(ctx, h, fold, thermal_seed_axes()); }
+bool has_seed_grid(Effect e) { return !seed_axes_of(e).empty(); }
 
 // The seed grids of a combination's effects searched together: an effect fitted alone can sit in
 // a basin the combination does not share (on the About:Energy records the reactant alone fits a
@@ -490,9 +490,8 @@ int seed_thermal(Context& ctx, Hypothesis& h, const Fold& fold) { return seed_by
 constexpr std::size_t kMaxJointSeedPoints = 150;
 int reseed_combination(Context& ctx, Hypothesis& h, const Fold& fold) {
   std::vector<std::vector<GridAxis>> grids;
-  if (has_knob(h, Effect::diffusivity_profile_positive)) grids.push_back(profile_seed_axes());
-  if (has_knob(h, Effect::resistive_reactant_positive)) grids.push_back(reactant_seed_axes());
-  if (has_knob(h, Effect::thermal)) grids.push_back(thermal_seed_axes());
+  for (const auto& setting : h)
+    if (auto axes = seed_axes_of(setting.effect); !axes.empty()) grids.push_back(std::move(axes));
   std::vector<GridAxis> joint;
   std::size_t points = 1;
   for (const auto& g : grids)
@@ -534,9 +533,8 @@ FitResult fit_knobs(Context& ctx, Hypothesis h, const std::vector<Effect>& knobs
     }
     set_knob(h, knobs.front(), sp.value(best_x));
   }
-  if (!narrow && knobs.front() == Effect::diffusivity_profile_positive) seed_evaluations += seed_profile(ctx, h, fold);
-  if (!narrow && knobs.front() == Effect::resistive_reactant_positive) seed_evaluations += seed_reactant(ctx, h, fold);
-  if (!narrow && knobs.front() == Effect::thermal) seed_evaluations += seed_thermal(ctx, h, fold);
+  if (!narrow && has_seed_grid(knobs.front()))
+    seed_evaluations += seed_by_grid(ctx, h, fold, seed_axes_of(knobs.front()));
   FitResult out = fit_by_gauss_newton(ctx, std::move(h), knobs, fold);
   out.evaluations += seed_evaluations;
   return out;
@@ -787,10 +785,6 @@ struct Candidate {
   double train_mv = 0.0;
   int evaluations = 0;
 };
-
-bool has_seed_grid(Effect e) {
-  return e == Effect::diffusivity_profile_positive || e == Effect::resistive_reactant_positive || e == Effect::thermal;
-}
 
 // An effect with a seed grid added to a base that has one: both grids searched together, then
 // every knob fitted (the base's fit alone can sit in a basin the two together do not share).
