@@ -70,7 +70,11 @@ int run_cell_config(const CellConfigCli& c) {
       {"model_bias_table", bias.table.on() ? nlohmann::json{{"abscissa", "the model's mean anode stoichiometry"},
                                                             {"x_first", bias.table.x_first},
                                                             {"x_last", bias.table.x_last},
-                                                            {"ohm", bias.table.ohm}}
+                                                            {"ohm", bias.table.ohm},
+                                                            {"trusted_last", std::isfinite(bias.table.x_trusted_last)
+                                                                                 ? nlohmann::json(bias.table.x_trusted_last)
+                                                                                 : nlohmann::json(nullptr)},
+                                                            {"knot_misfit_v_p90", bias.knot_misfit_v}}
                                            : nlohmann::json(nullptr)},
       {"nominal_residual_constant_v_p10_p50_p90", bias.residual_constant_v},
       {"nominal_residual_table_v_p10_p50_p90", bias.residual_table_v},

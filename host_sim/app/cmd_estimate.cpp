@@ -76,6 +76,8 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--no-inventory", v.learn_inventory);
   g("--model-bias-ohm", v.model_bias_ohm);
   g("--no-bias-table", v.model_bias_table);
+  g("--no-trusted-span", v.trusted_span);
+  g("--trusted-span-end", v.trusted_span_end);
   g("--relinearise", v.relinearise_inventory);
   g("--no-hold", v.hold_until_settled);
   g("--hold-restarted-charge", v.hold_restarted_charge);
@@ -285,6 +287,14 @@ Runner add_estimate(CLI::App& app) {
   sub->add_flag("!--no-bias-table", c->o.overrides.model_bias_table.value,
                 "--settings best only: remove the reduced model's design-time bias as the constant alone, not with "
                 "its state-of-charge-dependent table (a cell other than the paper's; the paper cell has no table)");
+  sub->add_flag("!--no-trusted-span", c->o.overrides.trusted_span.value,
+                "--settings best only: learn in the whole CC charge, also past the design-time calibration's "
+                "trusted span (where the reduced model leaves the nominal cell: a flat-OCP cell's end-of-charge "
+                "knee; ablation)");
+  sub->add_option("--trusted-span-end", c->o.overrides.trusted_span_end.value,
+                  "--settings best only: the model's mean anode stoichiometry above which a CC charge's learning "
+                  "stops (default: the design-time calibration's; none for the paper cell)")
+      ->check(CLI::Range(0.0, 1.0));
   sub->add_option("--relinearise", c->o.overrides.relinearise_inventory.value,
                   "--settings best with the observer: a re-synchronisation that moves the model's inventory by more "
                   "than this (relative, default 1e-3) restarts the film's learning (1 = never: ablation)")

@@ -4,7 +4,9 @@
 // identification would otherwise put into the film). The table builder's binning on known data.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include "estimation/design_bias.hpp"
@@ -50,6 +52,44 @@ TEST(DesignBiasTable, LcoTableIsFiniteAndNarrowsTheNominalResidual) {
   EXPECT_GT(spread_constant, 1e-3) << "the LCO template's model error varies over a charge by mV";
   EXPECT_LT(spread_table, 0.5 * spread_constant) << "the table removes most of that";
   EXPECT_LT(std::fabs(b.residual_table_v[1]), 0.5e-3);
+}
+
+// The trusted span ends below the highest run of knots whose misfit exceeds the tolerance; a last
+// knot that fits leaves no end.
+TEST(DesignBiasTable, TrustedSpanEndsBelowTheKnotsThatMisfit) {
+  constexpr int kN = fw::kModelBiasKnots;
+  fw::ModelBiasTable<double> t;
+  t.x_first = 0.2;
+  t.x_last = 0.2 + 0.01 * (kN - 1);
+  std::array<double, kN> misfit{};
+  misfit.fill(0.1e-3);
+  EXPECT_TRUE(std::isinf(trusted_span_end(t, misfit, 1.5e-3)));
+  misfit[3] = 5e-3;  // a misfit low in the charge does not end the span
+  misfit[kN - 1] = 26e-3;
+  misfit[kN - 2] = 4.5e-3;
+  EXPECT_NEAR(trusted_span_end(t, misfit, 1.5e-3), 0.2 + 0.01 * (kN - 3 + 0.5), 1e-12);
+  EXPECT_TRUE(std::isinf(trusted_span_end(fw::ModelBiasTable<double>{}, misfit, 1.5e-3))) << "a table that is off";
+  const std::vector<double> x = {0.2, 0.2, 0.2, 0.2 + 0.01 * (kN - 1)}, r = {1e-3, -2e-3, 0.0, 7e-3};
+  const auto m = knot_misfit_v(t, x, r);
+  EXPECT_DOUBLE_EQ(m[0], 2e-3) << "the 90th percentile of |r| (nearest rank) of the first knot's three ticks";
+  EXPECT_DOUBLE_EQ(m[kN - 1], 7e-3);
+  EXPECT_EQ(m[5], 0.0) << "a knot without ticks";
+}
+
+// The About:Energy LFP's nominal charge ends on a knee the table's medians miss: its span ends
+// inside the table's range, at a knot whose misfit fits and below the last knot's; the LCO
+// template fits to its last knot and has none.
+TEST(DesignBiasTable, AboutEnergyKneeEndsTheTrustedSpanLcoHasNone) {
+  const DesignBias ae = design_time_bias(load_cell("aboutenergy"));
+  ASSERT_TRUE(ae.table.on());
+  std::printf("aboutenergy trusted span end %.4f (table %.4f-%.4f), last knots' misfit %.2f / %.2f mV\n",
+              ae.table.x_trusted_last, ae.table.x_first, ae.table.x_last, 1e3 * ae.knot_misfit_v[fw::kModelBiasKnots - 2],
+              1e3 * ae.knot_misfit_v[fw::kModelBiasKnots - 1]);
+  EXPECT_GT(ae.table.x_trusted_last, ae.table.x_first + 0.5 * (ae.table.x_last - ae.table.x_first));
+  EXPECT_LT(ae.table.x_trusted_last, ae.table.x_last);
+  EXPECT_GT(ae.knot_misfit_v[fw::kModelBiasKnots - 1], 10e-3) << "the knee: tens of mV";
+  const DesignBias lco = design_time_bias(load_cell("lco"));
+  EXPECT_TRUE(std::isinf(lco.table.x_trusted_last));
 }
 
 }  // namespace

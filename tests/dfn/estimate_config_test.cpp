@@ -60,6 +60,7 @@ void add_path_fields(const fw::IdentifierFilmPath<double>::Config& c, std::vecto
       {"identifier.film_model_sd_rel", c.identifier.film_model_sd_rel},
       {"identifier.inventory_model_sd", c.identifier.inventory_model_sd},
       {"model_bias_ohm", c.model_bias_ohm},
+      {"model_bias_table.x_trusted_last", c.model_bias_table.x_trusted_last},
       {"relinearise_inventory", c.relinearise_inventory},
       {"innovation_time_constant_s", c.innovation_time_constant_s},
       {"innovation_sd_v", c.innovation_sd_v},
@@ -250,6 +251,8 @@ const std::vector<OverrideCase>& override_cases() {
       {"innovation-reject", [](fw::Overrides& o) { o.innovation_rejects = true; }},
       {"stop-film-move", [](fw::Overrides& o) { o.stop_film_move = 1.0; }},
       {"stop-knee-ratio", [](fw::Overrides& o) { o.stop_knee_ratio = 10.0; }},
+      {"no-trusted-span", [](fw::Overrides& o) { o.trusted_span = false; }},
+      {"trusted-span-end", [](fw::Overrides& o) { o.trusted_span_end = 0.7; }},
       {"stop-knee-inventory-sd", [](fw::Overrides& o) { o.stop_knee_inventory_sd = true; }},
       {"stop-knee-rise", [](fw::Overrides& o) { o.stop_knee_rise_ratio = 5.0; }},
       {"innovation-gate", [](fw::Overrides& o) { o.innovation_gate = 3.0; }},
@@ -264,14 +267,14 @@ std::set<std::string> expected_unused(fw::Profile p) {
       return {"reference-after-resyncs", "growth-scale", "no-start-resync", "resync-window", "resync-current",
               "no-inventory", "model-bias-ohm", "relinearise", "spread-anode-i0", "spread-cathode-i0",
               "spread-transport", "spread-area", "voltage-offset-sd-mv", "current-gain-sd-pct", "voltage-offset",
-              "innovation-reject", "stop-film-move", "stop-knee-ratio", "stop-knee-inventory-sd", "stop-knee-rise", "innovation-gate", "hold-restarted-charge"};
+              "innovation-reject", "stop-film-move", "stop-knee-ratio", "no-trusted-span", "trusted-span-end", "stop-knee-inventory-sd", "stop-knee-rise", "innovation-gate", "hold-restarted-charge"};
     case fw::Profile::best:  // the eleven, and what only RCSI reads
       return {"nc", "h", "p0", "p0-y0", "lambda", "eta", "theta0", "r-film-init", "calibrate-bias",
               "reference-after-resyncs", "average", "propagate-growth", "growth-scale"};
     case fw::Profile::nominal_growth:  // H from the model; no identifier
       return {"h", "no-inventory", "model-bias-ohm", "relinearise", "spread-anode-i0", "spread-cathode-i0",
               "spread-transport", "spread-area", "voltage-offset-sd-mv", "current-gain-sd-pct", "voltage-offset",
-              "innovation-reject", "stop-film-move", "stop-knee-ratio", "stop-knee-inventory-sd", "stop-knee-rise", "innovation-gate", "hold-restarted-charge"};
+              "innovation-reject", "stop-film-move", "stop-knee-ratio", "no-trusted-span", "trusted-span-end", "stop-knee-inventory-sd", "stop-knee-rise", "innovation-gate", "hold-restarted-charge"};
   }
   return {};
 }
@@ -315,7 +318,8 @@ TEST(EstimateConfig, AcceptedOverridesChangeTheConfiguration) {
       bool changed = false;
       for (std::size_t i = 0; i < got.size(); ++i) changed = changed || got[i].second != base[i].second;
       // Redundant switches (a flag the profile already has on, n_c = 1) may leave it as it was.
-      const bool redundant = (std::string(c.option) == "nc") ||
+      // The paper cell has no trusted span's end to switch off.
+      const bool redundant = (std::string(c.option) == "nc") || (std::string(c.option) == "no-trusted-span") ||
                              (p != fw::Profile::paper && (std::string(c.option) == "h-from-model" ||
                                                           std::string(c.option) == "resync")) ||
                              (p == fw::Profile::nominal_growth &&

@@ -114,4 +114,48 @@ TEST(ModelBiasTable, ChargeWithAStateDependentErrorIsIdentifiedWithTheTable) {
   EXPECT_GT(std::fabs(constant_only), 0.02) << "the median alone leaves its shape in the film";
 }
 
+// The same charge with a knee past x = 0.62 that the table does not hold (the model's misfit grows
+// as the square of the knee's fraction, to 50 mV at x = 0.7). Returns the identified film's
+// relative error; *learned_past counts the learned ticks past x_stop.
+double film_error_with_knee(const Path::Config& pc, double x_stop, int* learned_past) {
+  constexpr double kFilm = 3.7e-3, kH = 1.0, kI = -2.0, kKneeX = 0.62;
+  Path path(pc, 0.2);
+  bms::fw::LearningGate<double> gate(bms::fw::LearningGate<double>::Config{});
+  const bms::fw::StateResync<double> resync(bms::fw::StateResync<double>::Config{});
+  constexpr int kTicks = 6000;
+  *learned_past = 0;
+  for (int k = 0; k < kTicks; ++k) {
+    const double x = 0.2 + 0.5 * k / (kTicks - 1);
+    const double knee = x > kKneeX ? (x - kKneeX) / (0.7 - kKneeX) : 0.0;
+    const double s_v = 0.3 + 0.5 * k / kTicks;
+    const double u = path.film_in_use(true);
+    const double z = kH * (u - kFilm) - ramp().at(x) * kI - 0.05 * knee * knee;
+    bms::fw::ModelTickResult<double> r{3.5, kI, -1e3, kH, 0u, true, true};
+    const bms::fw::FilmTick<double> t{r, kI, u, z, 3.5 + s_v * 1e-3, 0.2, 1.0, true, true};
+    const auto l = path.learn(t, StoichModel{x}, gate, resync);
+    if (x > x_stop && l.active) ++*learned_past;
+  }
+  return (path.identifier().film_ohm_m2() - kFilm) / kFilm;
+}
+
+TEST(ModelBiasTable, LearningStopsPastTheTrustedSpan) {
+  Path::Config pc;
+  pc.identifier.r_film_nominal_ohm_m2 = 3.4e-3;
+  pc.identifier.growth_nominal_ohm_m2_per_a_m3_s = 1e-12;
+  pc.temperature_sd_k = 0.0;
+  pc.model_bias_table = ramp();
+  int learned_past = 0;
+  const double everywhere = film_error_with_knee(pc, 0.6, &learned_past);
+  EXPECT_GT(learned_past, 0) << "x_trusted_last +inf (the default): every tick is learned";
+  EXPECT_GT(std::fabs(everywhere), 0.02) << "the knee, learned, moves the film";
+  pc.model_bias_table.x_trusted_last = 0.6;
+  const double trusted = film_error_with_knee(pc, 0.6, &learned_past);
+  EXPECT_EQ(learned_past, 0) << "no tick past the span's end is learned";
+  EXPECT_LT(std::fabs(trusted), 1e-3) << "the span before the knee identifies the film";
+  EXPECT_TRUE(pc.model_bias_table.valid());
+  pc.model_bias_table.x_trusted_last = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(pc.model_bias_table.valid());
+  EXPECT_EQ(ramp().as<float>().x_trusted_last, std::numeric_limits<float>::infinity());
+}
+
 }  // namespace

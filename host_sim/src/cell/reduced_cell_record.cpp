@@ -194,6 +194,9 @@ std::string table_text(const fw::HermiteTable<N>& t) {
   return fmt::format("{{{}, {},\n     {{{}}},\n     {{{}}}}}", num(t.x_first), num(t.x_last), y, d);
 }
 
+// The trusted span's end as the header holds it: 0 for none (+inf in the table).
+double trusted_last_in_header(double x) { return std::isfinite(x) ? x : 0.0; }
+
 }  // namespace
 
 std::uint32_t record_crc32(const ReducedCellRecord& r, double model_bias_ohm,
@@ -215,6 +218,7 @@ std::uint32_t record_crc32(const ReducedCellRecord& r, double model_bias_ohm,
   c.add(model_bias_table.x_first);
   c.add(model_bias_table.x_last);
   for (double v : model_bias_table.ohm) c.add(v);
+  c.add(trusted_last_in_header(model_bias_table.x_trusted_last));
   return c.value();
 }
 
@@ -267,6 +271,8 @@ std::string cell_header_text(const ReducedCellRecord& r, const std::string& type
   for (int k = 0; k < fw::ModelBiasTable<double>::kKnots; ++k)
     s += (k == 0 ? " " : k % 4 == 0 ? ",\n      " : ", ") + num(model_bias_table.ohm[k]);
   s += "};\n";
+  s += "  // Above this mean anode stoichiometry a CC charge's learning stops (the model leaves the nominal cell; 0: none)\n";
+  field("kModelBiasTableTrustedLast", trusted_last_in_header(model_bias_table.x_trusted_last));
   s += fmt::format("  static constexpr std::uint32_t kRecordCrc32 = 0x{:08X}u;\n", record_crc32(r, model_bias_ohm, model_bias_table));
   s += fmt::format("  static constexpr HermiteTable<{}> kOcpNeg{};\n", kOcpTableNodes, table_text(r.ocp_neg));
   s += fmt::format("  static constexpr HermiteTable<{}> kOcpPos{};\n", kOcpTableNodes, table_text(r.ocp_pos));

@@ -4,6 +4,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "estimation/estimate_run.hpp"
@@ -16,6 +17,12 @@ namespace {
 constexpr int kCycles = 3;
 constexpr int kMeshVolumes = 40;
 constexpr double kRtol = 1e-9;
+// The trusted span: a knot fits when the 90th percentile of |residual less the bias| over its
+// ticks is within the innovation test's gate (5 x 0.3 mV, IdentifierFilmPath::Config): inside
+// it the model's error is what the table removes; past it (a knee the table's median misses) the
+// residual is the model's, not the film's.
+constexpr double kTrustedQuantile = 0.9;
+constexpr double kTrustedMisfitV = 1.5e-3;
 constexpr double kCvEndCRate = 0.1;  // C/10: at C/20 the NMC template's anode fills at the separator (flat OCP above x = 0.9)
 
 EstimateData nominal_run(const CellParameters& cell) {
@@ -91,6 +98,36 @@ fw::ModelBiasTable<double> bias_table_of(const std::vector<double>& stoich, cons
   return t;
 }
 
+std::array<double, fw::kModelBiasKnots> knot_misfit_v(const fw::ModelBiasTable<double>& t,
+                                                     const std::vector<double>& stoich,
+                                                     const std::vector<double>& residual_v) {
+  constexpr int kN = fw::kModelBiasKnots;
+  std::array<std::vector<double>, kN> bins;
+  const double step = (t.x_last - t.x_first) / (kN - 1);
+  for (std::size_t i = 0; i < stoich.size() && t.on(); ++i) {
+    const long k = std::lround((stoich[i] - t.x_first) / step);
+    bins[static_cast<std::size_t>(std::clamp<long>(k, 0, kN - 1))].push_back(std::fabs(residual_v[i]));
+  }
+  std::array<double, kN> misfit{};
+  for (int k = 0; k < kN; ++k) {
+    auto& b = bins[static_cast<std::size_t>(k)];
+    if (b.empty()) continue;
+    std::sort(b.begin(), b.end());
+    misfit[static_cast<std::size_t>(k)] = b[static_cast<std::size_t>(kTrustedQuantile * double(b.size() - 1) + 0.5)];
+  }
+  return misfit;
+}
+
+double trusted_span_end(const fw::ModelBiasTable<double>& t, const std::array<double, fw::kModelBiasKnots>& misfit_v,
+                        double tolerance_v) {
+  constexpr int kN = fw::kModelBiasKnots;
+  int k = kN - 1;
+  while (k >= 0 && misfit_v[static_cast<std::size_t>(k)] > tolerance_v) --k;
+  if (k == kN - 1 || !t.on()) return std::numeric_limits<double>::infinity();
+  const double step = (t.x_last - t.x_first) / (kN - 1);
+  return t.x_first + (k + 0.5) * step;  // the upper edge of the highest knot that fits
+}
+
 DesignBias design_time_bias(const CellParameters& nominal_in) {
   const auto wall0 = std::chrono::steady_clock::now();
   // The reduced model's own error against the plain DFN: the cell's effects (a contact
@@ -133,6 +170,8 @@ DesignBias design_time_bias(const CellParameters& nominal_in) {
     with_constant[i] = z_v[i] - b.bias_ohm * charge_a[i];
     with_table[i] = with_constant[i] - b.table.at(stoich[i]) * charge_a[i];
   }
+  b.knot_misfit_v = knot_misfit_v(b.table, stoich, with_table);
+  b.table.x_trusted_last = trusted_span_end(b.table, b.knot_misfit_v, kTrustedMisfitV);
   b.residual_constant_v = percentiles(with_constant);
   b.residual_table_v = percentiles(with_table);
   b.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();

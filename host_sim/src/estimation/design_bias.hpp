@@ -26,6 +26,9 @@ struct DesignBias {
   // The nominal run's residual less the bias over those ticks, 10th / 50th / 90th percentile [V]:
   // with the constant alone, and with the constant and the table.
   std::array<double, 3> residual_constant_v{}, residual_table_v{};
+  // Per knot, the 90th percentile of |residual less the constant and the table| over its ticks [V]
+  // (0 for a knot without ticks): the misfit that sets table.x_trusted_last.
+  std::array<double, fw::kModelBiasKnots> knot_misfit_v{};
   double wall_s = 0.0;
 };
 
@@ -33,6 +36,15 @@ DesignBias design_time_bias(const CellParameters& nominal);
 
 // The table of the ticks' (stoichiometry, z / -I less the constant): knots over the ticks' range.
 // Exposed for the tests; throws RuntimeFailure without ticks.
+// Per knot of t, the 90th percentile of |residual_v| over the ticks nearest it (0: no tick).
+std::array<double, fw::kModelBiasKnots> knot_misfit_v(const fw::ModelBiasTable<double>& t,
+                                                     const std::vector<double>& stoich,
+                                                     const std::vector<double>& residual_v);
+// The trusted span's end: the upper edge of the highest knot whose misfit is within tolerance_v
+// after every knot above it failed; +inf when the last knot fits (or the table is off).
+double trusted_span_end(const fw::ModelBiasTable<double>& t, const std::array<double, fw::kModelBiasKnots>& misfit_v,
+                        double tolerance_v);
+
 fw::ModelBiasTable<double> bias_table_of(const std::vector<double>& stoich, const std::vector<double>& ratio_ohm);
 
 }  // namespace bms

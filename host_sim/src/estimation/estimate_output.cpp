@@ -31,6 +31,9 @@ nlohmann::json options_json(const EstimateConfigSummary& c, const EstimateOption
                                {"ohm", c.model_bias_table.ohm}};
     else
       j["model_bias_table"] = nullptr;
+    j["trusted_span_end"] = std::isfinite(c.model_bias_table.x_trusted_last)
+                                ? nlohmann::json(c.model_bias_table.x_trusted_last)
+                                : nlohmann::json(nullptr);
     j["stated_spread_rel"] = {{"anode_i0", c.spread.anode_i0_rel}, {"cathode_i0", c.spread.cathode_i0_rel},
                               {"transport", c.spread.transport_rel}, {"area", c.spread.area_rel}};
     j["voltage_offset_sd_mv"] = c.voltage_offset_sd_v * 1e3;

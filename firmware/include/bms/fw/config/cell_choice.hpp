@@ -116,6 +116,7 @@ constexpr std::uint32_t cell_config_crc32() {
   crc = cell_crc::add(crc, Cell::kModelBiasOhm);
   crc = cell_crc::add(cell_crc::add(crc, Cell::kModelBiasTableFirst), Cell::kModelBiasTableLast);
   for (double v : Cell::kModelBiasTableOhm) crc = cell_crc::add(crc, v);
+  crc = cell_crc::add(crc, Cell::kModelBiasTableTrustedLast);
   return ~crc;
 }
 
@@ -133,6 +134,7 @@ struct BiasTableOf<Cell, std::void_t<decltype(Cell::kModelBiasTableOhm)>> {
     t.x_first = Cell::kModelBiasTableFirst;
     t.x_last = Cell::kModelBiasTableLast;
     for (int k = 0; k < kModelBiasKnots; ++k) t.ohm[k] = Cell::kModelBiasTableOhm[k];
+    if (Cell::kModelBiasTableTrustedLast > 0.0) t.x_trusted_last = Cell::kModelBiasTableTrustedLast;  // 0: none
     return t;
   }
 };

@@ -28,6 +28,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 
 #include "bms/fw/estimation/bms_core.hpp"
 #include "bms/fw/estimation/identifier_film_path.hpp"
@@ -183,6 +184,8 @@ struct Overrides {
   Given<bool> learn_inventory;         // --no-inventory (false)
   Given<double> model_bias_ohm;        // --model-bias-ohm
   Given<bool> model_bias_table;        // --no-bias-table (false): the constant bias alone
+  Given<bool> trusted_span;            // --no-trusted-span (false): learn past the calibration's trusted span
+  Given<double> trusted_span_end;      // --trusted-span-end X: the span's end (mean anode stoichiometry)
   Given<double> relinearise_inventory; // --relinearise
   Given<bool> hold_until_settled;      // --no-hold (false)
   Given<bool> hold_restarted_charge;   // --hold-restarted-charge (true)
@@ -261,6 +264,8 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"no-inventory", o.learn_inventory.given, id, only_best},
       {"model-bias-ohm", o.model_bias_ohm.given, id, only_best},
       {"no-bias-table", o.model_bias_table.given, id, only_best},
+      {"no-trusted-span", o.trusted_span.given, id, only_best},
+      {"trusted-span-end", o.trusted_span_end.given, id, only_best},
       {"relinearise", o.relinearise_inventory.given, id && observer, id ? no_observer : only_best},
       {"no-hold", o.hold_until_settled.given, id, only_best},
       {"hold-restarted-charge", o.hold_restarted_charge.given, id, only_best},
@@ -423,7 +428,14 @@ template <class Core>
 void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   set_if(o.learn_inventory, cfg.film_path.identifier.learn_inventory);
   set_if(o.model_bias_ohm, cfg.film_path.model_bias_ohm);
-  if (o.model_bias_table.given && !o.model_bias_table.value) cfg.film_path.model_bias_table = {};
+  if (o.model_bias_table.given && !o.model_bias_table.value) {
+    const auto span_end = cfg.film_path.model_bias_table.x_trusted_last;  // its own ablation: --no-trusted-span
+    cfg.film_path.model_bias_table = {};
+    cfg.film_path.model_bias_table.x_trusted_last = span_end;
+  }
+  set_if(o.trusted_span_end, cfg.film_path.model_bias_table.x_trusted_last);
+  if (o.trusted_span.given && !o.trusted_span.value)
+    cfg.film_path.model_bias_table.x_trusted_last = std::numeric_limits<decltype(cfg.film_path.model_bias_table.x_trusted_last)>::infinity();
   set_if(o.relinearise_inventory, cfg.film_path.relinearise_inventory);
   set_if(o.hold_until_settled, cfg.film_path.hold_until_settled);
   set_if(o.hold_restarted_charge, cfg.film_path.hold_through_restarted_charge);

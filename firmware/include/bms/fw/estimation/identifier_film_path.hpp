@@ -241,7 +241,7 @@ class IdentifierFilmPath {
         rise_start_v_ = rise_filtered_v_ = t.r.voltage_v - t.z_v;
       }
       const bool rising = rise_stops_charge(t.r.voltage_v - t.z_v, t.dt_s);
-      if (rising || knee_stops_charge(l.inventory_sensitivity_v) || stops_charge() ||
+      if (beyond_trusted_span(model) || rising || knee_stops_charge(l.inventory_sensitivity_v) || stops_charge() ||
           fusion_rejected(t, l.inventory_sensitivity_v, nu_model, bias_v, start)) {
         l.status |= bit(FwStatus::kInnovationRejected);
       } else {
@@ -406,6 +406,21 @@ class IdentifierFilmPath {
     const Scalar bound = c_.stop_film_move * c_.identifier.film_model_sd_rel * film_at_settle_ohm_m2_;
     stopped_in_charge_ = std::fabs(film - film_at_settle_ohm_m2_) > bound;
     return stopped_in_charge_;
+  }
+
+  // The stop condition of the design-time calibration (ModelBiasTable::x_trusted_last): the model's
+  // mean anode stoichiometry past the span where it fits the nominal cell; latched like the others.
+  template <class Model>
+  bool beyond_trusted_span(const Model& model) {
+    if constexpr (kGivesStoichiometry<Model, Scalar>) {
+      if (!std::isfinite(c_.model_bias_table.x_trusted_last)) return false;
+      if (stopped_in_charge_) return true;
+      stopped_in_charge_ = model.mean_stoich_neg() > c_.model_bias_table.x_trusted_last;
+      return stopped_in_charge_;
+    } else {
+      (void)model;
+      return false;
+    }
   }
 
   // The stop condition from the measured voltage's rise (Config::stop_knee_rise_ratio), latched

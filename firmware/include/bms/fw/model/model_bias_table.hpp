@@ -10,6 +10,7 @@
 // outside. Off (x_last <= x_first, the default): the bias is the constant alone, bit for bit.
 // Firmware rules: fixed size, no heap.
 #include <cmath>
+#include <limits>
 #include <type_traits>
 #include <utility>
 
@@ -31,12 +32,18 @@ struct ModelBiasTable {
   Scalar x_first = Scalar(0);  // mean anode stoichiometry of the first knot
   Scalar x_last = Scalar(0);   // of the last knot
   Scalar ohm[kKnots] = {};     // bias per ampere of charge current at each knot [ohm]
+  // The same calibration's trusted span: above this mean anode stoichiometry the reduced model
+  // leaves the nominal cell by more than a median can remove (a flat-OCP cell's end-of-charge
+  // knee), so a residual there is not the film's and a CC charge's learning stops
+  // (IdentifierFilmPath). +inf: trusted everywhere (the default, and a table that is off).
+  Scalar x_trusted_last = std::numeric_limits<Scalar>::infinity();
 
   bool on() const { return x_last > x_first; }
 
   // Finite knots over a finite, increasing span (or off).
   bool valid() const {
     if (!std::isfinite(x_first) || !std::isfinite(x_last) || x_last < x_first) return false;
+    if (std::isnan(x_trusted_last)) return false;
     for (Scalar v : ohm)
       if (!std::isfinite(v)) return false;
     return true;
@@ -60,6 +67,7 @@ struct ModelBiasTable {
     ModelBiasTable<Other> t;
     t.x_first = Other(x_first);
     t.x_last = Other(x_last);
+    t.x_trusted_last = Other(x_trusted_last);
     for (int k = 0; k < kKnots; ++k) t.ohm[k] = Other(ohm[k]);
     return t;
   }
