@@ -93,9 +93,12 @@ def residual_mv(est_csv, constant_ohm, warmup_s=900.0):
 
 out, cells = sys.argv[1], sys.argv[2:]
 seeds = [int(s) for s in os.environ.get("SEEDS", "901 902 903").split()]
-print("| cell | seed | film error cycles 3-5, % | growth_err_pct | capacity error (max, cycles 1-5), % | "
-      "film error, learning off, % | off / on |")
-print("|---|---|---|---|---|---|---|")
+# Two capacities: the open-circuit capacity of the identified inventory alone (this script's
+# bisection, no electrode-capacity scale), and the estimator's own capacity_est_ah as the contract
+# scores it (summary.json capacity_err_pct: with the area scale the CV-end pins measure).
+print("| cell | seed | film error cycles 3-5, % | growth_err_pct | capacity error of the identified inventory (max, cycles 1-5), % | "
+      "capacity_err_pct (contract; max |.|, cycles 1-5) | film error, learning off, % | off / on |")
+print("|---|---|---|---|---|---|---|---|")
 for cell in cells:
     c = cell_of(cell)
     for seed in seeds:
@@ -104,8 +107,9 @@ for cell in cells:
         off = json.load(open(run + "/off/summary.json"))
         cap = capacity_errors(c, run + "/truth/truth.csv", run + "/est/estimates.csv")
         f_on, f_off = film_3_5(on), film_3_5(off)
+        contract = max(abs(x["capacity_err_pct"]) for x in on["cycles"])
         print(f"| {cell} | {seed} | {f_on:.2f} | {on['growth_err_pct']:.1f} | {max(cap.values()):.3f} | "
-              f"{f_off:.2f} | {f_off / f_on:.2f} |")
+              f"{contract:.3f} | {f_off:.2f} | {f_off / f_on:.2f} |")
 
 print()
 print("| cell | seed | control run's z | z less the constant bias | spread | z less the bias in use | spread |")

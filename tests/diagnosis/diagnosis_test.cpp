@@ -10,6 +10,7 @@
 #include <random>
 
 #include "cell/paper_cell.hpp"
+#include "diagnosis/adequacy.hpp"
 #include "diagnosis/diagnose.hpp"
 #include "diagnosis/minimise.hpp"
 #include "diagnosis/parallel.hpp"
@@ -20,6 +21,24 @@
 namespace {
 
 using namespace bms::diagnosis;
+
+// The measurement noise from the voltage's second differences where the current is flat, and
+// the file's resolution where it never is (a ramp at every sample: not zero).
+TEST(MeasurementNoise, FlatStretchesGiveTheNoiseARampGivesTheResolution) {
+  Record flat, ramp;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.5e-3);
+  for (int k = 0; k < 4000; ++k) {
+    flat.t_s.push_back(k);
+    flat.current_a.push_back(k < 2000 ? 1.0 : -1.0);
+    flat.voltage_v.push_back(3.7 - 1e-5 * k + noise(rng));
+    ramp.t_s.push_back(k);
+    ramp.current_a.push_back(0.5 + 0.1 * std::sin(0.3 * k));  // changes 3 % of its peak per sample
+    ramp.voltage_v.push_back(std::round((3.7 - 0.05 * ramp.current_a.back()) / 1e-3) * 1e-3);  // 1 mV steps
+  }
+  EXPECT_NEAR(measurement_noise_mv(flat), 0.5, 0.05);
+  EXPECT_NEAR(measurement_noise_mv(ramp), 1.0 / std::sqrt(12.0), 1e-9) << "the 1 mV resolution, not 0";
+}
 
 TEST(Minimise, FindsTheGlobalMinimumPastASideMinimum) {
   // Side minimum near 0.8, global at 0.25.

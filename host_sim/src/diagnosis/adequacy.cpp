@@ -38,11 +38,13 @@ double measurement_noise_mv(const Record& r) {
     // almost nothing at 1-10 s sampling.
     d2.push_back(r.voltage_v[k + 1] - 2.0 * r.voltage_v[k] + r.voltage_v[k - 1]);
   }
-  if (d2.empty()) return 0.0;
+  const double rounding_v = std::isfinite(quantum) ? quantum / std::sqrt(12.0) : 0.0;
+  // Without a flat stretch (a current that changes at every sample) the white noise cannot be
+  // told from the current's curvature: the file's own resolution is the floor left, not zero.
+  if (d2.empty()) return 1e3 * rounding_v;
   const double med = stats::median(d2);
   for (double& x : d2) x = std::abs(x - med);
   const double sigma_v = kMadToSigma * stats::median(d2) / std::sqrt(6.0);
-  const double rounding_v = std::isfinite(quantum) ? quantum / std::sqrt(12.0) : 0.0;
   return 1e3 * std::max(sigma_v, rounding_v);
 }
 
