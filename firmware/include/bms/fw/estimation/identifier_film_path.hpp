@@ -226,7 +226,8 @@ class IdentifierFilmPath {
     if (t.probed) {
       const bool start = gate.should_start_identifying(t.probed);
       if (start) identifier_.begin_charge();
-      const Scalar bias_ohm = model_bias_ohm_of(model);
+      const Scalar x_neg = mean_stoich_of(model);  // once: the bias table and the trusted span read it
+      const Scalar bias_ohm = model_bias_ohm_at(x_neg);
       l.status |= innovation_test(t.z_v + bias_ohm * t.current_a, start, t.dt_s);
       l.inventory_sensitivity_v = (t.v_probe_v - t.r.voltage_v) / kInventoryProbe;
       const Scalar per_k = (v_warm_v_ - t.r.voltage_v) / (kTemperatureProbeK * t.r.markov_v_per_ohm_m2);
@@ -241,7 +242,7 @@ class IdentifierFilmPath {
         rise_start_v_ = rise_filtered_v_ = t.r.voltage_v - t.z_v;
       }
       const bool rising = rise_stops_charge(t.r.voltage_v - t.z_v, t.dt_s);
-      if (beyond_trusted_span(model) || rising || knee_stops_charge(l.inventory_sensitivity_v) || stops_charge() ||
+      if (beyond_trusted_span(x_neg) || rising || knee_stops_charge(l.inventory_sensitivity_v) || stops_charge() ||
           fusion_rejected(t, l.inventory_sensitivity_v, nu_model, bias_v, start)) {
         l.status |= bit(FwStatus::kInnovationRejected);
       } else {
@@ -359,12 +360,22 @@ class IdentifierFilmPath {
   // plus the table at the model's mean anode stoichiometry where the table is on.
   template <class Model>
   Scalar model_bias_ohm_of(const Model& model) const {
+    return model_bias_ohm_at(mean_stoich_of(model));
+  }
+  Scalar model_bias_ohm_at(Scalar x_neg) const {
+    return c_.model_bias_table.on() && !std::isnan(x_neg) ? c_.model_bias_ohm + c_.model_bias_table.at(x_neg)
+                                                          : c_.model_bias_ohm;
+  }
+  // The model's mean anode stoichiometry where the table or the trusted span needs it (NaN: a
+  // model without one, or neither needs it).
+  template <class Model>
+  Scalar mean_stoich_of(const Model& model) const {
     if constexpr (kGivesStoichiometry<Model, Scalar>) {
-      if (c_.model_bias_table.on()) return c_.model_bias_ohm + c_.model_bias_table.at(model.mean_stoich_neg());
+      if (c_.model_bias_table.on() || std::isfinite(c_.model_bias_table.x_trusted_last)) return model.mean_stoich_neg();
     } else {
       (void)model;
     }
-    return c_.model_bias_ohm;
+    return std::numeric_limits<Scalar>::quiet_NaN();
   }
 
  private:
@@ -410,17 +421,11 @@ class IdentifierFilmPath {
 
   // The stop condition of the design-time calibration (ModelBiasTable::x_trusted_last): the model's
   // mean anode stoichiometry past the span where it fits the nominal cell; latched like the others.
-  template <class Model>
-  bool beyond_trusted_span(const Model& model) {
-    if constexpr (kGivesStoichiometry<Model, Scalar>) {
-      if (!std::isfinite(c_.model_bias_table.x_trusted_last)) return false;
-      if (stopped_in_charge_) return true;
-      stopped_in_charge_ = model.mean_stoich_neg() > c_.model_bias_table.x_trusted_last;
-      return stopped_in_charge_;
-    } else {
-      (void)model;
-      return false;
-    }
+  bool beyond_trusted_span(Scalar x_neg) {
+    if (!std::isfinite(c_.model_bias_table.x_trusted_last)) return false;
+    if (stopped_in_charge_) return true;
+    stopped_in_charge_ = x_neg > c_.model_bias_table.x_trusted_last;  // NaN: no stoichiometry, no stop
+    return stopped_in_charge_;
   }
 
   // The stop condition from the measured voltage's rise (Config::stop_knee_rise_ratio), latched
