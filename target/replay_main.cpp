@@ -44,12 +44,19 @@ int main() {
   std::uint32_t newton_max = 0u;
   std::uint32_t cap_hits = 0u;
   bool finite = true;
+  // The ticks that re-synchronised the model (their cost already holds one re-synchronisation,
+  // so replay_check's bound adds its probe to the other ticks only).
+  constexpr std::size_t kMaxResyncTicks = 32u;
+  static std::size_t resync_ticks[kMaxResyncTicks];
+  std::size_t resyncs_seen = 0u;
   for (std::size_t k = 0; k < kReplayTicks; ++k) {
+    const std::uint32_t resyncs_before = fw.core.resync_count();
     const Scalar voltage_v = static_cast<Scalar>(static_cast<double>(bms_replay_voltage_10uv[k]) * 1e-5);
     const Scalar current_a = static_cast<Scalar>(static_cast<double>(bms_replay_current_100ua[k]) * 1e-4);
     const std::uint64_t t0 = bms::target::platform_instructions();
     const bms::target::TickOutput out = bms::target::replay_tick(fw, voltage_v, current_a);
     const std::uint64_t t1 = bms::target::platform_instructions();
+    if (fw.core.resync_count() != resyncs_before && resyncs_seen < kMaxResyncTicks) resync_ticks[resyncs_seen++] = k;
     std::printf("%u %u %u", static_cast<unsigned>(k), static_cast<unsigned>(out.mode), out.rcsi_active ? 1u : 0u);
     put(out.r_film_est_ohm_m2);
     put(out.z_v);
@@ -89,7 +96,9 @@ int main() {
   const std::uint64_t g1 = bms::target::platform_instructions();
   std::printf("# catch_up_probe gap 600 finite %u instructions %lu\n",
               std::isfinite(after_gap.z_v) ? 1u : 0u, static_cast<unsigned long>(g1 - g0));
-  std::printf("# ticks %u\n", static_cast<unsigned>(kReplayTicks));
+  std::printf("# resync_ticks");
+  for (std::size_t i = 0; i < resyncs_seen; ++i) std::printf(" %u", static_cast<unsigned>(resync_ticks[i]));
+  std::printf("\n# ticks %u\n", static_cast<unsigned>(kReplayTicks));
   std::printf("# scalar %s\n", sizeof(Scalar) == sizeof(double) ? "double" : "float");
   std::printf("# source_hash %s\n", BMS_FW_SOURCE_HASH);
   std::printf("# status_or 0x%08x\n", static_cast<unsigned>(status_or));
