@@ -10,6 +10,7 @@ compile), then over copies of it placed first on the include path, each changed 
   - one value of the OCP table changed, last bits                      -> the CRC static_assert;
   - the design-time bias changed, last bits (kModelBiasOhm)          -> the CRC static_assert;
   - one knot of the bias table changed, last bits (kModelBiasTableOhm) -> the CRC static_assert;
+  - the trusted span's end changed (kModelBiasTableTrustedLast 0 -> 0.7) -> the CRC static_assert;
   - the schema the header states changed (1 -> 2)                   -> the schema static_assert;
   - a field removed (kSideAlpha)                                    -> an error naming kSideAlpha.
 Each must fail to compile with its message. Exit 0 when all do, 1 otherwise.
@@ -69,6 +70,9 @@ def main():
          re.sub(r"(kModelBiasOhm = )([0-9.e+-]+)", lambda m: m.group(1) + nudge(m.group(2)), text, count=1), r"CRC-32 of the header's numbers"),
         ("a bias table knot changed (kModelBiasTableOhm)",
          re.sub(r"(kModelBiasTableOhm\[[0-9]+\] = \{\s*)([0-9.e+-]+)", lambda m: m.group(1) + nudge(m.group(2)), text, count=1),
+         r"CRC-32 of the header's numbers"),
+        ("the trusted span's end changed (kModelBiasTableTrustedLast)",
+         text.replace("kModelBiasTableTrustedLast = 0.0;", "kModelBiasTableTrustedLast = 0.7;"),
          r"CRC-32 of the header's numbers"),
         ("the schema changed",
          text.replace("static_assert(kCellConfigSchema == 1", "static_assert(kCellConfigSchema == 2"),

@@ -65,6 +65,7 @@ class SysTickTimer final : public MonotonicClock, public TickSource {
   std::uint32_t next_tick_ = 0u;
   std::uint32_t missed_ = 0u;
   const char* error_ = "";
+  mutable std::uint64_t last_counts_ = 0u;  // now_counts() never returns less than this
 };
 
 /// Log lines on the semihosting console: "level: message" or, with a clock,
