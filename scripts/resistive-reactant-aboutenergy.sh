@@ -13,7 +13,9 @@
 # Environment: BMSSIM=path to use a given binary instead of `./bms sim`; SHARED=path of ../shared;
 # ITERS=Nelder-Mead iterations per fit (default 150); KNOB_SETS=the knob sets to fit, separated by
 # ';', from "reactant", "reactant + D_pos, i0_pos, i0_neg", "reactant + thermal",
-# "reactant + thermal + i0_pos, i0_neg", "reactant + thermal + D_e" (default the first two).
+# "reactant + thermal + i0_pos, i0_neg", "reactant + thermal + D_e", "reactant + thermal + Ea" (the
+# reactant's activation energy, `--effect resistive_reactant_positive_ea`), "reactant + thermal + psd"
+# (the cathode particle-size distribution, `--effect particle_size`) (default the first two).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 out=${1:-$root/out/resistive-reactant}
@@ -36,6 +38,8 @@ def decode(x, keys):
         elif k == "s": eff["resistive_reactant_positive_log10"] = min(max(v, 0.0), 6.0)
         elif k == "k": eff["resistive_reactant_positive_knee"] = min(max(v, 0.0), 0.99)
         elif k == "h": eff["thermal"] = min(max(10 ** v, 1e-3), 100.0)
+        elif k == "ea": eff["resistive_reactant_positive_ea"] = min(max(1e5 * v, 0.0), 2e5)  # J/mol, 0.3 = 30 kJ/mol
+        elif k == "psd": eff["particle_size"] = min(max(v, 0.0), 1.5)  # log-space sigma of the cathode radii
     return sets, eff
 def run(r, sets, eff, keep=None):
     d = keep or f"{out}/scratch_{r}"
@@ -82,7 +86,9 @@ all_knob_sets = {"reactant": (["r", "s", "k"], [-1.5, 3.0, 0.4]),
                  "reactant + D_pos, i0_pos, i0_neg": (["r", "s", "k", "dp", "ip", "in"], [-1.5, 3.0, 0.4, 0.0, 0.0, 0.0]),
                  "reactant + thermal": (["r", "s", "k", "h"], [-1.5, 3.0, 0.4, -1.0]),
                  "reactant + thermal + i0_pos, i0_neg": (["r", "s", "k", "h", "ip", "in"], [-1.5, 3.0, 0.4, -1.0, 0.0, 0.0]),
-                 "reactant + thermal + D_e": (["r", "s", "k", "h", "de"], [-1.5, 3.0, 0.4, -1.0, 0.0])}
+                 "reactant + thermal + D_e": (["r", "s", "k", "h", "de"], [-1.5, 3.0, 0.4, -1.0, 0.0]),
+                 "reactant + thermal + Ea": (["r", "s", "k", "h", "ea"], [-1.5, 3.0, 0.4, -1.0, 0.3]),
+                 "reactant + thermal + psd": (["r", "s", "k", "h", "psd"], [-1.5, 3.0, 0.4, -1.0, 0.3])}
 chosen = os.environ.get("KNOB_SETS", "reactant;reactant + D_pos, i0_pos, i0_neg").split(";")
 sets_of_knobs = {name: all_knob_sets[name] for name in chosen}
 print("| knobs | held-out record | fitted on | fitted knobs | RMSE fitted records mV | held-out RMSE mV | plain DFN mV |")
