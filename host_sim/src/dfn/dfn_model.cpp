@@ -93,7 +93,7 @@ void check_effects(const CellParameters& cell, const ModelEffects& effects, doub
     bad("resistive_reactant_positive_log10: decades of rise to full lithiation must be in [0, 6]");
   if (!(effects.resistive_reactant_positive_knee >= 0.0 && effects.resistive_reactant_positive_knee <= 0.99))
     bad("resistive_reactant_positive_knee: the knee stoichiometry must be in [0, 0.99]");
-  // Measured activation energies of LiFePO4's electronic conduction are 0.15-0.6 eV (15-60 kJ/mol,
+  // Measured activation energies of LiFePO4's electronic conduction are 0.1-0.4 eV (10-40 kJ/mol,
   // docs/results/diagnosis.md); 200 kJ/mol leaves room without letting a few kelvin switch it off.
   if (!(effects.resistive_reactant_positive_ea_j_mol >= 0.0 && effects.resistive_reactant_positive_ea_j_mol <= 2e5))
     bad("resistive_reactant_positive_ea: the activation energy must be in [0, 200000] J/mol");
