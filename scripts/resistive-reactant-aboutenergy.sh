@@ -13,7 +13,10 @@
 # Environment: BMSSIM=path to use a given binary instead of `./bms sim`; SHARED=path of ../shared;
 # ITERS=Nelder-Mead iterations per fit (default 150); KNOB_SETS=the knob sets to fit, separated by
 # ';', from "reactant", "reactant + D_pos, i0_pos, i0_neg", "reactant + thermal",
-# "reactant + thermal + i0_pos, i0_neg", "reactant + thermal + D_e" (default the first two).
+# "reactant + thermal + i0_pos, i0_neg", "reactant + thermal + D_e", "reactant + thermal + Ea" (the
+# reactant's activation energy, `--effect resistive_reactant_positive_ea`), "reactant + thermal + psd"
+# (the cathode particle-size distribution, `--effect particle_size`), "reactant + thermal, Ea 30 kJ/mol"
+# (the activation energy held at a literature value, not fitted) (default the first two).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 out=${1:-$root/out/resistive-reactant}
@@ -28,14 +31,16 @@ recs = ["1C", "2C", "Co20"]
 meas = {r: [float(x["U[V]"]) for x in csv.DictReader(open(f"{data}/LFP_25degC_{r}.csv"))] for r in recs}
 factors = {"dp": "diffusivity_scale_positive", "ip": "i0_scale_positive", "in": "i0_scale_negative",
            "de": "electrolyte_diffusivity_scale"}
-def decode(x, keys):
-    sets, eff = {}, {}
+def decode(x, keys, fixed=None):
+    sets, eff = {}, dict(fixed or {})
     for k, v in zip(keys, x):
         if k in factors: sets[factors[k]] = min(max(10 ** v, 0.01), 10.0)
         elif k == "r": eff["resistive_reactant_positive"] = min(10 ** v, 100.0)
         elif k == "s": eff["resistive_reactant_positive_log10"] = min(max(v, 0.0), 6.0)
         elif k == "k": eff["resistive_reactant_positive_knee"] = min(max(v, 0.0), 0.99)
         elif k == "h": eff["thermal"] = min(max(10 ** v, 1e-3), 100.0)
+        elif k == "ea": eff["resistive_reactant_positive_ea"] = min(max(1e5 * v, 0.0), 2e5)  # J/mol, 0.3 = 30 kJ/mol
+        elif k == "psd": eff["particle_size"] = min(max(v, 0.0), 1.5)  # log-space sigma of the cathode radii
     return sets, eff
 def run(r, sets, eff, keep=None):
     d = keep or f"{out}/scratch_{r}"
@@ -48,8 +53,8 @@ def run(r, sets, eff, keep=None):
 def mse(r, v):  # the model stops at its voltage limit: the rest is scored with its last value (as diagnose does)
     if not v: return float("inf")
     return sum((1e3 * (v[min(i, len(v) - 1)] - m)) ** 2 for i, m in enumerate(meas[r])) / len(meas[r])
-def cost(x, keys, rs):
-    sets, eff = decode(x, keys)
+def cost(x, keys, rs, fixed):
+    sets, eff = decode(x, keys, fixed)
     return math.sqrt(sum(mse(r, run(r, sets, eff)) for r in rs) / len(rs))
 def nelder_mead(f, x0, step=0.3):
     n = len(x0)
@@ -82,23 +87,28 @@ all_knob_sets = {"reactant": (["r", "s", "k"], [-1.5, 3.0, 0.4]),
                  "reactant + D_pos, i0_pos, i0_neg": (["r", "s", "k", "dp", "ip", "in"], [-1.5, 3.0, 0.4, 0.0, 0.0, 0.0]),
                  "reactant + thermal": (["r", "s", "k", "h"], [-1.5, 3.0, 0.4, -1.0]),
                  "reactant + thermal + i0_pos, i0_neg": (["r", "s", "k", "h", "ip", "in"], [-1.5, 3.0, 0.4, -1.0, 0.0, 0.0]),
-                 "reactant + thermal + D_e": (["r", "s", "k", "h", "de"], [-1.5, 3.0, 0.4, -1.0, 0.0])}
+                 "reactant + thermal + D_e": (["r", "s", "k", "h", "de"], [-1.5, 3.0, 0.4, -1.0, 0.0]),
+                 "reactant + thermal + Ea": (["r", "s", "k", "h", "ea"], [-1.5, 3.0, 0.4, -1.0, 0.3]),
+                 "reactant + thermal + psd": (["r", "s", "k", "h", "psd"], [-1.5, 3.0, 0.4, -1.0, 0.3]),
+                 "reactant + thermal, Ea 30 kJ/mol": (["r", "s", "k", "h"], [-1.5, 3.0, 0.4, -1.0],
+                                                      {"resistive_reactant_positive_ea": 30000.0})}
 chosen = os.environ.get("KNOB_SETS", "reactant;reactant + D_pos, i0_pos, i0_neg").split(";")
 sets_of_knobs = {name: all_knob_sets[name] for name in chosen}
 print("| knobs | held-out record | fitted on | fitted knobs | RMSE fitted records mV | held-out RMSE mV | plain DFN mV |")
 print("|---|---|---|---|---|---|---|")
-for tag_index, (name, (keys, x0)) in enumerate(sets_of_knobs.items()):
+for tag_index, (name, (keys, x0, *rest)) in enumerate(sets_of_knobs.items()):
+    fixed = rest[0] if rest else {}
     held = {}
     for h in recs:
         train = [r for r in recs if r != h]
-        x, v = nelder_mead(lambda x: cost(x, keys, train), x0)
-        sets, eff = decode(x, keys)
+        x, v = nelder_mead(lambda x: cost(x, keys, train, fixed), x0)
+        sets, eff = decode(x, keys, fixed)
         held[h] = math.sqrt(mse(h, run(h, sets, eff)))
         knobs = ", ".join(f"{k} {val:.4g}" for k, val in {**eff, **sets}.items())
         print(f"| {name} | {h} | {' + '.join(train)} | {knobs} | {v:.1f} | {held[h]:.1f} | {plain[h]:.1f} |", flush=True)
     print(f"| {name} | pooled | | | | {pooled(held):.2f} | {pooled(plain):.2f} |", flush=True)
-    x, v = nelder_mead(lambda x: cost(x, keys, recs), x0)
-    sets, eff = decode(x, keys)
+    x, v = nelder_mead(lambda x: cost(x, keys, recs, fixed), x0)
+    sets, eff = decode(x, keys, fixed)
     tag = f"set{tag_index}"
     fit = {r: run(r, sets, eff, keep=f"{out}/fit_{tag}_{r}") for r in recs}
     print(f"in-sample on all three ({name}): " + ", ".join(f"{r} {math.sqrt(mse(r, fit[r])):.1f} mV" for r in recs) +

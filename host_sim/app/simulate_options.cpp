@@ -48,7 +48,9 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
                  "(cathode resistive reactant: an ohmic drop j R in each cathode particle's overpotential; VALUE = R in "
                  "ohm m2 of particle surface below the knee, e.g. 0.2), resistive_reactant_positive_log10 (decades R "
                  "rises from the knee to full lithiation, at the particle's mean stoichiometry), "
-                 "resistive_reactant_positive_knee (default 0.5), none");
+                 "resistive_reactant_positive_knee (default 0.5), resistive_reactant_positive_ea (J/mol: the reactant's "
+                 "resistance follows the cell temperature, Arrhenius from the cell's reference temperature; with "
+                 "thermal or --set temperature_k; default 0), none");
   sub.add_option("--set", o.set,
                  "Hidden truth parameter NAME=VALUE (repeatable; the truth only, never the estimator), e.g. "
                  "film_growth_scale=2, inventory_scale=0.97, temperature_k=288.15; `bmssim simulate --list-params` "

@@ -184,6 +184,8 @@ expect_bad negative_hysteresis   "w:hysteresis"         -- --cell paper --protoc
 expect_bad huge_hysteresis       "w:hysteresis"         -- --cell paper --protocol cccv --effect hysteresis=2
 expect_bad zero_thermal          "w:thermal"            -- --cell paper --protocol cccv --effect thermal=0
 expect_bad nan_thermal           "w:thermal"            -- --cell paper --protocol cccv --effect thermal=nan
+expect_bad negative_reactant_ea  "w:resistive_reactant_positive_ea" -- --cell paper --protocol cccv --effect resistive_reactant_positive_ea=-1
+expect_bad huge_reactant_ea      "w:resistive_reactant_positive_ea" -- --cell paper --protocol cccv --effect resistive_reactant_positive_ea=3e5
 expect_bad unknown_option        "w:frobnicate"         -- --cell paper --protocol cccv --frobnicate
 
 MISSING_CSV="$WORK/no/such/dir/nonexistent.csv"

@@ -26,8 +26,9 @@ struct Discharge {
   double inventory_drift = 0.0;
 };
 
-inline Discharge discharge(const CellParameters& cell, const ModelEffects& effects, double current_a, double stop_v) {
-  DfnModel m(cell, kCoarse, 298.15, effects);
+inline Discharge discharge(const CellParameters& cell, const ModelEffects& effects, double current_a, double stop_v,
+                           double temperature_k = 298.15) {
+  DfnModel m(cell, kCoarse, temperature_k, effects);
   DfnSolver solver(m, SolverSettings{});
   m.set_control({ControlKind::current, 0.0});
   const auto ic = default_initial_conditions(cell);

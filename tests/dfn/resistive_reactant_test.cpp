@@ -79,6 +79,63 @@ TEST(ResistiveReactant, RisingResistanceBringsTheKneeEarlierAndConservesLithium)
   EXPECT_GT(risen.v[early], 2.8);
 }
 
+// The activation energy of the reactant's resistance (ModelEffects::resistive_reactant_positive_ea_j_mol).
+// At the reference temperature without self-heating it changes nothing, bit for bit.
+TEST(ResistiveReactant, ActivationEnergyAtTheReferenceTemperatureIsBitForBit) {
+  const CellParameters cell = ae_cell();
+  ModelEffects base, activated;
+  base.resistive_reactant_positive_ohm_m2 = activated.resistive_reactant_positive_ohm_m2 = 0.05;
+  base.resistive_reactant_positive_log10 = activated.resistive_reactant_positive_log10 = 2.5;
+  base.resistive_reactant_positive_knee = activated.resistive_reactant_positive_knee = 0.6;
+  activated.resistive_reactant_positive_ea_j_mol = 40e3;
+  ASSERT_EQ(cell.thermal.reference_temperature_k, 298.15);
+  const Discharge a = discharge(cell, base, 2.0), b = discharge(cell, activated, 2.0);
+  EXPECT_EQ(a.end_s, b.end_s);
+  ASSERT_EQ(a.v.size(), b.v.size());
+  for (size_t k = 0; k < a.v.size(); ++k) ASSERT_EQ(a.v[k], b.v[k]) << "sample " << k;
+}
+
+// Held 20 K above the reference, the resistance is R exp(Ea/Rgas (1/T - 1/T_ref)): the same
+// discharge as Ea = 0 with R scaled by that factor by hand.
+TEST(ResistiveReactant, ActivationEnergyScalesTheResistanceByArrhenius) {
+  const CellParameters cell = ae_cell();
+  const double t_k = 318.15, ea = 40e3;
+  const double factor = std::exp(ea / 8.314462618 * (1.0 / t_k - 1.0 / 298.15));  // about 0.37
+  ModelEffects activated, scaled, at_r;
+  activated.resistive_reactant_positive_ohm_m2 = at_r.resistive_reactant_positive_ohm_m2 = 0.5;
+  activated.resistive_reactant_positive_ea_j_mol = ea;
+  scaled.resistive_reactant_positive_ohm_m2 = 0.5 * factor;
+  const Discharge a = ae_discharge::discharge(cell, activated, 2.0, 2.0, t_k);
+  const Discharge s = ae_discharge::discharge(cell, scaled, 2.0, 2.0, t_k);
+  const Discharge unscaled = ae_discharge::discharge(cell, at_r, 2.0, 2.0, t_k);
+  ASSERT_EQ(a.v.size(), s.v.size());
+  for (size_t k = 0; k < a.v.size(); ++k) ASSERT_NEAR(a.v[k], s.v[k], 1e-6) << "sample " << k;
+  // The scaling matters: the activated cell's drop is tens of mV smaller than at R itself.
+  EXPECT_GT(a.v[5] - unscaled.v[5], 0.02);
+}
+
+// With self-heating the cell warms during a 2C discharge, so an activated reactant resists less
+// and the voltage late in the discharge (where the cell is warmest and the resistance highest)
+// is higher than with the temperature-independent resistance.
+TEST(ResistiveReactant, ActivationEnergyWithSelfHeatingLowersTheDrop) {
+  const CellParameters cell = ae_cell();
+  ModelEffects plain_r, activated;
+  plain_r.resistive_reactant_positive_ohm_m2 = activated.resistive_reactant_positive_ohm_m2 = 0.05;
+  plain_r.resistive_reactant_positive_log10 = activated.resistive_reactant_positive_log10 = 2.5;
+  plain_r.resistive_reactant_positive_knee = activated.resistive_reactant_positive_knee = 0.6;
+  plain_r.thermal_h_w_per_k = activated.thermal_h_w_per_k = 0.05;
+  activated.resistive_reactant_positive_ea_j_mol = 40e3;
+  const Discharge p = discharge(cell, plain_r, 3.0), a = discharge(cell, activated, 3.0);
+  ASSERT_GT(p.v.size(), 12u);
+  ASSERT_GT(a.v.size(), 12u);
+  // At the start the cell is at ambient: the same voltage within 1 mV.
+  EXPECT_NEAR(a.v[0], p.v[0], 1e-3);
+  // Ten minutes before the temperature-independent cell's end: at least 10 mV higher.
+  const size_t late = p.v.size() - 11;
+  EXPECT_GT(a.v[late], p.v[late] + 0.01) << a.v[late] << " vs " << p.v[late];
+  EXPECT_GE(a.end_s, p.end_s);
+}
+
 TEST(ResistiveReactant, BadValuesAreInputErrors) {
   const CellParameters cell = ae_cell();
   ModelEffects eff;
@@ -91,6 +148,11 @@ TEST(ResistiveReactant, BadValuesAreInputErrors) {
   EXPECT_THROW(DfnModel(cell, kCoarse, 298.15, eff), InputError);
   eff.resistive_reactant_positive_log10 = 2.0;
   eff.resistive_reactant_positive_knee = 1.0;
+  EXPECT_THROW(DfnModel(cell, kCoarse, 298.15, eff), InputError);
+  eff.resistive_reactant_positive_knee = 0.5;
+  eff.resistive_reactant_positive_ea_j_mol = -1.0;
+  EXPECT_THROW(DfnModel(cell, kCoarse, 298.15, eff), InputError);
+  eff.resistive_reactant_positive_ea_j_mol = NAN;
   EXPECT_THROW(DfnModel(cell, kCoarse, 298.15, eff), InputError);
 }
 

@@ -93,6 +93,10 @@ void check_effects(const CellParameters& cell, const ModelEffects& effects, doub
     bad("resistive_reactant_positive_log10: decades of rise to full lithiation must be in [0, 6]");
   if (!(effects.resistive_reactant_positive_knee >= 0.0 && effects.resistive_reactant_positive_knee <= 0.99))
     bad("resistive_reactant_positive_knee: the knee stoichiometry must be in [0, 0.99]");
+  // Measured activation energies of LiFePO4's electronic conduction are 0.1-0.4 eV (10-40 kJ/mol,
+  // docs/results/diagnosis.md); 200 kJ/mol leaves room without letting a few kelvin switch it off.
+  if (!(effects.resistive_reactant_positive_ea_j_mol >= 0.0 && effects.resistive_reactant_positive_ea_j_mol <= 2e5))
+    bad("resistive_reactant_positive_ea: the activation energy must be in [0, 200000] J/mol");
   // The lithium loss is read back from the film through the growth factor: it must not be 0.
   if (!(std::isfinite(cell.side.film_growth_scale) && cell.side.film_growth_scale > 0.0))
     throw InputError("film_growth_scale: must be a finite value > 0");
@@ -573,7 +577,10 @@ T DfnResidual<T>::resistive_reactant(int e, int pop, const ElectrodeParameters& 
   const double per_volume = 3.0 / (radius * radius * radius * p.max_concentration_mol_m3);
   T x_mean = T(0.0);
   for (int r = 0; r < nr; ++r) x_mean = x_mean + y[m.idx_cs_pop(e, pop, r)] * (m.shell_vol_[side * nr + r] * per_volume);
-  return m.effects_.resistive_reactant_positive_ohm_m2 * apply(*m.reactant_factor_, x_mean);
+  const T r = m.effects_.resistive_reactant_positive_ohm_m2 * apply(*m.reactant_factor_, x_mean);
+  const double ea = m.effects_.resistive_reactant_positive_ea_j_mol;
+  // A conductivity activated by Ea: the resistance falls as the cell warms (arrhenius of -Ea).
+  return temp_dep && ea > 0.0 ? r * m.arrhenius(-ea, temp) : r;
 }
 
 // Population pop of node e's particles: finite volumes in r, the molar flux out of the surface

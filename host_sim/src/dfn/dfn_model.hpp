@@ -74,6 +74,10 @@ struct ModelEffects {
   double resistive_reactant_positive_ohm_m2 = 0.0;
   double resistive_reactant_positive_log10 = 0.0;
   double resistive_reactant_positive_knee = 0.5;
+  // The reactant's resistance follows the cell temperature, R(x, T) = R(x) exp(Ea/Rgas (1/T -
+  // 1/T_ref)) with T_ref the cell's reference temperature: LiFePO4's electronic conductivity is
+  // thermally activated, so a warming cell's reactant resists less. J/mol; 0 = R(x) alone.
+  double resistive_reactant_positive_ea_j_mol = 0.0;
 
   bool hysteresis_on() const { return hysteresis_v > 0.0; }
   bool thermal_on() const { return thermal_h_w_per_k > 0.0; }

@@ -155,11 +155,16 @@ void apply_effect(const std::string& e, ModelEffects& effects, MeasurementModel&
     if (!(value >= 0.0 && value <= 0.99))
       throw InputError("--effect resistive_reactant_positive_knee: the knee stoichiometry must be in [0, 0.99]");
     effects.resistive_reactant_positive_knee = value;
+  } else if (name == "resistive_reactant_positive_ea") {
+    if (!(value >= 0.0 && value <= 2e5))
+      throw InputError("--effect resistive_reactant_positive_ea: the activation energy must be in [0, 200000] J/mol");
+    effects.resistive_reactant_positive_ea_j_mol = value;
   } else if (name != "none") {
     throw InputError("--effect '" + name +
                      "': unknown; use contact_resistance, hysteresis, current_offset, current_gain, temperature_offset, voltage_offset, thermal, "
                      "particle_size, particle_size_negative, diffusivity_profile_positive, diffusivity_profile_positive_knee, "
-                     "resistive_reactant_positive, resistive_reactant_positive_log10, resistive_reactant_positive_knee or none");
+                     "resistive_reactant_positive, resistive_reactant_positive_log10, resistive_reactant_positive_knee, "
+                     "resistive_reactant_positive_ea or none");
   }
 }
 
