@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The estimator on cells other than the paper's: for each cell, hidden truth (film-growth law x1.8,
 # initial film +9 %, cyclable lithium -0.5 %), 0.2 mV voltage noise, 5 CCCV cycles at 1C within
-# the cell's window (CV to C/20), seeds 901-903 (never used to tune anything); the firmware's
+# the cell's window (CV to C/20), seeds 901-903 (the training seeds; 904-906 held out); the firmware's
 # reduced model built from the cell (--cell X --model reduced, best settings), and the control
 # run (--no-learning). Prints one table row per cell and seed (scripts/any_cell_scores.py), and
 # the control run's CC-charge residual less the design-time bias (10/50/90 %, cycles 3-5).
