@@ -27,6 +27,13 @@ void put(Scalar v) {
   }
 }
 
+// A "# name k1 k2 ..." summary line.
+void put_ticks(const char* name, const std::size_t* ticks, std::size_t n) {
+  std::printf("# %s", name);
+  for (std::size_t i = 0; i < n; ++i) std::printf(" %u", static_cast<unsigned>(ticks[i]));
+  std::printf("\n");
+}
+
 }  // namespace
 
 int main() {
@@ -96,9 +103,8 @@ int main() {
   const std::uint64_t g1 = bms::target::platform_instructions();
   std::printf("# catch_up_probe gap 600 finite %u instructions %lu\n",
               std::isfinite(after_gap.z_v) ? 1u : 0u, static_cast<unsigned long>(g1 - g0));
-  std::printf("# resync_ticks");
-  for (std::size_t i = 0; i < resyncs_seen; ++i) std::printf(" %u", static_cast<unsigned>(resync_ticks[i]));
-  std::printf("\n# ticks %u\n", static_cast<unsigned>(kReplayTicks));
+  put_ticks("resync_ticks", resync_ticks, resyncs_seen);
+  std::printf("# ticks %u\n", static_cast<unsigned>(kReplayTicks));
   std::printf("# scalar %s\n", sizeof(Scalar) == sizeof(double) ? "double" : "float");
   std::printf("# source_hash %s\n", BMS_FW_SOURCE_HASH);
   std::printf("# status_or 0x%08x\n", static_cast<unsigned>(status_or));
