@@ -79,14 +79,21 @@ TEST(ResistiveReactant, RisingResistanceBringsTheKneeEarlierAndConservesLithium)
   EXPECT_GT(risen.v[early], 2.8);
 }
 
+// A reactant of 0.05 ohm m2 below a knee at x = 0.6, rising 2.5 decades to x = 1.
+ModelEffects knee_reactant() {
+  ModelEffects e;
+  e.resistive_reactant_positive_ohm_m2 = 0.05;
+  e.resistive_reactant_positive_log10 = 2.5;
+  e.resistive_reactant_positive_knee = 0.6;
+  return e;
+}
+
 // The activation energy of the reactant's resistance (ModelEffects::resistive_reactant_positive_ea_j_mol).
 // At the reference temperature without self-heating it changes nothing, bit for bit.
 TEST(ResistiveReactant, ActivationEnergyAtTheReferenceTemperatureIsBitForBit) {
   const CellParameters cell = ae_cell();
-  ModelEffects base, activated;
-  base.resistive_reactant_positive_ohm_m2 = activated.resistive_reactant_positive_ohm_m2 = 0.05;
-  base.resistive_reactant_positive_log10 = activated.resistive_reactant_positive_log10 = 2.5;
-  base.resistive_reactant_positive_knee = activated.resistive_reactant_positive_knee = 0.6;
+  const ModelEffects base = knee_reactant();
+  ModelEffects activated = knee_reactant();
   activated.resistive_reactant_positive_ea_j_mol = 40e3;
   ASSERT_EQ(cell.thermal.reference_temperature_k, 298.15);
   const Discharge a = discharge(cell, base, 2.0), b = discharge(cell, activated, 2.0);
@@ -119,10 +126,7 @@ TEST(ResistiveReactant, ActivationEnergyScalesTheResistanceByArrhenius) {
 // is higher than with the temperature-independent resistance.
 TEST(ResistiveReactant, ActivationEnergyWithSelfHeatingLowersTheDrop) {
   const CellParameters cell = ae_cell();
-  ModelEffects plain_r, activated;
-  plain_r.resistive_reactant_positive_ohm_m2 = activated.resistive_reactant_positive_ohm_m2 = 0.05;
-  plain_r.resistive_reactant_positive_log10 = activated.resistive_reactant_positive_log10 = 2.5;
-  plain_r.resistive_reactant_positive_knee = activated.resistive_reactant_positive_knee = 0.6;
+  ModelEffects plain_r = knee_reactant(), activated = knee_reactant();
   plain_r.thermal_h_w_per_k = activated.thermal_h_w_per_k = 0.05;
   activated.resistive_reactant_positive_ea_j_mol = 40e3;
   const Discharge p = discharge(cell, plain_r, 3.0), a = discharge(cell, activated, 3.0);

@@ -81,31 +81,44 @@ TEST(ModelBiasTable, PathAddsTheTableAtTheModelsStoichiometry) {
 }
 
 // One CC charge at 2 A whose model error is the table's shape over x = 0.2 .. 0.7: z = H (u - R) +
-// S (0 - nu) + b(x) I_charge. Returns the identified film's relative error.
-double film_error_of_charge(const Path::Config& pc) {
-  constexpr double kFilm = 3.7e-3, kH = 1.0, kI = -2.0;
+// S (0 - nu) + b(x) I_charge, less a knee past x = 0.62 that the table does not hold (knee_v x the
+// square of the knee's fraction, knee_v at x = 0.7). Returns the identified film's relative error;
+// *learned_past (if given) counts the learned ticks past x_stop.
+double film_error_of_charge(const Path::Config& pc, double knee_v = 0.0, double x_stop = 1.0,
+                            int* learned_past = nullptr) {
+  constexpr double kFilm = 3.7e-3, kH = 1.0, kI = -2.0, kKneeX = 0.62;
   Path path(pc, 0.2);
   bms::fw::LearningGate<double> gate(bms::fw::LearningGate<double>::Config{});
   const bms::fw::StateResync<double> resync(bms::fw::StateResync<double>::Config{});
   constexpr int kTicks = 6000;
+  int past = 0;
   for (int k = 0; k < kTicks; ++k) {
     const double x = 0.2 + 0.5 * k / (kTicks - 1);
+    const double knee = x > kKneeX ? (x - kKneeX) / (0.7 - kKneeX) : 0.0;
     const double s_v = 0.3 + 0.5 * k / kTicks;
     const double u = path.film_in_use(true);
-    const double z = kH * (u - kFilm) - ramp().at(x) * kI;
+    const double z = kH * (u - kFilm) - ramp().at(x) * kI - knee_v * knee * knee;
     bms::fw::ModelTickResult<double> r{3.5, kI, -1e3, kH, 0u, true, true};
     const bms::fw::FilmTick<double> t{r, kI, u, z, 3.5 + s_v * 1e-3, 0.2, 1.0, true, true};
-    path.learn(t, StoichModel{x}, gate, resync);
+    const auto l = path.learn(t, StoichModel{x}, gate, resync);
+    if (x > x_stop && l.active) ++past;
   }
+  if (learned_past != nullptr) *learned_past = past;
   return (path.identifier().film_ohm_m2() - kFilm) / kFilm;
 }
 
-TEST(ModelBiasTable, ChargeWithAStateDependentErrorIsIdentifiedWithTheTable) {
+// The path of the synthetic charges: a nominal film 8 % below theirs, the ramp's table.
+Path::Config charge_config() {
   Path::Config pc;
   pc.identifier.r_film_nominal_ohm_m2 = 3.4e-3;
   pc.identifier.growth_nominal_ohm_m2_per_a_m3_s = 1e-12;
   pc.temperature_sd_k = 0.0;
   pc.model_bias_table = ramp();
+  return pc;
+}
+
+TEST(ModelBiasTable, ChargeWithAStateDependentErrorIsIdentifiedWithTheTable) {
+  Path::Config pc = charge_config();
   const double with_table = film_error_of_charge(pc);
   pc.model_bias_table = Table{};
   pc.model_bias_ohm = ramp().at(0.45);  // the table's median over the charge, as a constant
@@ -114,42 +127,14 @@ TEST(ModelBiasTable, ChargeWithAStateDependentErrorIsIdentifiedWithTheTable) {
   EXPECT_GT(std::fabs(constant_only), 0.02) << "the median alone leaves its shape in the film";
 }
 
-// The same charge with a knee past x = 0.62 that the table does not hold (the model's misfit grows
-// as the square of the knee's fraction, to 50 mV at x = 0.7). Returns the identified film's
-// relative error; *learned_past counts the learned ticks past x_stop.
-double film_error_with_knee(const Path::Config& pc, double x_stop, int* learned_past) {
-  constexpr double kFilm = 3.7e-3, kH = 1.0, kI = -2.0, kKneeX = 0.62;
-  Path path(pc, 0.2);
-  bms::fw::LearningGate<double> gate(bms::fw::LearningGate<double>::Config{});
-  const bms::fw::StateResync<double> resync(bms::fw::StateResync<double>::Config{});
-  constexpr int kTicks = 6000;
-  *learned_past = 0;
-  for (int k = 0; k < kTicks; ++k) {
-    const double x = 0.2 + 0.5 * k / (kTicks - 1);
-    const double knee = x > kKneeX ? (x - kKneeX) / (0.7 - kKneeX) : 0.0;
-    const double s_v = 0.3 + 0.5 * k / kTicks;
-    const double u = path.film_in_use(true);
-    const double z = kH * (u - kFilm) - ramp().at(x) * kI - 0.05 * knee * knee;
-    bms::fw::ModelTickResult<double> r{3.5, kI, -1e3, kH, 0u, true, true};
-    const bms::fw::FilmTick<double> t{r, kI, u, z, 3.5 + s_v * 1e-3, 0.2, 1.0, true, true};
-    const auto l = path.learn(t, StoichModel{x}, gate, resync);
-    if (x > x_stop && l.active) ++*learned_past;
-  }
-  return (path.identifier().film_ohm_m2() - kFilm) / kFilm;
-}
-
 TEST(ModelBiasTable, LearningStopsPastTheTrustedSpan) {
-  Path::Config pc;
-  pc.identifier.r_film_nominal_ohm_m2 = 3.4e-3;
-  pc.identifier.growth_nominal_ohm_m2_per_a_m3_s = 1e-12;
-  pc.temperature_sd_k = 0.0;
-  pc.model_bias_table = ramp();
+  Path::Config pc = charge_config();
   int learned_past = 0;
-  const double everywhere = film_error_with_knee(pc, 0.6, &learned_past);
+  const double everywhere = film_error_of_charge(pc, 0.05, 0.6, &learned_past);
   EXPECT_GT(learned_past, 0) << "x_trusted_last +inf (the default): every tick is learned";
   EXPECT_GT(std::fabs(everywhere), 0.02) << "the knee, learned, moves the film";
   pc.model_bias_table.x_trusted_last = 0.6;
-  const double trusted = film_error_with_knee(pc, 0.6, &learned_past);
+  const double trusted = film_error_of_charge(pc, 0.05, 0.6, &learned_past);
   EXPECT_EQ(learned_past, 0) << "no tick past the span's end is learned";
   EXPECT_LT(std::fabs(trusted), 1e-3) << "the span before the knee identifies the film";
   EXPECT_TRUE(pc.model_bias_table.valid());
