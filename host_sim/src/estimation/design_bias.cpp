@@ -64,6 +64,21 @@ std::array<double, 3> percentiles(std::vector<double> v) {
   return {at(0.1), at(0.5), at(0.9)};
 }
 
+// The ticks' values grouped by the knot of t nearest each tick's stoichiometry (the end knots
+// take the ticks beyond them).
+std::array<std::vector<double>, fw::kModelBiasKnots> by_knot(const fw::ModelBiasTable<double>& t,
+                                                             const std::vector<double>& stoich,
+                                                             const std::vector<double>& values) {
+  constexpr int kN = fw::kModelBiasKnots;
+  const double step = (t.x_last - t.x_first) / (kN - 1);
+  std::array<std::vector<double>, kN> bins;
+  for (std::size_t i = 0; i < stoich.size(); ++i) {
+    const long k = std::lround((stoich[i] - t.x_first) / step);
+    bins[static_cast<std::size_t>(std::clamp<long>(k, 0, kN - 1))].push_back(values[i]);
+  }
+  return bins;
+}
+
 }  // namespace
 
 fw::ModelBiasTable<double> bias_table_of(const std::vector<double>& stoich, const std::vector<double>& ratio_ohm) {
@@ -75,12 +90,7 @@ fw::ModelBiasTable<double> bias_table_of(const std::vector<double>& stoich, cons
   if (!(*hi > *lo)) return t;  // one state only: the constant says it all
   t.x_first = *lo;
   t.x_last = *hi;
-  const double step = (t.x_last - t.x_first) / (kN - 1);
-  std::array<std::vector<double>, kN> bins;
-  for (std::size_t i = 0; i < stoich.size(); ++i) {
-    const long k = std::lround((stoich[i] - t.x_first) / step);
-    bins[static_cast<std::size_t>(std::clamp<long>(k, 0, kN - 1))].push_back(ratio_ohm[i]);
-  }
+  const auto bins = by_knot(t, stoich, ratio_ohm);
   std::array<bool, kN> have{};
   for (int k = 0; k < kN; ++k) {
     have[k] = !bins[k].empty();
@@ -102,16 +112,13 @@ std::array<double, fw::kModelBiasKnots> knot_misfit_v(const fw::ModelBiasTable<d
                                                      const std::vector<double>& stoich,
                                                      const std::vector<double>& residual_v) {
   constexpr int kN = fw::kModelBiasKnots;
-  std::array<std::vector<double>, kN> bins;
-  const double step = (t.x_last - t.x_first) / (kN - 1);
-  for (std::size_t i = 0; i < stoich.size() && t.on(); ++i) {
-    const long k = std::lround((stoich[i] - t.x_first) / step);
-    bins[static_cast<std::size_t>(std::clamp<long>(k, 0, kN - 1))].push_back(std::fabs(residual_v[i]));
-  }
   std::array<double, kN> misfit{};
+  if (!t.on()) return misfit;
+  auto bins = by_knot(t, stoich, residual_v);
   for (int k = 0; k < kN; ++k) {
     auto& b = bins[static_cast<std::size_t>(k)];
     if (b.empty()) continue;
+    for (double& v : b) v = std::fabs(v);
     std::sort(b.begin(), b.end());
     misfit[static_cast<std::size_t>(k)] = b[static_cast<std::size_t>(kTrustedQuantile * double(b.size() - 1) + 0.5)];
   }

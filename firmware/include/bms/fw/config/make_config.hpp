@@ -28,7 +28,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <limits>
+#include <type_traits>
 
 #include "bms/fw/estimation/bms_core.hpp"
 #include "bms/fw/estimation/identifier_film_path.hpp"
@@ -428,14 +428,15 @@ template <class Core>
 void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   set_if(o.learn_inventory, cfg.film_path.identifier.learn_inventory);
   set_if(o.model_bias_ohm, cfg.film_path.model_bias_ohm);
+  auto& table = cfg.film_path.model_bias_table;
   if (o.model_bias_table.given && !o.model_bias_table.value) {
-    const auto span_end = cfg.film_path.model_bias_table.x_trusted_last;  // its own ablation: --no-trusted-span
-    cfg.film_path.model_bias_table = {};
-    cfg.film_path.model_bias_table.x_trusted_last = span_end;
+    const auto span_end = table.x_trusted_last;  // the span has its own ablation (--no-trusted-span)
+    table = {};
+    table.x_trusted_last = span_end;
   }
-  set_if(o.trusted_span_end, cfg.film_path.model_bias_table.x_trusted_last);
+  set_if(o.trusted_span_end, table.x_trusted_last);
   if (o.trusted_span.given && !o.trusted_span.value)
-    cfg.film_path.model_bias_table.x_trusted_last = std::numeric_limits<decltype(cfg.film_path.model_bias_table.x_trusted_last)>::infinity();
+    table.x_trusted_last = std::decay_t<decltype(table)>{}.x_trusted_last;  // the default: trusted everywhere
   set_if(o.relinearise_inventory, cfg.film_path.relinearise_inventory);
   set_if(o.hold_until_settled, cfg.film_path.hold_until_settled);
   set_if(o.hold_restarted_charge, cfg.film_path.hold_through_restarted_charge);
