@@ -4,7 +4,8 @@
 # the cell's window (CV to C/20), seeds 901-903 (the training seeds; 904-906 held out); the firmware's
 # reduced model built from the cell (--cell X --model reduced, best settings), and the control
 # run (--no-learning). Prints one table row per cell and seed (scripts/any_cell_scores.py), and
-# the control run's CC-charge residual less the design-time bias (10/50/90 %, cycles 3-5).
+# the control run's CC-charge residual less the design-time bias (10/50/90 %, cycles 3-5). The learning
+# run also writes the noise's Cramer-Rao bound (--bound-noise-v-mv 0.2: the growth's floor).
 # Usage: scripts/any-cell-study.sh [OUT_DIR] [CELLS...]   (default out/any-cell, aboutenergy lco)
 # Environment: SEEDS="904 905 906" other seeds (the held-out ones: run once); ESTIMATE_ARGS="..."
 # added to both estimates (e.g. --no-bias-table: the constant design-time bias alone).
@@ -31,7 +32,8 @@ print({"aboutenergy": 2.0, "lco": 0.873, "nmc": 5.0, "paper": 2.3}[sys.argv[1]])
     "$bmssim" simulate --cell "$cell" --protocol cccv --cycles 5 --current-a "$cap" --cv-end-current-a "$cv_end" \
       --set film_growth_scale=1.8 --set "r_film_initial_ohm_m2=$r0" --set inventory_scale=0.995 \
       --noise-v-mv 0.2 --seed "$seed" --quiet --out "$run/truth"
-    "$bmssim" estimate --data "$run/truth/truth.csv" --cell "$cell" --model reduced ${extra[@]+"${extra[@]}"} --quiet --out "$run/est"
+    "$bmssim" estimate --data "$run/truth/truth.csv" --cell "$cell" --model reduced ${extra[@]+"${extra[@]}"} \
+      --bound-noise-v-mv 0.2 --quiet --out "$run/est"
     "$bmssim" estimate --data "$run/truth/truth.csv" --cell "$cell" --model reduced --no-learning ${extra[@]+"${extra[@]}"} --quiet \
       --out "$run/off"
   done

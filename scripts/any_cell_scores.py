@@ -96,9 +96,11 @@ seeds = [int(s) for s in os.environ.get("SEEDS", "901 902 903").split()]
 # Two capacities: the open-circuit capacity of the identified inventory alone (this script's
 # bisection, no electrode-capacity scale), and the estimator's own capacity_est_ah as the contract
 # scores it (summary.json capacity_err_pct: with the area scale the CV-end pins measure).
-print("| cell | seed | film error cycles 3-5, % | growth_err_pct | capacity error of the identified inventory (max, cycles 1-5), % | "
+# growth bound: the Cramer-Rao bound of the growth growth_err_pct scores from the 0.2 mV noise alone
+# (summary.json crlb.growth_sd_pct, `estimate --bound-noise-v-mv`; 1-sigma, % of the true growth).
+print("| cell | seed | film error cycles 3-5, % | growth_err_pct | growth bound (noise, 1 sd), % | capacity error of the identified inventory (max, cycles 1-5), % | "
       "capacity_err_pct (contract; max |.|, cycles 1-5) | film error, learning off, % | off / on |")
-print("|---|---|---|---|---|---|---|---|")
+print("|---|---|---|---|---|---|---|---|---|")
 for cell in cells:
     c = cell_of(cell)
     for seed in seeds:
@@ -108,7 +110,9 @@ for cell in cells:
         cap = capacity_errors(c, run + "/truth/truth.csv", run + "/est/estimates.csv")
         f_on, f_off = film_3_5(on), film_3_5(off)
         contract = max(abs(x["capacity_err_pct"]) for x in on["cycles"])
-        print(f"| {cell} | {seed} | {f_on:.2f} | {on['growth_err_pct']:.1f} | {max(cap.values()):.3f} | "
+        bound = (on.get("crlb") or {}).get("growth_sd_pct")
+        bound_txt = "-" if bound is None else f"{bound:.1f}"
+        print(f"| {cell} | {seed} | {f_on:.2f} | {on['growth_err_pct']:.1f} | {bound_txt} | {max(cap.values()):.3f} | "
               f"{contract:.3f} | {f_off:.2f} | {f_off / f_on:.2f} |")
 
 print()

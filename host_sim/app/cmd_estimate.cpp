@@ -17,6 +17,7 @@
 #include "cell/reduced_cell_record.hpp"
 #include "estimation/design_bias.hpp"
 #include "estimation/estimate_run.hpp"
+#include "estimation/film_bound.hpp"
 #include "io/input_error.hpp"
 #include "io/output_folder.hpp"
 #include "sim/cell_catalog.hpp"
@@ -47,6 +48,7 @@ struct EstimateCli {
   bool beyond = false;
   bool quiet = false;
   bool write_stream = false;  // --write-firmware-stream
+  double bound_noise_v_mv = 0.0;  // --bound-noise-v-mv (scoring only; 0: no bound)
   std::vector<std::string> model_effects;
 };
 
@@ -192,6 +194,17 @@ void adopt_cell_effects(EstimateCli& c, const CellParameters& cell) {
   }
 }
 
+// The bound is the best profile's (its H, S and G per tick): refused for another, and for a
+// noise that is no standard deviation, before any long work.
+void check_bound_option(const EstimateCli& c, const CLI::App& sub) {
+  if (sub.count("--bound-noise-v-mv") == 0) return;
+  if (!(c.bound_noise_v_mv > 0.0) || !std::isfinite(c.bound_noise_v_mv))
+    throw InputError(fmt::format("--bound-noise-v-mv must be a noise standard deviation > 0 mV (got {})",
+                                 c.bound_noise_v_mv));
+  if (c.o.profile != fw::Profile::best)
+    throw InputError("--bound-noise-v-mv is the bound of --settings best's unknowns; the settings given identify others");
+}
+
 int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
   c.o.mesh.n_sep = c.o.mesh.n_pos = c.o.mesh.n_neg;
   if (c.beyond && sub.count("--settings") > 0)
@@ -200,6 +213,7 @@ int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
   if (!fw::parse_profile(settings.c_str(), c.o.profile))
     throw InputError("--settings must be 'best', 'paper' or 'nominal-growth' (got '" + settings + "')");
   mark_given(sub, c);
+  check_bound_option(c, sub);
   for (const auto& e : c.model_effects) add_model_effect(c.o, e);
   check_estimate_options(c.o);  // before any long work: an option the settings do not use exits 2
   const CellParameters cell = load_cell(c.cell);
@@ -232,6 +246,10 @@ int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
   if (c.write_stream)
     write_file_atomically(dir / "firmware_stream.bin", firmware_stream(data, c.o.overrides.learning.or_else(true)));
   nlohmann::json summary = command_summary(r, c.o, data);
+  if (c.bound_noise_v_mv > 0.0) {
+    summary["crlb"] = film_bound_json(film_cramer_rao(r.rows, c.bound_noise_v_mv * 1e-3));
+    summary["crlb"]["noise_v_mv"] = c.bound_noise_v_mv;
+  }
   add_charges(summary, r, input, cell, dir, quiet);
   write_file_atomically(dir / "summary.json", summary.dump(2) + "\n");
   folder.commit();
@@ -441,6 +459,11 @@ Runner add_estimate(CLI::App& app) {
   sub->add_option("--points", c->o.mesh.n_neg, "--model full only: finite volumes per region")->capture_default_str();
   sub->add_option("--out", c->out, "Output folder (estimates.csv, summary.json)")->required();
   sub->add_flag("--quiet", c->quiet, "No progress lines");
+  sub->add_option("--bound-noise-v-mv", c->bound_noise_v_mv,
+                  "Scoring only (the estimator never reads it): summary.json's crlb, the Cramer-Rao bound of --settings "
+                  "best's joint unknowns (initial film, growth gain, inventory) for white voltage noise of this standard "
+                  "deviation [mV] over the ticks it learned in: the film per cycle, and growth_sd_pct, the bound on the "
+                  "growth growth_err_pct scores relative to the true growth (its 1-sigma floor from the noise alone)");
   sub->add_flag("--write-firmware-stream", c->write_stream,
                 "Also write firmware_stream.bin: the measurement stream the firmware ticked on (after the readers, the "
                 "gaps and the model tick), for the board's replay of the same run (target/m4f_blind_main.cpp, BMSMEAS3)");

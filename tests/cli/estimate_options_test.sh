@@ -105,6 +105,25 @@ assert o["settings"] == "paper" and o["h_from_model"] is True and "h" not in o, 
 assert o["propagate_growth"] is True and "p0" in o and "learn_inventory" not in o, o
 PY
 
+# The noise bound is a score of the best profile's unknowns: a noise that is no standard deviation
+# or another profile exits 2 naming it, before the data is read; the best profile writes the
+# bound (crlb) beside its scores, and a run without the option writes none.
+for bad in 0 -0.2 nan; do
+  check_input_error "bound-noise-$bad" "--bound-noise-v-mv must be" "$WORK/o" -- \
+    "$BMSSIM" estimate --data missing.csv --bound-noise-v-mv "$bad" --quiet --out "$WORK/o"
+done
+check_input_error bound-noise-paper "--bound-noise-v-mv.*--settings best" "$WORK/o" -- \
+  "$BMSSIM" estimate --data missing.csv --settings paper --bound-noise-v-mv 0.2 --quiet --out "$WORK/o"
+accepted best --bound-noise-v-mv 0.2
+python3 - "$WORK/a/summary.json" <<'PY' && pass "summary has the bound" || fail "bound in summary" "see above"
+import json, sys
+c = json.load(open(sys.argv[1]))["crlb"]
+assert c["noise_v_mv"] == 0.2 and c["valid"] is False and c["growth_sd_pct"] is None, c  # 60 s: no learning
+PY
+accepted best
+python3 -c 'import json,sys; assert "crlb" not in json.load(open(sys.argv[1]))' "$WORK/a/summary.json" &&
+  pass "no bound unless asked" || fail "no bound unless asked" "crlb written"
+
 # A value out of an option's range is a parse error: still one line, naming the option.
 check_input_error range-relinearise "--relinearise.*not in range.*estimate --help" "$WORK/o" -- \
   "$BMSSIM" estimate --data short.csv --relinearise 5 --quiet --out "$WORK/o"

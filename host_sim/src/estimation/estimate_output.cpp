@@ -1,5 +1,6 @@
 #include "estimation/estimate_output.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -122,6 +123,25 @@ nlohmann::json estimate_summary_json(const EstimateResult& r, const EstimateOpti
   j["wall_s"] = r.wall_s;
   j["ticks"] = r.rows.size();
   j["options"] = options_json(r.config, o);
+  return j;
+}
+
+nlohmann::json film_bound_json(const FilmBound& b) {
+  nlohmann::json j;
+  j["valid"] = b.valid;
+  j["gain_sd"] = finite_or_null(b.gain_sd);
+  j["r0_sd_ohm_m2"] = finite_or_null(b.r0_sd_ohm_m2);
+  j["inventory_sd_pct"] = finite_or_null(b.inventory_sd_pct);
+  nlohmann::json by = nlohmann::json::array();
+  double worst = 0.0;
+  for (const auto& c : b.cycles) {
+    by.push_back(finite_or_null(c.film_sd_pct));
+    if (c.cycle >= 3 && std::isfinite(c.film_sd_pct)) worst = std::max(worst, c.film_sd_pct);
+  }
+  j["film_sd_pct_by_cycle"] = by;
+  j["film_sd_pct_worst_cycles_3_on"] = worst;
+  j["growth_sd_ohm_m2"] = finite_or_null(b.growth_sd_ohm_m2);
+  j["growth_sd_pct"] = finite_or_null(b.growth_sd_pct);
   return j;
 }
 

@@ -579,7 +579,7 @@ std::vector<CycleScore> score_cycles(const std::vector<EstimateRow>& rows, bool 
   return out;
 }
 
-double growth_error_pct(const std::vector<EstimateRow>& rows) {
+GrowthSpan growth_span(const std::vector<EstimateRow>& rows) {
   // End of each CC charge: its last cc_charge row before another mode.
   std::vector<std::size_t> ends;
   std::size_t first_learning_end = rows.size();
@@ -596,9 +596,15 @@ double growth_error_pct(const std::vector<EstimateRow>& rows) {
   }
   // The control run (no learning) is referenced to its first CC charge.
   if (first_learning_end == rows.size() && !ends.empty()) first_learning_end = ends.front();
-  if (ends.empty() || ends.back() == first_learning_end) return std::nan("");
-  const auto& ref = rows[first_learning_end];
-  const auto& last = rows[ends.back()];
+  if (ends.empty() || ends.back() == first_learning_end) return {};
+  return {first_learning_end, ends.back(), true};
+}
+
+double growth_error_pct(const std::vector<EstimateRow>& rows) {
+  const GrowthSpan span = growth_span(rows);
+  if (!span.valid) return std::nan("");
+  const auto& ref = rows[span.ref];
+  const auto& last = rows[span.last];
   const double true_growth = last.r_film_true_ohm_m2 - ref.r_film_true_ohm_m2;
   if (true_growth == 0.0) return std::nan("");
   const double est_growth = last.r_film_est_ohm_m2 - ref.r_film_est_ohm_m2;

@@ -236,8 +236,17 @@ fw::Refusal estimate_config(const CellParameters& cell, const EstimateOptions& o
   return r;
 }
 
+// The rows growth_err_pct compares: ref = the end of the first CC charge with learning (the
+// first CC charge's end in a run that never learned), last = the end of the last CC charge; each
+// a row with a finite true film. valid = false: fewer than two such ends.
+struct GrowthSpan {
+  std::size_t ref = 0, last = 0;
+  bool valid = false;
+};
+GrowthSpan growth_span(const std::vector<EstimateRow>& rows);
+
 // growth_err_pct of the contract: |(R_est - R_est,ref) - (R_true - R_true,ref)| / |R_true - R_true,ref|
-// x 100, ref = the end of the first CC charge with learning, compared at the end of the last.
+// x 100 over growth_span (NaN where it is not valid or the truth did not grow).
 double growth_error_pct(const std::vector<EstimateRow>& rows);
 
 using EstimateProgress = std::function<void(std::size_t row, std::size_t rows)>;

@@ -53,6 +53,14 @@ FilmBound film_cramer_rao(const std::vector<EstimateRow>& rows, double sigma_v) 
   out.gain_sd = bound_of(j, Vec3(0.0, 1.0, 0.0));
   out.inventory_sd_pct = bound_of(j, Vec3(0.0, 0.0, 1.0)) * 100.0;
   out.valid = std::isfinite(out.r0_sd_ohm_m2) && std::isfinite(out.gain_sd);
+  const GrowthSpan span = growth_span(rows);
+  if (span.valid) {
+    const auto& ref = rows[span.ref];
+    const auto& last = rows[span.last];
+    out.growth_sd_ohm_m2 = bound_of(j, Vec3(0.0, last.growth_ohm_m2 - ref.growth_ohm_m2, 0.0));
+    const double true_growth = last.r_film_true_ohm_m2 - ref.r_film_true_ohm_m2;
+    if (true_growth != 0.0) out.growth_sd_pct = out.growth_sd_ohm_m2 / std::abs(true_growth) * 100.0;
+  }
   return out;
 }
 

@@ -4,6 +4,10 @@
 // estimator: the linearised measurement z(k) = H(k) (R0 + g G(k)) + S(k) nu + e(k) over the
 // ticks in which it learned, e white with the effective voltage noise. The bound on the film
 // at a tick is sqrt(a^T J^-1 a), a = [1, G(k), 0], with J built from the data up to that tick.
+// The bound on the growth growth_err_pct scores (the film's change from growth_span's ref to its
+// last row, g (G_last - G_ref)) takes a = [0, G_last - G_ref, 0] and J from all the data: an
+// unbiased estimate of that change from this record, whatever it does, scatters at least so much.
+#include <cmath>
 #include <vector>
 
 #include "estimation/estimate_run.hpp"
@@ -19,6 +23,9 @@ struct CycleBound {
 struct FilmBound {
   std::vector<CycleBound> cycles;
   double r0_sd_ohm_m2 = 0.0, gain_sd = 0.0, inventory_sd_pct = 0.0;  // with all the data
+  // The growth over growth_span: its bound [ohm m2], and that relative to the true growth there
+  // (%; NaN without a valid span or a truth that grew): growth_err_pct's own 1-sigma floor.
+  double growth_sd_ohm_m2 = std::nan(""), growth_sd_pct = std::nan("");
   bool valid = false;  // false: no learning tick, or J singular
 };
 

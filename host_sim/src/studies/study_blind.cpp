@@ -20,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "baselines/baseline_run.hpp"
+#include "estimation/estimate_output.hpp"
 #include "estimation/estimate_run.hpp"
 #include "estimation/film_bound.hpp"
 #include "io/gnuplot.hpp"
@@ -336,23 +337,6 @@ json score(const EstimateResult& r, const std::vector<fw::Mode>& true_mode) {
   return j;
 }
 
-json bound_json(const FilmBound& b) {
-  json j;
-  j["valid"] = b.valid;
-  j["gain_sd"] = finite_or_null(b.gain_sd);
-  j["r0_sd_ohm_m2"] = finite_or_null(b.r0_sd_ohm_m2);
-  j["inventory_sd_pct"] = finite_or_null(b.inventory_sd_pct);
-  json by = json::array();
-  double worst = 0.0;
-  for (const auto& c : b.cycles) {
-    by.push_back(finite_or_null(c.film_sd_pct));
-    if (c.cycle >= 3 && std::isfinite(c.film_sd_pct)) worst = std::max(worst, c.film_sd_pct);
-  }
-  j["film_sd_pct_by_cycle"] = by;
-  j["film_sd_pct_worst_cycles_3_on"] = worst;
-  return j;
-}
-
 std::string case_name(const TruthDraw& t, const Noise& n) { return fmt::format("set{}-seed{:02d}-{}", t.set, t.seed, n.name); }
 
 SimulateOptions simulate_options(const TruthDraw& t, const Noise& n, int cycles, const CellParameters& nominal) {
@@ -462,7 +446,7 @@ json run_case(const TruthDraw& t, const Noise& n, int cycles, const CellParamete
     arm.set(o.overrides);
     const EstimateResult r = run_estimate(data, nominal, o);
     j["arms"][arm.name] = score(r, data.true_mode);
-    if (std::string(arm.name) == "best") j["crlb"] = bound_json(film_cramer_rao(r.rows, sigma_eff));
+    if (std::string(arm.name) == "best") j["crlb"] = film_bound_json(film_cramer_rao(r.rows, sigma_eff));
   }
   run_baselines(data, n, nominal, only, j);
   if (j.contains("crlb")) j["crlb"]["sigma_v_effective_mv"] = sigma_eff * 1e3;
@@ -512,6 +496,8 @@ json aggregate(const std::vector<json>& cases) {
     if (!c["crlb"]["gain_sd"].is_null())
       acc[group]["crlb"]["gain_sd_pct_of_true"].push_back(c["crlb"]["gain_sd"].get<double>() /
                                                            c["truth"]["true_gain"].get<double>() * 100.0);
+    if (c["crlb"].contains("growth_sd_pct") && c["crlb"]["growth_sd_pct"].is_number())
+      acc[group]["crlb"]["growth_sd_pct"].push_back(c["crlb"]["growth_sd_pct"].get<double>());
   }
   for (auto& [group, by_arm] : acc)
     for (auto& [arm, metrics_of_arm] : by_arm)
@@ -592,7 +578,8 @@ void write_group_table(std::ostringstream& r, const std::string& group, const js
   if (by_arm.contains("crlb")) {
     const auto& b = by_arm["crlb"];
     r << "| CRLB (1 sd) | " << fmt_dist(b.value("film_sd_pct", json())) << " | gain sd % of true: "
-      << fmt_dist(b.value("gain_sd_pct_of_true", json())) << " | " << fmt_dist(b.value("inventory_sd_pct", json()))
+      << fmt_dist(b.value("gain_sd_pct_of_true", json())) << "; growth (growth_err_pct's floor): "
+      << fmt_dist(b.value("growth_sd_pct", json())) << " | " << fmt_dist(b.value("inventory_sd_pct", json()))
       << " | | | | | |\n";
   }
   r << "\n";
