@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 # Where a charge's learning stopped: for each CC charge of an estimate (estimates.csv), the seconds
 # before the charge's end of the first tick with kInnovationRejected (status bit 18: the stop
-# conditions --stop-knee-ratio, --stop-knee-inventory-sd, --stop-film-move report it).
+# conditions report it: the trusted span's end, and --innovation-reject on).
 # Usage: scripts/stop_position.py OUT/CELL-SEED/est/estimates.csv
 import csv, sys
 path = sys.argv[1]

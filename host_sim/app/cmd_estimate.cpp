@@ -84,10 +84,6 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--no-hold", v.hold_until_settled);
   g("--hold-restarted-charge", v.hold_restarted_charge);
   g("--innovation-reject", v.innovation_rejects);
-  g("--stop-film-move", v.stop_film_move);
-  g("--stop-knee-ratio", v.stop_knee_ratio);
-  g("--stop-knee-inventory-sd", v.stop_knee_inventory_sd);
-  g("--stop-knee-rise", v.stop_knee_rise_ratio);
   g("--innovation-gate", v.innovation_gate);
   g("--spread-anode-i0", v.spread_anode_i0_rel);
   g("--spread-cathode-i0", v.spread_cathode_i0_rel);
@@ -329,27 +325,6 @@ Runner add_estimate(CLI::App& app) {
                   "--settings best only: on|off, whether a learning tick whose regression innovation (the residual "
                   "less what the fitted film, gain and inventory explain), averaged over 60 s, fails the innovation "
                   "gate (5 x 0.3 mV) is left out of the fit, as PX4 EKF2 rejects a fusion");
-  sub->add_option("--stop-film-move", c->o.overrides.stop_film_move.value,
-                  "--settings best only: K in units of the stated film model bound (0.6 % of the film; default 0: "
-                  "off): a CC charge's learning stops for the rest of that charge once, after the fit settled in "
-                  "it, the film moves from its settled value by more than K x the bound (keeps a flat-OCP cell's "
-                  "end-of-charge knee out of the fit)")
-      ->check(CLI::Range(0.0, 100.0));
-  sub->add_option("--stop-knee-ratio", c->o.overrides.stop_knee_ratio.value,
-                  "--settings best only: K (default 0: off): a CC charge's learning stops for the rest of that "
-                  "charge once the model's own OCV slope at its state (the probed dV/d inventory, from the nominal "
-                  "tables) exceeds K x its smallest value since the charge's start (experimental: trips soon after "
-                  "S crosses zero, not only in a knee)")
-      ->check(CLI::Range(0.0, 1e6));
-  sub->add_flag("--stop-knee-inventory-sd", c->o.overrides.stop_knee_inventory_sd.value,
-                "--settings best only: a CC charge's learning stops for the rest of that charge once the model's "
-                "OCV slope times the fit's own inventory 1-sigma exceeds the innovation gate (the model's voltage "
-                "is then no better known than the misfit the gate allows)");
-  sub->add_option("--stop-knee-rise", c->o.overrides.stop_knee_rise_ratio.value,
-                  "--settings best only: K (default 0: off): a CC charge's learning stops for the rest of that "
-                  "charge once the measured voltage rises faster (30 s filter) than K x the charge's mean rate so "
-                  "far, from 300 s into the charge on")
-      ->check(CLI::Range(0.0, 1e6));
   sub->add_option("--innovation-gate", c->o.overrides.innovation_gate.value,
                   "--settings best only: the innovation test's gate in units of the model's stated residual "
                   "(0.3 mV; default 5): the reported test and, with --innovation-reject on, the fusion's check")

@@ -66,10 +66,6 @@ void add_path_fields(const fw::IdentifierFilmPath<double>::Config& c, std::vecto
       {"innovation_sd_v", c.innovation_sd_v},
       {"innovation_gate", c.innovation_gate},
       {"innovation_rejects", c.innovation_rejects},
-      {"stop_film_move", c.stop_film_move},
-      {"stop_knee_slope_ratio", c.stop_knee_slope_ratio},
-      {"stop_knee_inventory_sd", c.stop_knee_inventory_sd},
-      {"stop_knee_rise_ratio", c.stop_knee_rise_ratio},
       {"hold_through_restarted_charge", c.hold_through_restarted_charge},
       {"temperature_sd_k", c.temperature_sd_k},
       {"spread.anode_i0_rel", c.spread.anode_i0_rel},
@@ -249,12 +245,8 @@ const std::vector<OverrideCase>& override_cases() {
       {"current-gain-sd-pct", [](fw::Overrides& o) { o.current_gain_sd_pct = 0.3; }},
       {"voltage-offset", [](fw::Overrides& o) { o.voltage_offset = true; }},
       {"innovation-reject", [](fw::Overrides& o) { o.innovation_rejects = true; }},
-      {"stop-film-move", [](fw::Overrides& o) { o.stop_film_move = 1.0; }},
-      {"stop-knee-ratio", [](fw::Overrides& o) { o.stop_knee_ratio = 10.0; }},
       {"no-trusted-span", [](fw::Overrides& o) { o.trusted_span = false; }},
       {"trusted-span-end", [](fw::Overrides& o) { o.trusted_span_end = 0.7; }},
-      {"stop-knee-inventory-sd", [](fw::Overrides& o) { o.stop_knee_inventory_sd = true; }},
-      {"stop-knee-rise", [](fw::Overrides& o) { o.stop_knee_rise_ratio = 5.0; }},
       {"innovation-gate", [](fw::Overrides& o) { o.innovation_gate = 3.0; }},
       {"hold-restarted-charge", [](fw::Overrides& o) { o.hold_restarted_charge = true; }},
   };
@@ -267,14 +259,14 @@ std::set<std::string> expected_unused(fw::Profile p) {
       return {"reference-after-resyncs", "growth-scale", "no-start-resync", "resync-window", "resync-current",
               "no-inventory", "model-bias-ohm", "relinearise", "spread-anode-i0", "spread-cathode-i0",
               "spread-transport", "spread-area", "voltage-offset-sd-mv", "current-gain-sd-pct", "voltage-offset",
-              "innovation-reject", "stop-film-move", "stop-knee-ratio", "no-trusted-span", "trusted-span-end", "stop-knee-inventory-sd", "stop-knee-rise", "innovation-gate", "hold-restarted-charge"};
+              "innovation-reject", "no-trusted-span", "trusted-span-end", "innovation-gate", "hold-restarted-charge"};
     case fw::Profile::best:  // the eleven, and what only RCSI reads
       return {"nc", "h", "p0", "p0-y0", "lambda", "eta", "theta0", "r-film-init", "calibrate-bias",
               "reference-after-resyncs", "average", "propagate-growth", "growth-scale"};
     case fw::Profile::nominal_growth:  // H from the model; no identifier
       return {"h", "no-inventory", "model-bias-ohm", "relinearise", "spread-anode-i0", "spread-cathode-i0",
               "spread-transport", "spread-area", "voltage-offset-sd-mv", "current-gain-sd-pct", "voltage-offset",
-              "innovation-reject", "stop-film-move", "stop-knee-ratio", "no-trusted-span", "trusted-span-end", "stop-knee-inventory-sd", "stop-knee-rise", "innovation-gate", "hold-restarted-charge"};
+              "innovation-reject", "no-trusted-span", "trusted-span-end", "innovation-gate", "hold-restarted-charge"};
   }
   return {};
 }

@@ -190,10 +190,6 @@ struct Overrides {
   Given<bool> hold_until_settled;      // --no-hold (false)
   Given<bool> hold_restarted_charge;   // --hold-restarted-charge (true)
   Given<bool> innovation_rejects;      // --innovation-reject on|off
-  Given<double> stop_film_move;        // --stop-film-move K
-  Given<double> stop_knee_ratio;       // --stop-knee-ratio K
-  Given<bool> stop_knee_inventory_sd;  // --stop-knee-inventory-sd
-  Given<double> stop_knee_rise_ratio;  // --stop-knee-rise K
   Given<double> innovation_gate;       // --innovation-gate (in innovation_sd_v units)
   // best: the cell's stated parameter spread (relative 1-sigma, StatedSpread), default 0.
   Given<double> spread_anode_i0_rel;    // --spread-anode-i0
@@ -270,10 +266,6 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"no-hold", o.hold_until_settled.given, id, only_best},
       {"hold-restarted-charge", o.hold_restarted_charge.given, id, only_best},
       {"innovation-reject", o.innovation_rejects.given, id, only_best},
-      {"stop-film-move", o.stop_film_move.given, id, only_best},
-      {"stop-knee-ratio", o.stop_knee_ratio.given, id, only_best},
-      {"stop-knee-inventory-sd", o.stop_knee_inventory_sd.given, id, only_best},
-      {"stop-knee-rise", o.stop_knee_rise_ratio.given, id, only_best},
       {"innovation-gate", o.innovation_gate.given, id, only_best},
       {"spread-anode-i0", o.spread_anode_i0_rel.given, id, only_best},
       {"spread-cathode-i0", o.spread_cathode_i0_rel.given, id, only_best},
@@ -441,10 +433,6 @@ void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   set_if(o.hold_until_settled, cfg.film_path.hold_until_settled);
   set_if(o.hold_restarted_charge, cfg.film_path.hold_through_restarted_charge);
   set_if(o.innovation_rejects, cfg.film_path.innovation_rejects);
-  set_if(o.stop_film_move, cfg.film_path.stop_film_move);
-  set_if(o.stop_knee_ratio, cfg.film_path.stop_knee_slope_ratio);
-  set_if(o.stop_knee_inventory_sd, cfg.film_path.stop_knee_inventory_sd);
-  set_if(o.stop_knee_rise_ratio, cfg.film_path.stop_knee_rise_ratio);
   set_if(o.innovation_gate, cfg.film_path.innovation_gate);
   set_if(o.spread_anode_i0_rel, cfg.film_path.spread.anode_i0_rel);
   set_if(o.spread_cathode_i0_rel, cfg.film_path.spread.cathode_i0_rel);

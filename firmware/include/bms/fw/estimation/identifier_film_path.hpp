@@ -78,43 +78,6 @@ class IdentifierFilmPath {
     // not film, and fitted it moved the film's level by several percent in the charge's last
     // minutes, differently in each charge as the inventory settled. false: every tick is learned.
     bool innovation_rejects = false;
-    // Stop condition of a charge's learning (as an aid source stops): once the fit has settled in
-    // a CC charge (FilmGrowthIdentifier::settled) and its film then moves from that value by more
-    // than stop_film_move x the stated model bound (film_model_sd_rel), no later tick of that charge
-    // is learned from; the next charge learns again. Aimed at a flat-OCP cell's end-of-charge knee,
-    // where the fit moves the level by several percent, differently in each charge (About:Energy's
-    // LFP: the running film error agrees within 0.7 % between charges until 120 s before each
-    // charge's end, then -1.8 to +7.3 % at the end). Experimental, 0 (off) by default: measured
-    // AE growth_err_pct 750 -> 48-193 % but the LCO's film 0.2 -> 14-18 % (its first charges still
-    // converge after the fit settles: docs/results/firmware-model.md).
-    Scalar stop_film_move = Scalar(0);
-    // Stop condition of a charge's learning from the model's own OCV slope (as an EKF2 aid source
-    // stops where its sensor is known not to hold, not where its innovation fails: in a flat-OCP
-    // cell's end-of-charge knee the fit absorbs the misfit as it comes, so the innovation stays
-    // small). The signal is the inventory sensitivity S = dV/dnu the path probes every learning
-    // tick: the reduced model's OCV slope at its own state times the inventory, from the nominal
-    // tables, no measurement of the cell. Two tests, either one stops the rest of the charge
-    // (latched, the next charge learns again); 0 / false: off (the default).
-    // stop_knee_slope_ratio K: |S| above K x its smallest value since the charge's start. Measured,
-    // it is not a knee detector: S crosses zero where the two electrodes' slopes cancel, so this
-    // trips soon after that point whatever K (About:Energy: 2250 s before a 3460 s charge's end for
-    // K = 10, 30 and 100; the LCO: 170-490 s before the end), and the charge learns only what came
-    // before. Against the charge's mean |S| instead it trips in the knee (86-110 s before the end)
-    // and does worse on both cells (docs/results/firmware-model.md).
-    Scalar stop_knee_slope_ratio = Scalar(0);
-    // stop_knee_inventory_sd: |S| x the fit's own inventory 1-sigma (the voltage the model cannot
-    // place for want of its inventory) above the innovation gate (innovation_gate x
-    // innovation_sd_v): the model's voltage there is no better known than the misfit the gate
-    // allows, so the residual is not the film's. Only once the fit has settled
-    // (FilmGrowthIdentifier::settled): before, the sd is the prior's (2 %), which on any slope but a
-    // plateau's would stop the first charge at its first tick.
-    bool stop_knee_inventory_sd = false;
-    // stop_knee_rise_ratio K: the measured voltage's rise rate (a first-order filter's
-    // (y - y_filtered) / tau, kRiseTimeConstantS) above K x the charge's mean rate so far
-    // ((y - y at its first learning tick) / the time since), tested from kRiseMinElapsedS on. A
-    // measured signal: unlike S it does not lag where the model's inventory is off (S tripped 22-40
-    // s before the first charge's end on About:Energy, 70-110 s before the later ones').
-    Scalar stop_knee_rise_ratio = Scalar(0);
     // 1-sigma of the temperature sensor [K]: in CC charge a temperature error is nearly collinear
     // with the film (measured about 5 % of the paper cell's film per K), so it enters the film's sd
     // as |dV/dT / H| x this (the model's sensitivity, probed at each learning tick). A stated
@@ -235,15 +198,8 @@ class IdentifierFilmPath {
       update_spread(model, t.r);
       update_voltage_offset_term(t.r.markov_v_per_ohm_m2);
       const Scalar nu_model = resync.inventory_deviation_model(), bias_v = -bias_ohm * t.current_a;
-      if (start) {
-        stopped_in_charge_ = settled_in_charge_ = false;
-        flattest_slope_v_ = std::numeric_limits<Scalar>::infinity();
-        rise_elapsed_s_ = Scalar(0);
-        rise_start_v_ = rise_filtered_v_ = t.r.voltage_v - t.z_v;
-      }
-      const bool rising = rise_stops_charge(t.r.voltage_v - t.z_v, t.dt_s);
-      if (beyond_trusted_span(x_neg) || rising || knee_stops_charge(l.inventory_sensitivity_v) || stops_charge() ||
-          fusion_rejected(t, l.inventory_sensitivity_v, nu_model, bias_v, start)) {
+      if (start) stopped_in_charge_ = false;
+      if (beyond_trusted_span(x_neg) || fusion_rejected(t, l.inventory_sensitivity_v, nu_model, bias_v, start)) {
         l.status |= bit(FwStatus::kInnovationRejected);
       } else {
         l.status |= identifier_.learn(t.u_ohm_m2, t.z_v, t.r.markov_v_per_ohm_m2, l.inventory_sensitivity_v,
@@ -401,62 +357,12 @@ class IdentifierFilmPath {
     return (fusion_mean_v_ / limit) * (fusion_mean_v_ / limit) > Scalar(1);
   }
 
-  // The stop condition of a charge's learning (Config::stop_film_move): once the fit has settled
-  // in this charge, its film moves from the value it settled at by more than stop_film_move x the
-  // stated model bound; latched until the next charge. Before the fit settles its moves are its own
-  // convergence (the first charge, a relinearised one).
-  bool stops_charge() {
-    if (!(c_.stop_film_move > Scalar(0))) return false;
-    if (stopped_in_charge_) return true;
-    const Scalar film = identifier_.film_ohm_m2();
-    if (!settled_in_charge_) {
-      settled_in_charge_ = identifier_.settled();
-      film_at_settle_ohm_m2_ = film;
-      return false;
-    }
-    const Scalar bound = c_.stop_film_move * c_.identifier.film_model_sd_rel * film_at_settle_ohm_m2_;
-    stopped_in_charge_ = std::fabs(film - film_at_settle_ohm_m2_) > bound;
-    return stopped_in_charge_;
-  }
-
   // The stop condition of the design-time calibration (ModelBiasTable::x_trusted_last): the model's
-  // mean anode stoichiometry past the span where it fits the nominal cell; latched like the others.
+  // mean anode stoichiometry past the span where it fits the nominal cell; latched to the charge's end.
   bool beyond_trusted_span(Scalar x_neg) {
     if (!std::isfinite(c_.model_bias_table.x_trusted_last)) return false;
     if (stopped_in_charge_) return true;
     stopped_in_charge_ = x_neg > c_.model_bias_table.x_trusted_last;  // NaN: no stoichiometry, no stop
-    return stopped_in_charge_;
-  }
-
-  // The stop condition from the measured voltage's rise (Config::stop_knee_rise_ratio), latched
-  // like the others; the filter runs on every learning tick of the charge.
-  bool rise_stops_charge(Scalar y_v, Scalar dt_s) {
-    if (!(c_.stop_knee_rise_ratio > Scalar(0)) || !std::isfinite(y_v)) return false;
-    rise_elapsed_s_ += dt_s;
-    rise_filtered_v_ += dt_s / (kRiseTimeConstantS + dt_s) * (y_v - rise_filtered_v_);
-    if (stopped_in_charge_) return true;
-    if (rise_elapsed_s_ < kRiseMinElapsedS) return false;
-    const Scalar rate_v_per_s = (y_v - rise_filtered_v_) / kRiseTimeConstantS;
-    const Scalar mean_v_per_s = (y_v - rise_start_v_) / rise_elapsed_s_;
-    stopped_in_charge_ = mean_v_per_s > Scalar(0) && rate_v_per_s > c_.stop_knee_rise_ratio * mean_v_per_s;
-    return stopped_in_charge_;
-  }
-
-  // The stop condition from the model's OCV slope (Config::stop_knee_*): true from the first tick
-  // whose inventory sensitivity s_v fails either test to the end of the charge. A non-finite s_v
-  // says nothing (learn() rejects the tick and says why).
-  bool knee_stops_charge(Scalar s_v) {
-    const bool ratio = c_.stop_knee_slope_ratio > Scalar(0);
-    if (!(ratio || c_.stop_knee_inventory_sd)) return false;
-    if (stopped_in_charge_) return true;
-    const Scalar slope_v = std::fabs(s_v);
-    if (!std::isfinite(slope_v)) return false;
-    if (slope_v < flattest_slope_v_) flattest_slope_v_ = slope_v;
-    const bool steep = ratio && slope_v > c_.stop_knee_slope_ratio * flattest_slope_v_;
-    const Scalar placed_v = slope_v * identifier_.inventory_sd();
-    const bool unplaced = c_.stop_knee_inventory_sd && identifier_.settled() &&
-                          placed_v > c_.innovation_gate * c_.innovation_sd_v;
-    stopped_in_charge_ = steep || unplaced;
     return stopped_in_charge_;
   }
 
@@ -516,10 +422,6 @@ class IdentifierFilmPath {
   // deviations a cell has.
   static constexpr Scalar kInventoryProbe = Scalar(1e-3);
   static constexpr Scalar kTemperatureProbeK = Scalar(1);
-  // The rise filter: 30 s leaves 0.2 mV of sensor noise at 0.007 mV/s, against About:Energy's
-  // 0.05 mV/s mean and 1.3 mV/s in its knee; its first 300 s are the filter's settling.
-  static constexpr Scalar kRiseTimeConstantS = Scalar(30);
-  static constexpr Scalar kRiseMinElapsedS = Scalar(300);
   static constexpr StatusWord kIdentifierRejectMask =
       bit(FwStatus::kRejectedNonFinite) | bit(FwStatus::kThetaRestored) | bit(FwStatus::kConfigInvalid);
   static constexpr std::uint32_t kCapacityEveryTicks = 1500u;  // 5 minutes at 0.2 s
@@ -536,13 +438,7 @@ class IdentifierFilmPath {
   Scalar innovation_mean_v_ = Scalar(0);
   Scalar innovation_ratio_ = Scalar(0);
   Scalar fusion_mean_v_ = Scalar(0);  // the regression innovation's mean (fusion_rejected)
-  bool stopped_in_charge_ = false;    // this charge's learning stopped (Config::stop_film_move)
-  bool settled_in_charge_ = false;    // the fit settled in this charge (stops_charge)
-  Scalar film_at_settle_ohm_m2_ = Scalar(0);  // the film when the fit settled in this charge (stops_charge)
-  Scalar rise_elapsed_s_ = Scalar(0);   // learning time in this charge (rise_stops_charge)
-  Scalar rise_start_v_ = Scalar(0);     // the measured voltage at the charge's first learning tick
-  Scalar rise_filtered_v_ = Scalar(0);  // the measured voltage through the rise filter
-  Scalar flattest_slope_v_ = std::numeric_limits<Scalar>::infinity();  // smallest |S| this charge (knee_stops_charge)
+  bool stopped_in_charge_ = false;    // this charge's learning stopped (beyond_trusted_span)
   bool identifying_ = false;
   Scalar v_warm_v_ = Scalar(0);                // this tick's voltage at +kTemperatureProbeK
   Scalar film_per_kelvin_ohm_m2_ = Scalar(0);  // |dV/dT / H| of the last learning tick
