@@ -31,6 +31,7 @@ struct StudyCli {
   bool list_cases = false;
   std::string blind_sets = "1,2";
   int blind_cycles = 5;
+  std::string cell = "paper";  // blind only
 };
 
 std::string join(const std::vector<std::string>& v, const char* sep) {
@@ -71,8 +72,10 @@ int run_blind(const StudyCli& c, const CLI::App& sub) {
   b.out = c.out;
   b.arms = c.o.arms;
   b.list_cases = c.list_cases;
+  b.cell = c.cell;
   const std::string command =
-      fmt::format("bmssim study blind --seeds {} --cycles {} --sets {}{} --out {}", b.seeds, b.cycles, b.sets,
+      fmt::format("bmssim study blind{} --seeds {} --cycles {} --sets {}{} --out {}",
+                  c.cell == "paper" ? std::string() : " --cell " + c.cell, b.seeds, b.cycles, b.sets,
                   b.arms.empty() ? std::string() : " --arms " + join(b.arms, ","), c.out);
   const int failed = study::run_blind_study(b, command);
   if (failed > 0) std::fprintf(stderr, "study blind: %d truth(s) could not be simulated (summary.json: truth_failures)\n", failed);
@@ -140,6 +143,7 @@ int run_study(StudyCli& c, const CLI::App& sub, CLI::App& root) {
     return collect_and_report(dir, {{"collected_only", true}}, "bmssim study " + c.o.mode + " --collect " + c.collect_dir);
   }
   if (c.o.mode == "blind") return run_blind(c, sub);
+  if (sub.count("--cell") > 0) throw InputError("--cell: only `study blind` runs on another cell (the paper's studies are the paper cell's)");
   if (c.out.empty()) throw InputError("--out: required (or --collect DIR)");
   apply_plan_defaults(c, sub, root);
   const std::vector<study::CaseSpec> cases = study::plan_cases(c.o);
@@ -181,6 +185,12 @@ Runner add_study(CLI::App& app) {
                   "6 (set 1 under a protocol drawn per truth: partial charges at 0.3-1C, rests)")
       ->capture_default_str();
   sub->add_option("--cycles", c->blind_cycles, "blind: CCCV cycles per truth")->capture_default_str();
+  sub->add_option("--cell", c->cell,
+                  "blind: the cell the truths are drawn around and the firmware's reduced model is built from: paper | "
+                  "aboutenergy | lco | nmc | FILE.bpx.json. Another cell than the paper's cycles at its 1C to its "
+                  "voltage limits with a C/20 CV end, the best arms use its design-time bias (computed once), the "
+                  "EKF and batch baselines (paper cell only) are left out, and the bound is given for voltage noise alone")
+      ->capture_default_str();
   sub->add_option("--seeds", c->o.seeds, "Noise seeds per noise level (default 10; 2 with --quick)")
       ->check(CLI::Range(1, 10000));
   sub->add_flag("--quick", c->o.quick,

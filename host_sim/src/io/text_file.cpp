@@ -6,6 +6,8 @@
 #include <cstring>
 #include <fstream>
 #include <algorithm>
+#include <mutex>
+#include <utility>
 
 #include "io/input_error.hpp"
 
@@ -15,6 +17,15 @@ namespace {
 std::vector<std::filesystem::path>& inputs() {
   static std::vector<std::filesystem::path> files;
   return files;
+}
+// A study's worker threads read their cell files at once (`study blind --cell X`).
+std::mutex& inputs_mutex() {
+  static std::mutex m;
+  return m;
+}
+void note_input(std::filesystem::path p) {
+  const std::lock_guard<std::mutex> lock(inputs_mutex());
+  inputs().push_back(std::move(p));
 }
 }  // namespace
 
@@ -36,7 +47,7 @@ std::string read_text_file(const std::filesystem::path& file, std::uintmax_t max
                                  max_bytes));
   }
   std::ifstream in(file, std::ios::binary);
-  inputs().push_back(std::filesystem::weakly_canonical(std::filesystem::absolute(file, ec), ec));
+  note_input(std::filesystem::weakly_canonical(std::filesystem::absolute(file, ec), ec));
   if (!in) {
     throw InputError(fmt::format("{}: cannot read: {}", file.string(), std::strerror(errno)));
   }

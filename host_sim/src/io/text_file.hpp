@@ -16,7 +16,8 @@ constexpr std::uintmax_t kMaxInputFileBytes = std::uintmax_t{2} << 30;
 std::string read_text_file(const std::filesystem::path& file, std::uintmax_t max_bytes = kMaxInputFileBytes);
 
 // Every file read_text_file has read in this process (absolute, symbolic links resolved): an
-// output folder must never replace a folder an input lives in (io/output_folder.hpp).
+// output folder must never replace a folder an input lives in (io/output_folder.hpp). Threads may
+// read files at once; this list is read once they are done.
 const std::vector<std::filesystem::path>& input_files_read();
 
 }  // namespace bms

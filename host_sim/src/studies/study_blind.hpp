@@ -20,6 +20,7 @@ struct BlindStudyOptions {
   bool list_cases = false;        // print each case's truth command and run nothing
   std::string out;
   bool quiet = false;
+  std::string cell = "paper";  // paper | aboutenergy | lco | nmc | FILE.bpx.json
 };
 
 // Runs (or resumes: finished cases are kept) the study and writes OUT/summary.json, report.md
