@@ -405,7 +405,7 @@ fw::NominalCell estimate_nominal_cell(const CellParameters& cell, const Estimate
   return {inventory_mol,           cell.side.initial_film_resistance_ohm_m2,
           nominal_growth_ohm_m2_per_a_m3_s(cell), bias_ohm,
           cell.lower_voltage_v,    cell.upper_voltage_v,
-          table};
+          table,                   cell.nominal_capacity_ah};
 }
 
 fw::Overrides estimate_overrides(const EstimateOptions& o) {

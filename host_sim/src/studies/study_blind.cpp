@@ -747,6 +747,20 @@ bool has_arms(const json& j, const std::vector<std::string>& only, const StudyCe
   return true;
 }
 
+// The study's cell; a file the firmware's model cannot use (naming the field), or a baseline
+// asked for on a cell it does not model, is refused before any long work.
+StudyCell study_cell(const std::string& arg, const std::vector<std::string>& only) {
+  StudyCell cell;
+  cell.arg = arg;
+  cell.nominal = load_cell(arg);
+  if (cell.paper()) return cell;
+  (void)make_reduced_cell_record(cell.nominal);
+  for (const char* b : {"ekf", "batch"})
+    if (std::find(only.begin(), only.end(), b) != only.end())
+      throw InputError(fmt::format("--arms {}: the baselines model the paper cell only; leave it out with --cell {}", b, arg));
+  return cell;
+}
+
 }  // namespace
 
 int run_blind_study(const BlindStudyOptions& o, const std::string& command) {
@@ -755,17 +769,8 @@ int run_blind_study(const BlindStudyOptions& o, const std::string& command) {
   if (o.seeds < 1 || o.seeds > 1000) throw InputError("--seeds: must be 1..1000");
   if (o.cycles < 2 || o.cycles > 100) throw InputError("--cycles: must be 2..100");
   if (o.out.empty() && !o.list_cases) throw InputError("--out: required");
-  StudyCell cell;
-  cell.arg = o.cell;
-  cell.nominal = load_cell(o.cell);
+  StudyCell cell = study_cell(o.cell, only);
   const CellParameters& nominal = cell.nominal;
-  if (!cell.paper()) {
-    // Refuse a file the firmware's model cannot use (naming the field) before any long work.
-    (void)make_reduced_cell_record(nominal);
-    for (const char* b : {"ekf", "batch"})
-      if (std::find(only.begin(), only.end(), b) != only.end())
-        throw InputError(fmt::format("--arms {}: the baselines model the paper cell only; leave it out with --cell {}", b, o.cell));
-  }
   struct Job {
     TruthDraw truth;
     Noise noise;

@@ -206,7 +206,8 @@ NominalCell nominal_cell_of() {
           Choice::kModelBiasOhm,
           Cell::kLowerVoltageV,
           Cell::kUpperVoltageV,
-          Choice::kModelBiasTable};
+          Choice::kModelBiasTable,
+          Cell::kNominalCapacityAh};
 }
 
 }  // namespace bms::fw

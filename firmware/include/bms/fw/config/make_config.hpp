@@ -116,6 +116,10 @@ struct NominalCell {
   /// The state-of-charge-dependent part of the design-time bias, added to model_bias_ohm (off:
   /// the constant alone, as for the paper cell).
   ModelBiasTable<double> model_bias_table{};
+  /// The cell's nominal capacity [Ah] (0: not given). The currents that mark a protocol's phases
+  /// (rest, the CV end the re-synchronisation and the current offset anchor on) are the paper
+  /// cell's amperes scaled by it: a C-rate, so that a smaller cell's CV tail is not read as rest.
+  double nominal_capacity_ah{};
 };
 
 /// Margin of the measured-voltage plausibility check outside the cell's window: a sensor
@@ -132,7 +136,9 @@ NominalCell paper_nominal_cell() {
           static_cast<double>(Model::nominal_film_growth_ohm_m2_per_a_m3_s()),
           kPaperReducedModelBiasOhm,
           Cell::kLowerVoltageV,
-          Cell::kUpperVoltageV};
+          Cell::kUpperVoltageV,
+          {},
+          paper::kNominalCapacity_ah};
 }
 
 /// One override: unset keeps the profile's value.
@@ -290,6 +296,18 @@ void apply_voltage_window(const NominalCell& cell, Config& cfg) {
   cfg.voltage_max_v = Scalar(cell.upper_voltage_v + kVoltagePlausibilityMarginV);
 }
 
+/// The phase currents as C-rates of the cell (NominalCell::nominal_capacity_ah): the paper cell's
+/// rest threshold (0.05 A, C/46) and CV end (0.25 A, C/9.2) at its 2.3 Ah, the same fractions of
+/// another cell's capacity. The paper cell's own are unchanged (a factor of exactly 1).
+template <class Config>
+void apply_capacity_scale(const NominalCell& cell, Config& cfg) {
+  using Scalar = decltype(Config::dt_s);
+  if (!(cell.nominal_capacity_ah > 0.0)) return;
+  const double k = cell.nominal_capacity_ah / paper::kNominalCapacity_ah;
+  cfg.detector.rest_current_a = Scalar(static_cast<double>(cfg.detector.rest_current_a) * k);
+  cfg.resync_current_a = Scalar(static_cast<double>(cfg.resync_current_a) * k);
+}
+
 // A gap without samples longer than this [s] is a power cycle (BmsCore::Config::power_cycle_after_s):
 // an hour of a cycler's current is half to all of a cell's capacity, so a record that stops under
 // current and resumes later (a stopped test, the next file, the BMS off) is not credibly interpolated
@@ -360,6 +378,7 @@ typename Core::Config make_config(const NominalCell& cell, Profile profile) {
   if (profile == Profile::best) profiles::best(cell, cfg);
   if (profile == Profile::nominal_growth) profiles::nominal_growth(cell, cfg);
   apply_voltage_window(cell, cfg);
+  apply_capacity_scale(cell, cfg);
   return cfg;
 }
 

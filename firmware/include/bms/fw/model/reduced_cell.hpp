@@ -113,6 +113,7 @@ struct PaperCellTraits {
   static constexpr double kFilmConductivitySM = paper::kFilmConductivity_s_m;
   static constexpr double kUpperVoltageV = paper::kUpperVoltage_v;
   static constexpr double kLowerVoltageV = paper::kLowerVoltage_v;
+  static constexpr double kNominalCapacityAh = paper::kNominalCapacity_ah;
   // The paper cell's temperature data: no activation energies and no entropic coefficients
   // (host_sim/src/cell/paper_cell.cpp: Forman et al. give none; the truth's properties do not
   // move with temperature except through RT/F, in its kinetics, diffusion potential and side
