@@ -339,3 +339,29 @@ TEST(EstimateConfig, ProfileNames) {
 }
 
 }  // namespace
+
+// The phase currents are C-rates of the cell: the paper cell's rest threshold and CV end at its
+// own capacity (bit for bit), the same fractions of a smaller cell's, and --resync-current wins.
+TEST(EstimateConfig, PhaseCurrentsScaleWithTheCellsCapacity) {
+  const auto paper = fw::paper_cell_config<IdentifierCore>(fw::Profile::best);
+  EXPECT_EQ(paper.detector.rest_current_a, 0.05);
+  EXPECT_EQ(paper.resync_current_a, 0.25);
+  fw::NominalCell small = fw::paper_nominal_cell<double>();
+  small.nominal_capacity_ah = 0.873;  // the LCO template's: its C/20 CV end is 0.044 A
+  const auto lco = fw::make_config<IdentifierCore>(small, fw::Profile::best);
+  EXPECT_DOUBLE_EQ(lco.detector.rest_current_a, 0.05 * 0.873 / 2.3);
+  EXPECT_DOUBLE_EQ(lco.resync_current_a, 0.25 * 0.873 / 2.3);
+  EXPECT_LT(lco.detector.rest_current_a, 0.873 / 20.0) << "the CV tail must not read as rest";
+  small.nominal_capacity_ah = 0.0;  // not given: the paper cell's amperes
+  EXPECT_EQ(fw::make_config<IdentifierCore>(small, fw::Profile::best).resync_current_a, 0.25);
+  small.nominal_capacity_ah = 0.873;
+  fw::Overrides o;
+  o.resync_current_a = 0.1;
+  IdentifierCore::Config cfg{};
+  ASSERT_EQ((fw::make_config<IdentifierCore>(small, fw::Profile::best, o, cfg).option), nullptr);
+  EXPECT_EQ(cfg.resync_current_a, 0.1);
+  // The cell's record carries it: estimate's nominal cell of the LCO has its capacity.
+  bms::EstimateOptions eo;
+  eo.profile = fw::Profile::paper;  // a profile without the design-time bias, which needs the DFN
+  EXPECT_EQ(bms::estimate_nominal_cell(bms::load_cell("lco"), eo).nominal_capacity_ah, 0.873);
+}
