@@ -70,6 +70,8 @@ for c in s["cases"]:
 r = open(d + "/report.md").read()
 if "Cell: lco" not in r:
     sys.exit("FAIL: report.md does not name the cell")
+if "Per case (sets 4-6" in r:
+    sys.exit("FAIL: report.md has an empty per-case table for set 1")
 print("blind cell: LCO study ok")
 PY
 echo "blind cell: ok"

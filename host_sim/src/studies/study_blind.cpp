@@ -632,6 +632,8 @@ void write_group_table(std::ostringstream& r, const std::string& group, const js
 
 // Sets 4-6, one row per case: what was drawn beside set 1's unknowns and the best arm's numbers.
 void write_case_table(std::ostringstream& r, const std::vector<json>& cases) {
+  const bool any = std::any_of(cases.begin(), cases.end(), [](const json& c) { return c["set"].get<int>() >= 4; });
+  if (!any) return;  // sets 1-3 have no per-case table
   r << "## Per case (sets 4-6, best arm)\n\n| case | drawn | film % | growth_err_pct (true growth %) | capacity % | inside 2 sd % | "
        "median sd % / median error % | learning ticks by cycle |\n|---|---|---|---|---|---|---|---|\n";
   auto num = [](const json& s, const char* k) {
