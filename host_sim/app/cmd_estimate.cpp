@@ -170,26 +170,6 @@ void add_charges(nlohmann::json& summary, const EstimateResult& r, const Estimat
   }
 }
 
-// A cell file's own contact resistance and hysteresis (BPX User-defined keys, e.g. from
-// `diagnose --write-cell`) go into the reduced model as --model-effect puts them there, unless
-// --model-effect names that effect itself. The full model has them already (the truth DFN reads
-// them from the cell).
-void adopt_cell_effects(EstimateCli& c, const CellParameters& cell) {
-  if (c.o.model != "reduced") return;
-  auto given = [&](const char* name) {
-    for (const auto& e : c.model_effects)
-      if (e.rfind(std::string(name) + "=", 0) == 0) return true;
-    return false;
-  };
-  const CellEffectParameters& fx = cell.effects;
-  if (fx.contact_resistance_ohm > 0.0 && !given("contact_resistance"))
-    add_model_effect(c.o, fmt::format("contact_resistance={:.17g}", fx.contact_resistance_ohm));
-  if (fx.hysteresis_v > 0.0 && !given("hysteresis")) {
-    add_model_effect(c.o, fmt::format("hysteresis={:.17g}", fx.hysteresis_v));
-    if (fx.hysteresis_rate_per_soc > 0.0) c.o.model_effects.hysteresis_rate_per_soc = fx.hysteresis_rate_per_soc;
-  }
-}
-
 // The bound is the best profile's (its H, S and G per tick): refused for another, and for a
 // noise that is no standard deviation, before any long work.
 void check_bound_option(const EstimateCli& c, const CLI::App& sub) {
@@ -213,18 +193,15 @@ int run_estimate_command(EstimateCli& c, const CLI::App& sub) {
   for (const auto& e : c.model_effects) add_model_effect(c.o, e);
   check_estimate_options(c.o);  // before any long work: an option the settings do not use exits 2
   const CellParameters cell = load_cell(c.cell);
-  adopt_cell_effects(c, cell);
+  adopt_cell_effects(c.o, cell, c.model_effects);
   c.o.ic = perturbed_initial_conditions(cell, c.ic_error_pct);
   if (c.o.model == "reduced" && cell.name != "paper") {
     // A cell other than the paper's: refuse a file the firmware's model cannot use (naming the
     // field) before any long work, then its design-time bias from its nominal DFN (recorded in
     // summary.json as model_bias_used_ohm).
     (void)make_reduced_cell_record(cell);
-    if (c.o.profile == fw::Profile::best && !c.o.overrides.model_bias_ohm.given) {
-      const DesignBias b = design_time_bias(cell);
-      c.o.design_bias_ohm = b.bias_ohm;
-      c.o.design_bias_table = b.table;  // --model-bias-ohm: that constant is the whole bias
-    }
+    if (c.o.profile == fw::Profile::best && !c.o.overrides.model_bias_ohm.given)
+      use_design_bias(c.o, design_time_bias(cell));
   }
   const CurrentSign sign = current_sign_option(c.current_sign);
   const EstimateInput input = read_estimate_input(c.data, sign);

@@ -185,4 +185,10 @@ DesignBias design_time_bias(const CellParameters& nominal_in) {
   return b;
 }
 
+void use_design_bias(EstimateOptions& o, const DesignBias& b) {
+  if (o.profile != fw::Profile::best || o.overrides.model_bias_ohm.given) return;
+  o.design_bias_ohm = b.bias_ohm;
+  o.design_bias_table = b.table;
+}
+
 }  // namespace bms

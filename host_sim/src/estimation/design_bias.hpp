@@ -19,6 +19,8 @@
 
 namespace bms {
 
+struct EstimateOptions;
+
 struct DesignBias {
   double bias_ohm = 0.0;
   fw::ModelBiasTable<double> table{};  // the part that varies with the state of charge (added)
@@ -33,6 +35,10 @@ struct DesignBias {
 };
 
 DesignBias design_time_bias(const CellParameters& nominal);
+
+// The bias an estimate of the reduced model runs with: the calibration's constant and table, for
+// the best profile unless --model-bias-ohm gave a constant (then that constant is the whole bias).
+void use_design_bias(EstimateOptions& o, const DesignBias& b);
 
 // The table of the ticks' (stoichiometry, z / -I less the constant): knots over the ticks' range.
 // Exposed for the tests; throws RuntimeFailure without ticks.

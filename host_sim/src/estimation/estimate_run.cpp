@@ -384,6 +384,22 @@ void add_model_effect(EstimateOptions& o, const std::string& spec) {
   o.model_effects_on = true;
 }
 
+void adopt_cell_effects(EstimateOptions& o, const CellParameters& cell, const std::vector<std::string>& given) {
+  if (o.model != "reduced") return;
+  auto named = [&](const char* name) {
+    for (const auto& e : given)
+      if (e.rfind(std::string(name) + "=", 0) == 0) return true;
+    return false;
+  };
+  const CellEffectParameters& fx = cell.effects;
+  if (fx.contact_resistance_ohm > 0.0 && !named("contact_resistance"))
+    add_model_effect(o, fmt::format("contact_resistance={:.17g}", fx.contact_resistance_ohm));
+  if (fx.hysteresis_v > 0.0 && !named("hysteresis")) {
+    add_model_effect(o, fmt::format("hysteresis={:.17g}", fx.hysteresis_v));
+    if (fx.hysteresis_rate_per_soc > 0.0) o.model_effects.hysteresis_rate_per_soc = fx.hysteresis_rate_per_soc;
+  }
+}
+
 fw::NominalCell estimate_nominal_cell(const CellParameters& cell, const EstimateOptions& o) {
   // The nominal inventory is the cell's design state, not the (possibly wrong) model start.
   const InitialConditions design = default_initial_conditions(cell);

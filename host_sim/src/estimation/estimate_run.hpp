@@ -213,6 +213,11 @@ struct EstimateResult {
 // Throws InputError naming the option and the field for anything else.
 void add_model_effect(EstimateOptions& o, const std::string& spec);
 
+// A cell file's own contact resistance and hysteresis (BPX User-defined keys, e.g. from
+// `diagnose --write-cell`) as model effects of the reduced model, except those the user named
+// with --model-effect (`given`: their NAME=VALUE specs). The full model has them already.
+void adopt_cell_effects(EstimateOptions& o, const CellParameters& cell, const std::vector<std::string>& given = {});
+
 // Throws InputError naming the option for an override the profile does not use, or a value out
 // of range; cheap, so callers run it before any long work.
 void check_estimate_options(const EstimateOptions& o);

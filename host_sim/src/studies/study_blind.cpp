@@ -439,25 +439,17 @@ void run_baselines(const EstimateData& data, const Noise& n, const CellParameter
   }
 }
 
-// An arm's estimate options on the study's cell: the nominal initial state and, for the best
-// profile on a cell other than the paper's, its design-time bias and the cell file's own effects
-// (as `bmssim estimate --cell X --model reduced` sets them).
+// An arm's estimate options on the study's cell: on a cell other than the paper's, its nominal
+// initial state, its design-time bias and the cell file's own effects, as `bmssim estimate --cell X
+// --model reduced ARM_OPTIONS` sets them (one rule for both: use_design_bias, adopt_cell_effects).
 EstimateOptions arm_options(const Arm& arm, const StudyCell& cell) {
   EstimateOptions o;
   o.profile = arm.profile;
   arm.set(o.overrides);
   if (cell.paper()) return o;
   o.ic = default_initial_conditions(cell.nominal);
-  if (arm.profile == fw::Profile::best) {
-    o.design_bias_ohm = cell.bias.bias_ohm;
-    o.design_bias_table = cell.bias.table;
-  }
-  const CellEffectParameters& fx = cell.nominal.effects;
-  if (fx.contact_resistance_ohm > 0.0) add_model_effect(o, fmt::format("contact_resistance={:.17g}", fx.contact_resistance_ohm));
-  if (fx.hysteresis_v > 0.0) {
-    add_model_effect(o, fmt::format("hysteresis={:.17g}", fx.hysteresis_v));
-    if (fx.hysteresis_rate_per_soc > 0.0) o.model_effects.hysteresis_rate_per_soc = fx.hysteresis_rate_per_soc;
-  }
+  use_design_bias(o, cell.bias);
+  adopt_cell_effects(o, cell.nominal);
   return o;
 }
 
