@@ -14,6 +14,7 @@
 #include "cell/reduced_cell_record.hpp"
 #include "commands.hpp"
 #include "estimation/design_bias.hpp"
+#include "estimation/estimate_output.hpp"
 #include "sim/truth_output.hpp"
 #include "io/output_folder.hpp"
 #include "sim/cell_catalog.hpp"
@@ -65,17 +66,11 @@ int run_cell_config(const CellConfigCli& c) {
       {"traits", "bms::fw::cells::" + type},
       {"record_crc32", fmt::format("0x{:08X}", record_crc32(record, bias.bias_ohm, bias.table))},
       {"model_bias_ohm", bias.bias_ohm},
-      {"model_bias_from", std::isfinite(c.bias_ohm) ? "--model-bias-ohm" : "nominal DFN, 3 CCCV cycles at 1C (CV to C/10), 40/40 volumes, rtol 1e-9"},
+      {"model_bias_from", std::isfinite(c.bias_ohm) ? "--model-bias-ohm" : "nominal DFN, 3 CCCV cycles at 1C (CV to C/10), 40/40 volumes, rtol 1e-9; the table also at the inventory 1 % below and above nominal"},
       {"model_bias_ticks", bias.ticks},
-      {"model_bias_table", bias.table.on() ? nlohmann::json{{"abscissa", "the model's mean anode stoichiometry"},
-                                                            {"x_first", bias.table.x_first},
-                                                            {"x_last", bias.table.x_last},
-                                                            {"ohm", bias.table.ohm},
-                                                            {"trusted_last", std::isfinite(bias.table.x_trusted_last)
-                                                                                 ? nlohmann::json(bias.table.x_trusted_last)
-                                                                                 : nlohmann::json(nullptr)},
-                                                            {"knot_misfit_v_p90", bias.knot_misfit_v}}
-                                           : nlohmann::json(nullptr)},
+      {"model_bias_table", model_bias_tables_json(bias.table)},
+      {"model_bias_level_notes", bias.level_notes},
+      {"knot_misfit_v_p90", bias.table.on() ? nlohmann::json(bias.knot_misfit_v) : nlohmann::json(nullptr)},
       {"nominal_residual_constant_v_p10_p50_p90", bias.residual_constant_v},
       {"nominal_residual_table_v_p10_p50_p90", bias.residual_table_v},
       {"ocp_table_nodes", kOcpTableNodes},

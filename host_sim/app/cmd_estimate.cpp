@@ -78,6 +78,7 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--no-inventory", v.learn_inventory);
   g("--model-bias-ohm", v.model_bias_ohm);
   g("--no-bias-table", v.model_bias_table);
+  g("--no-bias-levels", v.model_bias_levels);
   g("--no-trusted-span", v.trusted_span);
   g("--trusted-span-end", v.trusted_span_end);
   g("--relinearise", v.relinearise_inventory);
@@ -278,6 +279,10 @@ Runner add_estimate(CLI::App& app) {
   sub->add_flag("!--no-bias-table", c->o.overrides.model_bias_table.value,
                 "--settings best only: remove the reduced model's design-time bias as the constant alone, not with "
                 "its state-of-charge-dependent table (a cell other than the paper's; the paper cell has no table)");
+  sub->add_flag("!--no-bias-levels", c->o.overrides.model_bias_levels.value,
+                "--settings best only: read the design-time bias table calibrated at the nominal lithium inventory "
+                "alone, not interpolated between its levels 1 % below and above at the model's identified inventory "
+                "(ablation)");
   sub->add_flag("!--no-trusted-span", c->o.overrides.trusted_span.value,
                 "--settings best only: learn in the whole CC charge, also past the design-time calibration's "
                 "trusted span (where the reduced model leaves the nominal cell: a flat-OCP cell's end-of-charge "

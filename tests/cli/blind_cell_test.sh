@@ -2,7 +2,8 @@
 # bmssim study blind --cell: the blind study on a cell other than the paper's. --list-cases gives
 # each truth's simulate line on that cell, at its 1C with a C/20 CV end, the initial film drawn
 # around that cell's own; the baselines (paper cell only), another study mode and an unknown cell
-# exit 2 with a line naming the option; one 2-cycle LCO case runs end to end, its best arm on
+# exit 2 with a line naming the option; --truth-points / --truth-rtol reach every truth's line;
+# one 2-cycle LCO case runs end to end, its best arm on
 # the cell's design-time bias and its bound written for the voltage-noise case only.
 # Usage: blind_cell_test.sh BMSSIM WORKDIR
 set -euo pipefail
@@ -22,6 +23,11 @@ refused() {  # NAME PATTERN ARGS...: exit 2, one line matching PATTERN
 refused ekf "--arms ekf" study blind --cell lco --arms best,ekf --list-cases
 refused noise "--cell" study noise --cell lco --out "$work/noise"
 refused nosuch "nosuch" study blind --cell nosuch --list-cases
+refused points "--truth-points" study blind --cell lco --truth-points 5 --list-cases
+
+# --truth-points / --truth-rtol: the truths' mesh and tolerance in every simulate line.
+"$bmssim" study blind --cell lco --sets 1 --seeds 1 --truth-points 60 --truth-rtol 1e-8 --list-cases > "$work/fine.txt"
+grep -c -- "--points 60:60 --rtol 1e-08 " "$work/fine.txt" | grep -qx 2 || fail "--truth-points not in the lines: $(cat "$work/fine.txt")"
 
 "$bmssim" study blind --cell lco --sets 1 --seeds 3 --list-cases > "$work/cases.txt" 2> "$work/list.err" ||
   fail "--list-cases exited $?: $(cat "$work/list.err")"

@@ -7,6 +7,8 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <algorithm>
+#include <string>
 #include <vector>
 
 #include "estimation/design_bias.hpp"
@@ -42,8 +44,8 @@ TEST(DesignBiasTable, LcoTableIsFiniteAndNarrowsTheNominalResidual) {
   ASSERT_TRUE(std::isfinite(b.bias_ohm));
   ASSERT_TRUE(b.table.on());
   ASSERT_TRUE(b.table.valid());
-  EXPECT_GT(b.table.x_first, 0.0);
-  EXPECT_LT(b.table.x_last, 1.0);
+  EXPECT_GT(b.table.nominal().x_first, 0.0);
+  EXPECT_LT(b.table.nominal().x_last, 1.0);
   const double spread_constant = b.residual_constant_v[2] - b.residual_constant_v[0];
   const double spread_table = b.residual_table_v[2] - b.residual_table_v[0];
   std::printf("lco nominal CC-charge residual 10/50/90 %%, mV: constant %.3f / %.3f / %.3f, table %.3f / %.3f / %.3f\n",
@@ -80,8 +82,13 @@ TEST(DesignBiasTable, TrustedSpanEndsBelowTheKnotsThatMisfit) {
 // inside the table's range, at a knot whose misfit fits and below the last knot's; the LCO
 // template fits to its last knot and has none.
 TEST(DesignBiasTable, AboutEnergyKneeEndsTheTrustedSpanLcoHasNone) {
-  const DesignBias ae = design_time_bias(load_cell("aboutenergy"));
-  ASSERT_TRUE(ae.table.on());
+  const DesignBias ae_levels = design_time_bias(load_cell("aboutenergy"));
+  ASSERT_TRUE(ae_levels.table.on());
+  const fw::ModelBiasTable<double>& ae_table = ae_levels.table.nominal();
+  struct {
+    const fw::ModelBiasTable<double>& table;
+    const std::array<double, fw::kModelBiasKnots>& knot_misfit_v;
+  } ae{ae_table, ae_levels.knot_misfit_v};
   std::printf("aboutenergy trusted span end %.4f (table %.4f-%.4f), last knots' misfit %.2f / %.2f mV\n",
               ae.table.x_trusted_last, ae.table.x_first, ae.table.x_last, 1e3 * ae.knot_misfit_v[fw::kModelBiasKnots - 2],
               1e3 * ae.knot_misfit_v[fw::kModelBiasKnots - 1]);
@@ -89,7 +96,34 @@ TEST(DesignBiasTable, AboutEnergyKneeEndsTheTrustedSpanLcoHasNone) {
   EXPECT_LT(ae.table.x_trusted_last, ae.table.x_last);
   EXPECT_GT(ae.knot_misfit_v[fw::kModelBiasKnots - 1], 10e-3) << "the knee: tens of mV";
   const DesignBias lco = design_time_bias(load_cell("lco"));
-  EXPECT_TRUE(std::isinf(lco.table.x_trusted_last));
+  EXPECT_TRUE(std::isinf(lco.table.nominal().x_trusted_last));
+  // The levels over the inventory: each its own calibration (another table, another span), the
+  // nominal level the single table's; the LCO's levels too, without a span.
+  EXPECT_EQ(ae_levels.table.nu_step, 0.01);
+  ASSERT_TRUE(ae_levels.table.valid());
+  EXPECT_TRUE(ae_levels.level_notes.empty());
+  for (int k : {0, 2}) {
+    const auto& level = ae_levels.table.level[k];
+    ASSERT_TRUE(level.on()) << "level " << k;
+    double largest = 0.0;
+    for (int i = 0; i < fw::kModelBiasKnots; ++i) largest = std::max(largest, std::fabs(level.ohm[i] - ae_table.ohm[i]));
+    EXPECT_GT(largest, 1e-5) << "level " << k << " is its own calibration";
+    EXPECT_TRUE(std::isfinite(level.x_trusted_last)) << "level " << k;
+  }
+  EXPECT_LT(ae_levels.table.level[0].x_trusted_last, ae_levels.table.level[2].x_trusted_last)
+      << "the knee at another model stoichiometry with another inventory";
+  EXPECT_TRUE(lco.table.level[0].on() && lco.table.level[2].on());
+  EXPECT_TRUE(std::isinf(lco.table.level[2].x_trusted_last));
+}
+
+// A level whose nominal DFN cannot run the protocol (the NMC template's anode fills at the CV end
+// with 1 % more lithium) stays the nominal one, and the calibration says so.
+TEST(DesignBiasTable, ALevelTheCellCannotReachIsTheNominalOneAndSaid) {
+  const DesignBias nmc = design_time_bias(load_cell("nmc"));
+  ASSERT_EQ(nmc.level_notes.size(), 1u);
+  EXPECT_NE(nmc.level_notes[0].find("rich"), std::string::npos) << nmc.level_notes[0];
+  for (int i = 0; i < fw::kModelBiasKnots; ++i) EXPECT_EQ(nmc.table.level[2].ohm[i], nmc.table.nominal().ohm[i]);
+  EXPECT_TRUE(nmc.table.level[0].on());
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "bms/fw/config/cell_choice.hpp"
 #include "bms/fw/config/make_config.hpp"
 #include "estimation/estimate_run.hpp"
 #include "sim/cell_catalog.hpp"
@@ -60,7 +61,8 @@ void add_path_fields(const fw::IdentifierFilmPath<double>::Config& c, std::vecto
       {"identifier.film_model_sd_rel", c.identifier.film_model_sd_rel},
       {"identifier.inventory_model_sd", c.identifier.inventory_model_sd},
       {"model_bias_ohm", c.model_bias_ohm},
-      {"model_bias_table.x_trusted_last", c.model_bias_table.x_trusted_last},
+      {"model_bias_table.nominal.x_trusted_last", c.model_bias_table.nominal().x_trusted_last},
+      {"model_bias_table.nu_step", c.model_bias_table.nu_step},
       {"relinearise_inventory", c.relinearise_inventory},
       {"innovation_time_constant_s", c.innovation_time_constant_s},
       {"innovation_sd_v", c.innovation_sd_v},
@@ -364,4 +366,36 @@ TEST(EstimateConfig, PhaseCurrentsScaleWithTheCellsCapacity) {
   bms::EstimateOptions eo;
   eo.profile = fw::Profile::paper;  // a profile without the design-time bias, which needs the DFN
   EXPECT_EQ(bms::estimate_nominal_cell(bms::load_cell("lco"), eo).nominal_capacity_ah, 0.873);
+}
+
+// The generated About:Energy configuration carries its bias table at three inventories; the
+// firmware's configuration holds them, --no-bias-levels keeps the nominal level alone (the
+// ablation), --no-bias-table drops every level's knots and keeps every level's trusted span.
+TEST(EstimateConfig, BiasLevelsOverTheInventoryAndTheirAblations) {
+  using Choice = fw::GeneratedCell<fw::cells::AboutenergyCellTraits, fw::AboutenergyName>;
+  const fw::NominalCell ae = fw::nominal_cell_of<double, Choice>();
+  ASSERT_TRUE(ae.model_bias_table.valid());
+  EXPECT_EQ(ae.model_bias_table.nu_step, 0.01);
+  EXPECT_TRUE(ae.model_bias_table.level[0].on() && ae.model_bias_table.level[2].on());
+  const auto full = fw::make_config<IdentifierCore>(ae, fw::Profile::best);
+  EXPECT_EQ(full.film_path.model_bias_table.nu_step, 0.01);
+  const double x = 0.5;
+  EXPECT_NE(full.film_path.model_bias_table.at(x, 0.01), full.film_path.model_bias_table.at(x, 0.0));
+  fw::Overrides o;
+  o.model_bias_levels = false;
+  IdentifierCore::Config cfg{};
+  ASSERT_EQ((fw::make_config<IdentifierCore>(ae, fw::Profile::best, o, cfg).option), nullptr);
+  EXPECT_EQ(cfg.film_path.model_bias_table.nu_step, 0.0);
+  EXPECT_EQ(cfg.film_path.model_bias_table.at(x, 0.01), ae.model_bias_table.nominal().at(x));
+  fw::Overrides no_table;
+  no_table.model_bias_table = false;
+  ASSERT_EQ((fw::make_config<IdentifierCore>(ae, fw::Profile::best, no_table, cfg).option), nullptr);
+  EXPECT_FALSE(cfg.film_path.model_bias_table.on());
+  EXPECT_EQ(cfg.film_path.model_bias_table.trusted_last(-0.01), ae.model_bias_table.level[0].x_trusted_last);
+  EXPECT_EQ(cfg.film_path.model_bias_table.trusted_last(0.0), ae.model_bias_table.nominal().x_trusted_last);
+  fw::Overrides paper_levels;
+  paper_levels.model_bias_levels = false;
+  ASSERT_EQ((fw::make_config<IdentifierCore>(fw::paper_nominal_cell<double>(), fw::Profile::best, paper_levels, cfg).option),
+            nullptr);
+  EXPECT_FALSE(cfg.film_path.model_bias_table.on()) << "the paper cell has no table at any level";
 }

@@ -11,7 +11,7 @@ compile), then over copies of it placed first on the include path, each changed 
   - the design-time bias changed, last bits (kModelBiasOhm)          -> the CRC static_assert;
   - one knot of the bias table changed, last bits (kModelBiasTableOhm) -> the CRC static_assert;
   - the trusted span's end changed (kModelBiasTableTrustedLast 0 -> 0.7) -> the CRC static_assert;
-  - the schema the header states changed (1 -> 2)                   -> the schema static_assert;
+  - the schema the header states changed (2 -> 3)                   -> the schema static_assert;
   - a field removed (kSideAlpha)                                    -> an error naming kSideAlpha.
 Each must fail to compile with its message. Exit 0 when all do, 1 otherwise.
 """
@@ -75,7 +75,7 @@ def main():
          text.replace("kModelBiasTableTrustedLast = 0.0;", "kModelBiasTableTrustedLast = 0.7;"),
          r"CRC-32 of the header's numbers"),
         ("the schema changed",
-         text.replace("static_assert(kCellConfigSchema == 1", "static_assert(kCellConfigSchema == 2"),
+         text.replace("static_assert(kCellConfigSchema == 2", "static_assert(kCellConfigSchema == 3"),
          r"generated for cell configuration schema"),
         ("a field removed (kSideAlpha)",
          re.sub(r"\n  static constexpr double kSideAlpha = [^\n]*", "", text), r"kSideAlpha"),

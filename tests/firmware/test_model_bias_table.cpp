@@ -3,11 +3,13 @@
 // identifier's path (the constant plus the table at the model's mean anode stoichiometry; a path
 // without a table, or a model without a stoichiometry, runs on the constant bit for bit), and that
 // a charge whose model error varies with the state of charge is identified right with the table
-// and wrong with its median alone.
+// and wrong with its median alone. Its levels over the lithium inventory (ModelBiasTables): read
+// where the model is placed, their slope added to the inventory's sensitivity.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "bms/fw/estimation/identifier_film_path.hpp"
 #include "bms/fw/estimation/learning_gate.hpp"
@@ -17,6 +19,7 @@
 namespace {
 
 using Table = bms::fw::ModelBiasTable<double>;
+using Tables = bms::fw::ModelBiasTables<double>;
 using Path = bms::fw::IdentifierFilmPath<double>;
 constexpr int kN = Table::kKnots;
 
@@ -73,7 +76,7 @@ TEST(ModelBiasTable, PathAddsTheTableAtTheModelsStoichiometry) {
   pc.model_bias_ohm = 3.0e-4;
   const Path constant_only(pc, 0.2);
   EXPECT_EQ(constant_only.model_bias_ohm_of(StoichModel{0.4}), 3.0e-4) << "no table: the constant, bit for bit";
-  pc.model_bias_table = ramp();
+  pc.model_bias_table.nominal() = ramp();
   const Path with_table(pc, 0.2);
   for (double x : {0.1, 0.25, 0.45, 0.6, 0.9})
     EXPECT_EQ(with_table.model_bias_ohm_of(StoichModel{x}), 3.0e-4 + ramp().at(x)) << "x = " << x;
@@ -113,14 +116,14 @@ Path::Config charge_config() {
   pc.identifier.r_film_nominal_ohm_m2 = 3.4e-3;
   pc.identifier.growth_nominal_ohm_m2_per_a_m3_s = 1e-12;
   pc.temperature_sd_k = 0.0;
-  pc.model_bias_table = ramp();
+  pc.model_bias_table.nominal() = ramp();
   return pc;
 }
 
 TEST(ModelBiasTable, ChargeWithAStateDependentErrorIsIdentifiedWithTheTable) {
   Path::Config pc = charge_config();
   const double with_table = film_error_of_charge(pc);
-  pc.model_bias_table = Table{};
+  pc.model_bias_table = Tables{};
   pc.model_bias_ohm = ramp().at(0.45);  // the table's median over the charge, as a constant
   const double constant_only = film_error_of_charge(pc);
   EXPECT_LT(std::fabs(with_table), 1e-3) << "the table removes the model's error";
@@ -133,14 +136,90 @@ TEST(ModelBiasTable, LearningStopsPastTheTrustedSpan) {
   const double everywhere = film_error_of_charge(pc, 0.05, 0.6, &learned_past);
   EXPECT_GT(learned_past, 0) << "x_trusted_last +inf (the default): every tick is learned";
   EXPECT_GT(std::fabs(everywhere), 0.02) << "the knee, learned, moves the film";
-  pc.model_bias_table.x_trusted_last = 0.6;
+  pc.model_bias_table.set_trusted_last(0.6);
   const double trusted = film_error_of_charge(pc, 0.05, 0.6, &learned_past);
   EXPECT_EQ(learned_past, 0) << "no tick past the span's end is learned";
   EXPECT_LT(std::fabs(trusted), 1e-3) << "the span before the knee identifies the film";
   EXPECT_TRUE(pc.model_bias_table.valid());
-  pc.model_bias_table.x_trusted_last = std::numeric_limits<double>::quiet_NaN();
+  pc.model_bias_table.set_trusted_last(std::numeric_limits<double>::quiet_NaN());
   EXPECT_FALSE(pc.model_bias_table.valid());
   EXPECT_EQ(ramp().as<float>().x_trusted_last, std::numeric_limits<float>::infinity());
+}
+
+// Levels over the inventory: the nominal level alone without a step, bit for bit; with one, the
+// parabola through the three levels within +-step (the end level's value outside, slope 0 there),
+// its slope the parabola's derivative; the trusted span's end linear where both ends are finite.
+TEST(ModelBiasTables, LevelsAreReadAtTheInventoryDeviation) {
+  Tables t;
+  t.nominal() = ramp();
+  EXPECT_FALSE(t.by_inventory());
+  for (double nu : {-0.02, 0.0, 0.004, 0.03}) EXPECT_EQ(t.at(0.41, nu), ramp().at(0.41)) << "no step: nominal";
+  EXPECT_EQ(t.slope(0.41, 0.0), 0.0);
+  Table lean = ramp(), rich = ramp();
+  for (int k = 0; k < kN; ++k) {
+    lean.ohm[k] -= 1e-4;
+    rich.ohm[k] += 3e-4;
+  }
+  lean.x_trusted_last = 0.60;
+  t.nominal().x_trusted_last = 0.64;
+  t.level[0] = lean;
+  t.level[2] = rich;
+  t.nu_step = 0.01;
+  ASSERT_TRUE(t.valid());
+  const double x = 0.41, b = ramp().at(x);
+  // Through (-1, -1e-4), (0, 0), (1, 3e-4) in units of the step: 2e-4 s + 1e-4 s^2.
+  const auto parabola = [](double s) { return 2e-4 * s + 1e-4 * s * s; };
+  for (double nu : {-0.01, -0.0025, 0.0, 0.005, 0.01}) {
+    EXPECT_NEAR(t.at(x, nu), b + parabola(nu / 0.01), 1e-15) << "nu = " << nu;
+    EXPECT_NEAR(t.slope(x, nu), (parabola(nu / 0.01 + 1e-6) - parabola(nu / 0.01 - 1e-6)) / 2e-8, 1e-9) << "nu = " << nu;
+  }
+  EXPECT_NEAR(t.at(x, 0.05), b + 3e-4, 1e-15) << "the rich level's value beyond it";
+  EXPECT_NEAR(t.at(x, -0.05), b - 1e-4, 1e-15) << "the lean level's value below it";
+  EXPECT_EQ(t.slope(x, 0.05), 0.0) << "flat beyond the levels";
+  EXPECT_NEAR(t.at(x, std::numeric_limits<double>::quiet_NaN()), b, 1e-15) << "no inventory: nominal";
+  EXPECT_NEAR(t.trusted_last(-0.005), 0.62, 1e-12);
+  EXPECT_EQ(t.trusted_last(0.002), 0.64) << "the rich level's end is +inf: the nearer level's";
+  EXPECT_TRUE(std::isinf(t.trusted_last(0.008)));
+  EXPECT_NEAR(t.as<float>().at(0.41f, 0.005f), t.at(x, 0.005), 1e-9);
+  t.drop_knots();
+  EXPECT_FALSE(t.on());
+  EXPECT_EQ(t.slope(x, 0.0), 0.0);
+  EXPECT_NEAR(t.trusted_last(-0.005), 0.62, 1e-12) << "--no-bias-table keeps each level's span";
+  t.nu_step = -0.01;
+  EXPECT_FALSE(t.valid());
+}
+
+// The identifier's path reads the levels at the inventory its model was last placed at
+// (StateResync::inventory_deviation_model), not at the nominal one, and adds the bias's slope over
+// the inventory to the inventory's sensitivity (S = dV/dnu, the residual's regressor).
+TEST(ModelBiasTables, PathReadsTheLevelAtTheModelsInventory) {
+  Path::Config pc = charge_config();
+  Table rich = ramp();
+  for (double& v : rich.ohm) v += 5e-4;
+  pc.model_bias_table.level[0] = ramp();
+  pc.model_bias_table.level[2] = rich;
+  pc.model_bias_table.nu_step = 0.01;
+  const double at_nominal = film_error_of_charge(pc);
+  EXPECT_LT(std::fabs(at_nominal), 1e-3) << "a resync that never ran: the model at nominal, the nominal level";
+  const auto first_tick = [&](double nu_model) {
+    Path path(pc, 0.2);
+    bms::fw::LearningGate<double> gate(bms::fw::LearningGate<double>::Config{});
+    bms::fw::StateResync<double> resync(bms::fw::StateResync<double>::Config{});
+    if (nu_model != 0.0) resync.succeeded(nu_model, 1.0);
+    bms::fw::ModelTickResult<double> r{3.5, -2.0, -1e3, 1.0, 0u, true, true};
+    const bms::fw::FilmTick<double> tick{r, -2.0, 3.4e-3, 0.0, 3.5 + 0.3e-3 * 1e-3, 0.2, 1.0, true, true};
+    const auto l = path.learn(tick, StoichModel{0.45}, gate, resync);
+    return std::pair{path.model_bias_ohm_of(StoichModel{0.45}), l.inventory_sensitivity_v};
+  };
+  const auto [bias_rich, s_rich] = first_tick(0.01);
+  EXPECT_NEAR(bias_rich, rich.at(0.45), 1e-15) << "placed at +1 %: the rich level";
+  const auto [bias_nominal, s_nominal] = first_tick(0.0);
+  EXPECT_NEAR(bias_nominal, ramp().at(0.45), 1e-15);
+  pc.model_bias_table.nu_step = 0.0;
+  const auto [bias_one, s_one] = first_tick(0.0);
+  EXPECT_EQ(bias_one, ramp().at(0.45));
+  EXPECT_NEAR(s_nominal - s_one, -2.0 * (0.5 * 5e-4 / 0.01), 1e-12)
+      << "S gains I x the bias's slope over the inventory (half the rich-lean difference per step at nominal)";
 }
 
 }  // namespace

@@ -54,18 +54,19 @@ struct ReducedCellRecord {
 ReducedCellRecord make_reduced_cell_record(const CellParameters& cell);
 
 // The record as a generated C++ header: namespace bms::fw::cells, struct `type_name` with
-// PaperCellTraits' fields, plus kModelBiasOhm and its state-of-charge table kModelBiasTable*
-// (the design-time bias, computed by the caller; off: no table). The bias is a calibration of the
+// PaperCellTraits' fields, plus kModelBiasOhm and its state-of-charge tables: kModelBiasTable* at
+// the nominal inventory, kModelBiasLean* / kModelBiasRich* kModelBiasInventoryStep below and above
+// it (the design-time bias, computed by the caller; off: no table). The bias is a calibration of the
 // model, not a number of the cell's record, but the firmware applies it to every tick: the
 // header's CRC (kRecordCrc32) covers it with the record's numbers.
 std::string cell_header_text(const ReducedCellRecord& r, const std::string& type_name, double model_bias_ohm,
-                             const fw::ModelBiasTable<double>& model_bias_table);
+                             const fw::ModelBiasTables<double>& model_bias_table);
 
 // CRC-32 of the record's numbers (tables included) and of the design-time bias written with them
-// (the constant, then the table's range and knots), written into the header as kRecordCrc32 and
+// (the constant, then each table's range, knots and trusted end, the nominal level first), written into the header as kRecordCrc32 and
 // recomputed by the firmware at compile time (bms/fw/config/cell_choice.hpp: cell_config_crc32).
 std::uint32_t record_crc32(const ReducedCellRecord& r, double model_bias_ohm,
-                           const fw::ModelBiasTable<double>& model_bias_table);
+                           const fw::ModelBiasTables<double>& model_bias_table);
 
 // Host-only traits over the calling thread's record (set by RuntimeCellScope). The static
 // members mirror PaperCellTraits; their values are those of the installed record.

@@ -3,13 +3,20 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <future>
+#include <optional>
+#include <string>
+#include <utility>
 #include <cmath>
 #include <limits>
 #include <vector>
 
+#include <fmt/format.h>
+
 #include "estimation/estimate_run.hpp"
 #include "io/input_error.hpp"
 #include "sim/cycler.hpp"
+#include "sim/truth_parameters.hpp"
 
 namespace bms {
 namespace {
@@ -24,6 +31,9 @@ constexpr double kRtol = 1e-9;
 constexpr double kTrustedQuantile = 0.9;
 constexpr double kTrustedMisfitV = 1.5e-3;
 constexpr double kCvEndCRate = 0.1;  // C/10: at C/20 the NMC template's anode fills at the separator (flat OCP above x = 0.9)
+// The lean and rich levels' inventory deviation from nominal: the blind studies draw a cell's
+// inventory within +-1 % of it (a cell's spread; FilmGrowthIdentifier identifies it).
+constexpr double kInventoryLevelStep = 0.01;
 
 EstimateData nominal_run(const CellParameters& cell) {
   SimulationConfig cfg;
@@ -50,6 +60,47 @@ EstimateData nominal_run(const CellParameters& cell) {
     d.true_mode.push_back(s.mode);
   }
   return d;
+}
+
+// The CC-charge ticks after the warm-up of the learning-off estimator on the nominal DFN, both at
+// inventory deviation nu (the DFN's initial lithium scaled by 1 + nu, the estimator's nominal
+// inventory and initial state with it): per tick the residual z, the charge current, the model's
+// mean anode stoichiometry.
+struct CalibrationTicks {
+  std::vector<double> z_v, charge_a, stoich;
+};
+
+CalibrationTicks calibration_ticks(const CellParameters& nominal, double nu) {
+  CellParameters cell = nominal;
+  scale_initial_inventory(cell, 1.0 + nu);
+  const EstimateData d = nominal_run(cell);
+  EstimateOptions o;
+  o.model = "reduced";
+  o.profile = fw::Profile::best;
+  o.overrides.learning = false;
+  o.overrides.model_bias_ohm = 0.0;  // the bias itself is what the run measures
+  if (nu != 0.0) o.inventory_error_pct = 100.0 * nu;
+  o.ic = default_initial_conditions(cell);
+  const EstimateResult res = run_estimate(d, nominal, o);
+  CalibrationTicks t;
+  double start = std::nan("");
+  for (const EstimateRow& row : res.rows) {
+    if (row.mode != fw::Mode::cc_charge) {
+      start = std::nan("");
+      continue;
+    }
+    if (std::isnan(start)) start = row.t_s;
+    if (row.t_s - start > res.config.warmup_s && row.model_current_a < 0.0) {
+      t.z_v.push_back(row.z_v);
+      t.charge_a.push_back(-row.model_current_a);
+      t.stoich.push_back(row.model_stoich_neg);
+    }
+  }
+  if (t.z_v.empty())
+    throw RuntimeFailure(fmt::format("design-time bias of cell '{}': no CC-charge tick after the warm-up in the "
+                                     "nominal run (inventory {:+.1f} %)",
+                                     nominal.name, 100.0 * nu));
+  return t;
 }
 
 double median_of(std::vector<double> v) {
@@ -135,52 +186,68 @@ double trusted_span_end(const fw::ModelBiasTable<double>& t, const std::array<do
   return t.x_first + (k + 0.5) * step;  // the upper edge of the highest knot that fits
 }
 
+namespace {
+
+// One level's table over its ticks, less the nominal level's constant, with its trusted span.
+fw::ModelBiasTable<double> level_table(const CalibrationTicks& t, double bias_ohm,
+                                       std::array<double, fw::kModelBiasKnots>* misfit_out = nullptr) {
+  std::vector<double> ratios(t.z_v.size()), residual(t.z_v.size());
+  for (std::size_t i = 0; i < t.z_v.size(); ++i) ratios[i] = t.z_v[i] / t.charge_a[i] - bias_ohm;
+  fw::ModelBiasTable<double> table = bias_table_of(t.stoich, ratios);
+  for (std::size_t i = 0; i < t.z_v.size(); ++i)
+    residual[i] = t.z_v[i] - (bias_ohm + table.at(t.stoich[i])) * t.charge_a[i];
+  const auto misfit = knot_misfit_v(table, t.stoich, residual);
+  table.x_trusted_last = trusted_span_end(table, misfit, kTrustedMisfitV);
+  if (misfit_out != nullptr) *misfit_out = misfit;
+  return table;
+}
+
+}  // namespace
+
 DesignBias design_time_bias(const CellParameters& nominal_in) {
   const auto wall0 = std::chrono::steady_clock::now();
   // The reduced model's own error against the plain DFN: the cell's effects (a contact
   // resistance, hysteresis, ...) are the model effects' to carry, not the bias's.
   CellParameters nominal = nominal_in;
   nominal.effects = CellEffectParameters{};
-  const EstimateData d = nominal_run(nominal);
-  EstimateOptions o;
-  o.model = "reduced";
-  o.profile = fw::Profile::best;
-  o.overrides.learning = false;
-  o.overrides.model_bias_ohm = 0.0;  // the bias itself is what the run measures
-  o.ic = default_initial_conditions(nominal);
-  const EstimateResult res = run_estimate(d, nominal, o);
-  std::vector<double> ratios, stoich, z_v, charge_a;
-  double start = std::nan("");
-  for (const EstimateRow& row : res.rows) {
-    if (row.mode != fw::Mode::cc_charge) {
-      start = std::nan("");
-      continue;
+  // The lean and rich levels on other threads (independent DFN runs), the nominal one here.
+  // A level whose DFN cannot run the protocol (an electrode full at the CV end: the cell's window
+  // leaves no room for more lithium) stays the nominal level, said in DesignBias::level_notes.
+  const auto off_level = [&](double nu) -> std::optional<CalibrationTicks> {
+    try {
+      return calibration_ticks(nominal, nu);
+    } catch (const RuntimeFailure&) {
+      return std::nullopt;
     }
-    if (std::isnan(start)) start = row.t_s;
-    if (row.t_s - start > res.config.warmup_s && row.model_current_a < 0.0) {
-      ratios.push_back(row.z_v / -row.model_current_a);
-      stoich.push_back(row.model_stoich_neg);
-      z_v.push_back(row.z_v);
-      charge_a.push_back(-row.model_current_a);
-    }
-  }
-  if (ratios.empty())
-    throw RuntimeFailure("design-time bias of cell '" + nominal.name +
-                         "': no CC-charge tick after the warm-up in the nominal run");
+  };
+  auto lean = std::async(std::launch::async, off_level, -kInventoryLevelStep);
+  auto rich = std::async(std::launch::async, off_level, kInventoryLevelStep);
+  const CalibrationTicks t = calibration_ticks(nominal, 0.0);
+  const std::optional<CalibrationTicks> t_lean = lean.get(), t_rich = rich.get();
+  std::vector<double> ratios(t.z_v.size());
+  for (std::size_t i = 0; i < t.z_v.size(); ++i) ratios[i] = t.z_v[i] / t.charge_a[i];
   DesignBias b;
   b.bias_ohm = median_of(ratios);
   b.ticks = ratios.size();
-  for (double& r : ratios) r -= b.bias_ohm;
-  b.table = bias_table_of(stoich, ratios);
-  std::vector<double> with_constant(z_v.size()), with_table(z_v.size());
-  for (std::size_t i = 0; i < z_v.size(); ++i) {
-    with_constant[i] = z_v[i] - b.bias_ohm * charge_a[i];
-    with_table[i] = with_constant[i] - b.table.at(stoich[i]) * charge_a[i];
+  fw::ModelBiasTable<double>& table = b.table.nominal();
+  table = level_table(t, b.bias_ohm, &b.knot_misfit_v);
+  std::vector<double> with_constant(t.z_v.size()), with_table(t.z_v.size());
+  for (std::size_t i = 0; i < t.z_v.size(); ++i) {
+    with_constant[i] = t.z_v[i] - b.bias_ohm * t.charge_a[i];
+    with_table[i] = with_constant[i] - table.at(t.stoich[i]) * t.charge_a[i];
   }
-  b.knot_misfit_v = knot_misfit_v(b.table, stoich, with_table);
-  b.table.x_trusted_last = trusted_span_end(b.table, b.knot_misfit_v, kTrustedMisfitV);
   b.residual_constant_v = percentiles(with_constant);
   b.residual_table_v = percentiles(with_table);
+  if (table.on()) {  // a cell whose one state needs no table needs no levels either
+    b.table.level[0] = t_lean ? level_table(*t_lean, b.bias_ohm) : table;
+    b.table.level[2] = t_rich ? level_table(*t_rich, b.bias_ohm) : table;
+    b.table.nu_step = kInventoryLevelStep;
+    for (const auto& [ticks, name] : {std::pair{&t_lean, "lean"}, std::pair{&t_rich, "rich"}})
+      if (!*ticks)
+        b.level_notes.push_back(fmt::format("the {} level ({:+.0f} % inventory) is the nominal one: the nominal DFN "
+                                            "does not run the protocol there",
+                                            name, name[0] == 'l' ? -100.0 * kInventoryLevelStep : 100.0 * kInventoryLevelStep));
+  }
   b.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   return b;
 }

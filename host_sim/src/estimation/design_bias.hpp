@@ -7,11 +7,15 @@
 // Beside the constant, its state-of-charge-dependent part: a ModelBiasTable over the model's mean
 // anode stoichiometry, each knot the median of (z / -I less the constant) over the same ticks
 // within half a knot step of it (a median: the charge's end can be 100 mV off on a knee), a knot
-// without ticks interpolated from its neighbours. The paper cell runs on its constant alone.
+// without ticks interpolated from its neighbours. The same table at the nominal DFN's inventory 1 %
+// below and above nominal (the model placed there too; less the nominal constant): the levels the
+// firmware reads at the model's identified inventory (ModelBiasTables). The paper cell runs on its
+// constant alone.
 // What scripts/calibrate-model-bias.sh measures for the paper cell, for every other cell by one
 // call: `bmssim cell-config --cell X` prints it, `estimate --cell X --model reduced` uses it.
 #include <array>
 #include <cstddef>
+#include <string>
 #include <vector>
 
 #include "bms/fw/model/model_bias_table.hpp"
@@ -23,14 +27,15 @@ struct EstimateOptions;
 
 struct DesignBias {
   double bias_ohm = 0.0;
-  fw::ModelBiasTable<double> table{};  // the part that varies with the state of charge (added)
+  fw::ModelBiasTables<double> table{};  // the part that varies with the state of charge and inventory (added)
   std::size_t ticks = 0;  // CC-charge ticks the median is over
   // The nominal run's residual less the bias over those ticks, 10th / 50th / 90th percentile [V]:
   // with the constant alone, and with the constant and the table.
   std::array<double, 3> residual_constant_v{}, residual_table_v{};
   // Per knot, the 90th percentile of |residual less the constant and the table| over its ticks [V]
-  // (0 for a knot without ticks): the misfit that sets table.x_trusted_last.
+  // (0 for a knot without ticks): the misfit that sets the nominal level's x_trusted_last.
   std::array<double, fw::kModelBiasKnots> knot_misfit_v{};
+  std::vector<std::string> level_notes;  // a level that stayed the nominal one, and why
   double wall_s = 0.0;
 };
 

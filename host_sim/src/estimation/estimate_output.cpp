@@ -12,6 +12,10 @@ namespace bms {
 namespace {
 nlohmann::json finite_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
+nlohmann::json bias_level_json(const fw::ModelBiasTable<double>& t) {
+  return {{"x_first", t.x_first}, {"x_last", t.x_last}, {"ohm", t.ohm}, {"trusted_last", finite_or_null(t.x_trusted_last)}};
+}
+
 // The configuration that ran (keys as before), only what the profile uses: RCSI's settings
 // where RCSI learns, the identifier's where it does, the observer's where it runs.
 nlohmann::json options_json(const EstimateConfigSummary& c, const EstimateOptions& o) {
@@ -25,16 +29,9 @@ nlohmann::json options_json(const EstimateConfigSummary& c, const EstimateOption
   if (c.identify_growth) {
     j["learn_inventory"] = c.learn_inventory;
     j["model_bias_ohm"] = c.model_bias_ohm;
-    if (c.model_bias_table.on())
-      j["model_bias_table"] = {{"abscissa", "the model's mean anode stoichiometry"},
-                               {"x_first", c.model_bias_table.x_first},
-                               {"x_last", c.model_bias_table.x_last},
-                               {"ohm", c.model_bias_table.ohm}};
-    else
-      j["model_bias_table"] = nullptr;
-    j["trusted_span_end"] = std::isfinite(c.model_bias_table.x_trusted_last)
-                                ? nlohmann::json(c.model_bias_table.x_trusted_last)
-                                : nlohmann::json(nullptr);
+    j["model_bias_table"] = model_bias_tables_json(c.model_bias_table);
+    const double span_end = c.model_bias_table.nominal().x_trusted_last;
+    j["trusted_span_end"] = std::isfinite(span_end) ? nlohmann::json(span_end) : nlohmann::json(nullptr);
     j["stated_spread_rel"] = {{"anode_i0", c.spread.anode_i0_rel}, {"cathode_i0", c.spread.cathode_i0_rel},
                               {"transport", c.spread.transport_rel}, {"area", c.spread.area_rel}};
     j["voltage_offset_sd_mv"] = c.voltage_offset_sd_v * 1e3;
@@ -123,6 +120,21 @@ nlohmann::json estimate_summary_json(const EstimateResult& r, const EstimateOpti
   j["wall_s"] = r.wall_s;
   j["ticks"] = r.rows.size();
   j["options"] = options_json(r.config, o);
+  return j;
+}
+
+nlohmann::json model_bias_tables_json(const fw::ModelBiasTables<double>& t) {
+  if (!t.on()) return nullptr;
+  nlohmann::json j = bias_level_json(t.nominal());
+  j["abscissa"] = "the model's mean anode stoichiometry";
+  if (!t.by_inventory()) return j;
+  j["inventory_step"] = t.nu_step;
+  j["levels"] = nlohmann::json::array();
+  for (int k = 0; k < fw::kModelBiasLevels; ++k) {
+    nlohmann::json l = bias_level_json(t.level[k]);
+    l["inventory_deviation"] = (k - fw::ModelBiasTables<double>::kNominal) * t.nu_step;
+    j["levels"].push_back(l);
+  }
   return j;
 }
 

@@ -15,5 +15,8 @@ nlohmann::json estimate_summary_json(const EstimateResult& r, const EstimateOpti
 // The Cramer-Rao bound of the best profile's joint unknowns as summary.json's "crlb" (and the
 // blind study's): gain, initial film, inventory, the film per cycle, the growth growth_err_pct scores.
 nlohmann::json film_bound_json(const FilmBound& b);
+// The design-time bias tables (null when off): the nominal level's knots at the top (abscissa,
+// x_first, x_last, ohm, trusted_last) and, where it has them, every level with its inventory.
+nlohmann::json model_bias_tables_json(const fw::ModelBiasTables<double>& t);
 
 }  // namespace bms

@@ -408,7 +408,7 @@ fw::NominalCell estimate_nominal_cell(const CellParameters& cell, const Estimate
   // The full model is the DFN itself: no design-time bias to remove. The reduced model of a cell
   // other than the paper's: the bias its nominal DFN gives (estimation/design_bias.hpp).
   double bias_ohm = o.model == "full" ? 0.0 : fw::kPaperReducedModelBiasOhm;
-  fw::ModelBiasTable<double> table{};
+  fw::ModelBiasTables<double> table{};
   if (o.model == "reduced" && cell.name != "paper") {
     table = o.design_bias_table;
     bias_ohm = o.design_bias_ohm;

@@ -96,7 +96,7 @@ struct EstimateOptions {
   double design_bias_ohm = std::nan("");
   // Its state-of-charge-dependent part (the same calibration; bms/fw/model/model_bias_table.hpp),
   // added to the constant; off (the default, and the paper cell): the constant alone.
-  fw::ModelBiasTable<double> design_bias_table{};
+  fw::ModelBiasTables<double> design_bias_table{};
   DfnMesh mesh;                      // full model only
   bool points_given = false;         // --points (full model only)
   double rtol = 1e-6;                // full model only
@@ -113,7 +113,7 @@ struct EstimateConfigSummary {
   bool calibrate_bias = false, average_estimate = false, learning = true, identify_growth = false, learn_inventory = true;
   double propagated_growth_ohm_m2_per_a_m3_s = 0, model_bias_ohm = 0, relinearise_inventory = 0;
   fw::StatedSpread<double> spread{};  // the cell's stated parameter spread (relative 1-sigma)
-  fw::ModelBiasTable<double> model_bias_table{};  // the bias's state-of-charge-dependent part (off: none)
+  fw::ModelBiasTables<double> model_bias_table{};  // the bias's state-of-charge and inventory part (off: none)
   double voltage_offset_sd_v = 0;     // the voltage sensor's stated offset accuracy (1-sigma)
   double current_gain_sd = 0;         // the current sensor's stated gain accuracy (relative 1-sigma)
   bool voltage_offset = false;        // the voltage sensor's offset measured and removed

@@ -172,6 +172,9 @@ struct StudyCell {
   std::string arg = "paper";  // as --cell names it
   CellParameters nominal;
   DesignBias bias;            // not the paper cell's (its bias is compiled in)
+  int truth_points = 20;      // the truths' DFN mesh and tolerance (the study's, beside the cell)
+  double truth_rtol = 1e-6;
+  bool default_truth_mesh() const { return truth_points == 20 && truth_rtol == 1e-6; }
   bool paper() const { return nominal.name == "paper"; }
 };
 
@@ -195,6 +198,7 @@ struct Arm {
   const char* cli;  // what `bmssim estimate` takes for it
   fw::Profile profile;
   std::function<void(fw::Overrides&)> set;  // the arm's overrides (make_config refuses an unused one)
+  bool other_cells_only = false;            // an ablation of what only another cell's calibration has
 };
 
 const std::vector<Arm>& arms() {
@@ -205,6 +209,8 @@ const std::vector<Arm>& arms() {
       {"best-no-learning", "--settings best --no-learning", P::best, [](O& o) { o.learning = false; }},
       {"best-no-inventory", "--settings best --no-inventory", P::best, [](O& o) { o.learn_inventory = false; }},
       {"best-no-bias", "--settings best --model-bias-ohm 0", P::best, [](O& o) { o.model_bias_ohm = 0.0; }},
+      {"best-no-bias-levels", "--settings best --no-bias-levels", P::best,
+       [](O& o) { o.model_bias_levels = false; }, true},
       {"best-no-relinearise", "--settings best --relinearise 1", P::best, [](O& o) { o.relinearise_inventory = 1.0; }},
       {"best-no-warmup", "--settings best --warmup 0", P::best, [](O& o) { o.warmup_s = 0.0; }},
       {"best-no-offset", "--settings best --no-current-offset", P::best, [](O& o) { o.current_offset = false; }},
@@ -361,6 +367,8 @@ SimulateOptions simulate_options(const TruthDraw& t, const Noise& n, int cycles,
     so.current_a = nominal.nominal_capacity_ah;
     so.cv_end_current_a = nominal.nominal_capacity_ah / 20.0;
   }
+  so.points = so.radial = cell.truth_points;
+  so.rtol = cell.truth_rtol;
   so.noise_v_mv = n.v_mv;
   so.noise_i_ma = n.i_ma;
   so.noise_t_k = t.noise_t_k;
@@ -378,6 +386,8 @@ std::string simulate_command(const SimulateOptions& so) {
                               shell_word(so.cell), shell_word(so.protocol), so.cycles, so.noise_v_mv, so.noise_i_ma);
   if (so.cell != "paper") c += fmt::format(" --current-a {} --cv-end-current-a {}", so.current_a, so.cv_end_current_a);
   if (so.noise_t_k > 0.0) c += fmt::format(" --noise-t-k {}", so.noise_t_k);
+  if (so.points != 20 || so.radial != 20 || so.rtol != 1e-6)
+    c += fmt::format(" --points {}:{} --rtol {}", so.points, so.radial, so.rtol);
   c += fmt::format(" --seed {}", so.seed);
   for (const auto& a : so.set) c += " --set " + a;
   for (const auto& e : so.effects) c += " --effect " + e;
@@ -460,6 +470,7 @@ json run_case(const TruthDraw& t, const Noise& n, int cycles, const StudyCell& c
   json j;
   j["case"] = case_name(t, n);
   j["cell"] = cell.arg;
+  if (!cell.default_truth_mesh()) j["truth_mesh"] = {{"points", cell.truth_points}, {"rtol", cell.truth_rtol}};
   j["set"] = t.set;
   j["seed"] = t.seed;
   j["noise"] = {{"v_mv", n.v_mv}, {"i_ma", n.i_ma}};
@@ -480,7 +491,7 @@ json run_case(const TruthDraw& t, const Noise& n, int cycles, const StudyCell& c
   const bool bounded = cell.paper() || n.i_ma == 0.0;
   const double sigma_eff = effective_voltage_noise_v(n.v_mv * 1e-3, n.i_ma * 1e-3, so.current_a);
   for (const auto& arm : arms()) {
-    if (!wanted(only, arm.name)) continue;
+    if (!wanted(only, arm.name) || (only.empty() && arm.other_cells_only && cell.paper())) continue;
     const EstimateResult r = run_estimate(data, nominal, arm_options(arm, cell));
     j["arms"][arm.name] = score(r, data.true_mode);
     if (std::string(arm.name) == "best" && bounded) j["crlb"] = film_bound_json(film_cramer_rao(r.rows, sigma_eff));
@@ -668,7 +679,10 @@ void write_report(const fs::path& dir, const json& summary, int drawn) {
     << "Command: `" << summary["command"].get<std::string>() << "`\n\n"
     << "Cell: " << summary["options"].value("cell", std::string("paper"))
     << " (the truths' nominal cell and the firmware model's; another cell than the paper's cycles at its 1C to its "
-       "voltage limits, CV to C/20, without the EKF and batch baselines, its bound for voltage noise alone).\n\n"
+       "voltage limits, CV to C/20, without the EKF and batch baselines, its bound for voltage noise alone). "
+    << "Truth DFN: " << summary["options"].value("truth_mesh", json::object()).value("points", 20)
+    << " volumes per region and per particle, rtol " << summary["options"].value("truth_mesh", json::object()).value("rtol", 1e-6)
+    << ".\n\n"
     << "Truths drawn uniformly (seeded) from ranges the estimator never sees: set 1 initial film +-20 %, "
        "film-growth law x0.3..3, side-reaction i0 x0.5..2, lithium inventory +-1 %; set 2 adds electrolyte "
        "conductivity +-10 % and solid diffusivities +-20 %; set 3 is set 1 at a temperature drawn from 5-45 C, every "
@@ -726,14 +740,19 @@ std::vector<std::string> parse_arms(const std::vector<std::string>& only) {
 }
 
 // A stored case is reused when it is of this run's cell (a case of the paper cell stored before
-// cells were recorded has none) and has every arm this run asks for.
+// cells were recorded has none) and truth mesh (none recorded: the default) and has every arm
+// this run asks for.
 bool has_arms(const json& j, const std::vector<std::string>& only, const StudyCell& cell) {
   if (!j.is_object() || j.value("cell", std::string("paper")) != cell.arg) return false;
+  const json mesh = cell.default_truth_mesh() ? json(nullptr)
+                                              : json{{"points", cell.truth_points}, {"rtol", cell.truth_rtol}};
+  if (j.value("truth_mesh", json(nullptr)) != mesh) return false;
   if (j.contains("truth_failed")) return true;
   if (!j.contains("arms")) return false;
   std::vector<std::string> need = only;
   if (need.empty()) {
-    for (const auto& a : arms()) need.push_back(a.name);
+    for (const auto& a : arms())
+      if (!(a.other_cells_only && cell.paper())) need.push_back(a.name);
     if (cell.paper()) need.insert(need.end(), {"ekf", "batch"});
   }
   for (const auto& a : need)
@@ -764,6 +783,8 @@ int run_blind_study(const BlindStudyOptions& o, const std::string& command) {
   if (o.cycles < 2 || o.cycles > 100) throw InputError("--cycles: must be 2..100");
   if (o.out.empty() && !o.list_cases) throw InputError("--out: required");
   StudyCell cell = study_cell(o.cell, only);
+  cell.truth_points = o.truth_points;
+  cell.truth_rtol = o.truth_rtol;
   const CellParameters& nominal = cell.nominal;
   struct Job {
     TruthDraw truth;
@@ -816,7 +837,8 @@ int run_blind_study(const BlindStudyOptions& o, const std::string& command) {
   for (auto& t : pool) t.join();
   json summary;
   summary["command"] = command;
-  summary["options"] = {{"seeds", o.seeds}, {"cycles", o.cycles}, {"sets", sets}, {"arms", only}, {"cell", o.cell}};
+  summary["options"] = {{"seeds", o.seeds}, {"cycles", o.cycles}, {"sets", sets}, {"arms", only}, {"cell", o.cell},
+                         {"truth_mesh", {{"points", o.truth_points}, {"rtol", o.truth_rtol}}}};
   summary["cases"] = results;
   json failures = json::array();
   for (const auto& c : results)

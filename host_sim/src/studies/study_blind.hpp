@@ -21,6 +21,8 @@ struct BlindStudyOptions {
   std::string out;
   bool quiet = false;
   std::string cell = "paper";  // paper | aboutenergy | lco | nmc | FILE.bpx.json
+  int truth_points = 20;       // the truths' DFN mesh: volumes per region and per particle
+  double truth_rtol = 1e-6;    // the truths' solver tolerance
 };
 
 // Runs (or resumes: finished cases are kept) the study and writes OUT/summary.json, report.md

@@ -12,7 +12,7 @@
 
 namespace bms::fw::cells {
 
-static_assert(kCellConfigSchema == 1, "generated for cell configuration schema 1: regenerate");
+static_assert(kCellConfigSchema == 2, "generated for cell configuration schema 2: regenerate");
 
 struct AboutenergyCellTraits {
   static constexpr double kAreaM2 = 0.089599979999999996;
@@ -38,7 +38,9 @@ struct AboutenergyCellTraits {
   static constexpr double kLowerVoltageV = 2.0;
   static constexpr double kNominalCapacityAh = 2.0;
   static constexpr double kModelBiasOhm = 0.0011256512724808763;
-  // The bias's state-of-charge part (bms/fw/model/model_bias_table.hpp; first = last: none)
+  // The bias's state-of-charge part at the nominal inventory (bms/fw/model/model_bias_table.hpp;
+  // first = last: none); past TrustedLast (mean anode stoichiometry) a CC charge's learning stops
+  // (the model leaves the nominal cell; 0: none)
   static constexpr double kModelBiasTableFirst = 0.20472984829252622;
   static constexpr double kModelBiasTableLast = 0.76783020415543812;
   static constexpr double kModelBiasTableOhm[24] = {
@@ -48,9 +50,30 @@ struct AboutenergyCellTraits {
       -0.00031793461166729155, -3.4665233656250077e-05, 0.00016514456298155665, 0.00020885976421180933,
       0.00012324906424687689, -4.7087401416902016e-05, -0.00026522997735689557, -0.00083198249085936183,
       -0.0020859829844399602, -0.0041956888231005074, -0.0081340679427113205, -0.0094906003634842601};
-  // Above this mean anode stoichiometry a CC charge's learning stops (the model leaves the nominal cell; 0: none)
   static constexpr double kModelBiasTableTrustedLast = 0.73110626790350919;
-  static constexpr std::uint32_t kRecordCrc32 = 0x3A46D3FEu;
+  // The same at the inventory kModelBiasInventoryStep below (Lean) and above (Rich) nominal (0: the nominal level alone)
+  static constexpr double kModelBiasInventoryStep = 0.01;
+  static constexpr double kModelBiasLeanFirst = 0.20470733344248876;
+  static constexpr double kModelBiasLeanLast = 0.75877404247565805;
+  static constexpr double kModelBiasLeanOhm[24] = {
+      0.00074952973619812836, 0.00077694755074086985, 0.00077777191911732025, 0.00074785497439267012,
+      0.00069139786738570152, 0.00060237278188912734, 0.00046529224114744117, 0.00026320291850834157,
+      -2.053819301072856e-06, -0.00028299976516676787, -0.0004854888011871487, -0.00050932690541105315,
+      -0.00033063421424794957, -4.91463314320473e-05, 0.00017862947415569976, 0.00025910340840673606,
+      0.0002091644947781468, 6.2699076834427537e-05, -0.00013517626481585011, -0.00056142786272683732,
+      -0.0016745193288059121, -0.0036189450300807557, -0.0072634307159513689, -0.0078712988772682291};
+  static constexpr double kModelBiasLeanTrustedLast = 0.72263925710392951;
+  static constexpr double kModelBiasRichFirst = 0.20482242182213867;
+  static constexpr double kModelBiasRichLast = 0.77691655691196915;
+  static constexpr double kModelBiasRichOhm[24] = {
+      0.00076955620722829574, 0.00078673477494173522, 0.0007754123373542312, 0.00073257064595310967,
+      0.00066245365254058485, 0.00055678483244014942, 0.00039704828135889245, 0.00016654709631214312,
+      -0.00012349766858577027, -0.00040762641342206841, -0.00057280508000068209, -0.00052672284008425908,
+      -0.00028947519080357842, -9.7886745140662867e-06, 0.00015835864960634044, 0.00016647792565449571,
+      4.9607320206979328e-05, -0.00014064145812509011, -0.00038203854086948908, -0.0010727422827097042,
+      -0.0024290424758288687, -0.0046579294471844612, -0.0087941266132600671, -0.010598850640344938};
+  static constexpr double kModelBiasRichTrustedLast = 0.73960606984089328;
+  static constexpr std::uint32_t kRecordCrc32 = 0x9B798AFDu;
   static constexpr HermiteTable<1025> kOcpNeg{0.002, 0.90467538999999997,
      {1.2673466042786217, 1.0394418504043728, 0.88289516278792846, 0.77603813826506851,
       0.70320053529288984, 0.65321329789440341, 0.61824318184324412, 0.59289591297346078,

@@ -11,7 +11,7 @@
 
 namespace bms::fw::cells {
 
-static_assert(kCellConfigSchema == 1, "generated for cell configuration schema 1: regenerate");
+static_assert(kCellConfigSchema == 2, "generated for cell configuration schema 2: regenerate");
 
 struct LcoCellTraits {
   static constexpr double kAreaM2 = 0.028358999999999999;
@@ -37,7 +37,9 @@ struct LcoCellTraits {
   static constexpr double kLowerVoltageV = 3.105;
   static constexpr double kNominalCapacityAh = 0.873;
   static constexpr double kModelBiasOhm = -0.00010657628048047879;
-  // The bias's state-of-charge part (bms/fw/model/model_bias_table.hpp; first = last: none)
+  // The bias's state-of-charge part at the nominal inventory (bms/fw/model/model_bias_table.hpp;
+  // first = last: none); past TrustedLast (mean anode stoichiometry) a CC charge's learning stops
+  // (the model leaves the nominal cell; 0: none)
   static constexpr double kModelBiasTableFirst = 0.37808085388842855;
   static constexpr double kModelBiasTableLast = 0.88238288828777955;
   static constexpr double kModelBiasTableOhm[24] = {
@@ -47,9 +49,30 @@ struct LcoCellTraits {
       0.0014013335760104145, 0.00092502962025422923, 0.00028587526767457407, -0.0005770728166096359,
       -0.0016967317214590957, -0.0030689433544879314, -0.0046739077749596613, -0.0064441337267903678,
       -0.0081963078804021851, -0.0088386820246611451, -0.0024040340603031494, 0.00088800837355368519};
-  // Above this mean anode stoichiometry a CC charge's learning stops (the model leaves the nominal cell; 0: none)
   static constexpr double kModelBiasTableTrustedLast = 0.0;
-  static constexpr std::uint32_t kRecordCrc32 = 0x554224DBu;
+  // The same at the inventory kModelBiasInventoryStep below (Lean) and above (Rich) nominal (0: the nominal level alone)
+  static constexpr double kModelBiasInventoryStep = 0.01;
+  static constexpr double kModelBiasLeanFirst = 0.36017397803336582;
+  static constexpr double kModelBiasLeanLast = 0.87240810795987178;
+  static constexpr double kModelBiasLeanOhm[24] = {
+      0.00073732867226623767, -0.00028211418615681818, -0.0019294497598400162, -0.0028798345504393694,
+      -0.0014952467051269425, 0.0017759614911039591, 0.0034882660935465306, 0.0035420897711408283,
+      0.0030697433757493377, 0.00262356033293532, 0.0022726814366564275, 0.0019645405835697983,
+      0.0016411590939426574, 0.0012485969433203654, 0.00072279256530334763, -5.8832967251934724e-06,
+      -0.00098900359552916853, -0.0022413473524087089, -0.0037475223941742263, -0.0054698335746973898,
+      -0.0073354308590964628, -0.0091269755598346498, -0.0071467422574723657, -0.00018294380382079419};
+  static constexpr double kModelBiasLeanTrustedLast = 0.86127258339625212;
+  static constexpr double kModelBiasRichFirst = 0.39597275707763269;
+  static constexpr double kModelBiasRichLast = 0.89229594199837303;
+  static constexpr double kModelBiasRichOhm[24] = {
+      -0.00099487849453147245, -0.0020368219502192664, -0.0020041340392636751, 0.00050083609618624663,
+      0.0029309712019680956, 0.0036728230160409632, 0.00345207982394147, 0.0030030673301472068,
+      0.0026100754373896942, 0.0022708989326176939, 0.0019380901110608222, 0.0015703258946997269,
+      0.0011245852141938781, 0.00054912241927129626, -0.00021692254803567395, -0.0012166257116707309,
+      -0.0024625834165926965, -0.0039459403779448969, -0.0056273179761863953, -0.0073943650938417035,
+      -0.0087998167799468712, -0.0066301604158770537, 0.00069700706016942015, 0.00091602272735032846};
+  static constexpr double kModelBiasRichTrustedLast = 0.0;
+  static constexpr std::uint32_t kRecordCrc32 = 0x54692DA0u;
   static constexpr HermiteTable<1025> kOcpNeg{0.10660999999999998, 0.998,
      {0.29988474132909287, 0.29967473757650698, 0.2994474373803247, 0.29920194866666483,
       0.29893747126915665, 0.29865330883205099, 0.2983488798455422, 0.29802372754906503,

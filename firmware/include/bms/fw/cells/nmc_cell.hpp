@@ -11,7 +11,7 @@
 
 namespace bms::fw::cells {
 
-static_assert(kCellConfigSchema == 1, "generated for cell configuration schema 1: regenerate");
+static_assert(kCellConfigSchema == 2, "generated for cell configuration schema 2: regenerate");
 
 struct NmcCellTraits {
   static constexpr double kAreaM2 = 0.1027;
@@ -37,7 +37,9 @@ struct NmcCellTraits {
   static constexpr double kLowerVoltageV = 2.5;
   static constexpr double kNominalCapacityAh = 5.0;
   static constexpr double kModelBiasOhm = 0.0017577201533050864;
-  // The bias's state-of-charge part (bms/fw/model/model_bias_table.hpp; first = last: none)
+  // The bias's state-of-charge part at the nominal inventory (bms/fw/model/model_bias_table.hpp;
+  // first = last: none); past TrustedLast (mean anode stoichiometry) a CC charge's learning stops
+  // (the model leaves the nominal cell; 0: none)
   static constexpr double kModelBiasTableFirst = 0.24541058704997007;
   static constexpr double kModelBiasTableLast = 0.62444540714191688;
   static constexpr double kModelBiasTableOhm[24] = {
@@ -47,9 +49,30 @@ struct NmcCellTraits {
       0.00011361175944557544, -0.00041142981944250999, -0.00097656332948048213, -0.0015365071187316555,
       -0.0020600639381781246, -0.0025083134772726718, -0.0027988656937761643, -0.0027536858748499421,
       -0.00208741401571455, -0.00070515291037693824, 0.00078850685495588432, 0.0014996771733224892};
-  // Above this mean anode stoichiometry a CC charge's learning stops (the model leaves the nominal cell; 0: none)
   static constexpr double kModelBiasTableTrustedLast = 0.0;
-  static constexpr std::uint32_t kRecordCrc32 = 0x3EEC1F8Bu;
+  // The same at the inventory kModelBiasInventoryStep below (Lean) and above (Rich) nominal (0: the nominal level alone)
+  static constexpr double kModelBiasInventoryStep = 0.01;
+  static constexpr double kModelBiasLeanFirst = 0.24516822270749108;
+  static constexpr double kModelBiasLeanLast = 0.61341086679787549;
+  static constexpr double kModelBiasLeanOhm[24] = {
+      -0.00065995255968998067, -0.00047421484473319999, -0.0001365233728649602, 0.00021534653886297501,
+      0.00051352337881018818, 0.00073032388772382734, 0.00086481045200219884, 0.00093126397709823987,
+      0.00094436010602425534, 0.0009222332852662162, 0.00083832035300828237, 0.00063285263854675382,
+      0.00026867959812584309, -0.00021363794889168704, -0.00075343496177602133, -0.0013032506351823511,
+      -0.0018304110624814737, -0.0023052657224180702, -0.0026781254505127802, -0.0028247115501333292,
+      -0.0025695361140085633, -0.0016203734685163338, -0.00013309822570413106, 0.00089440914352358937};
+  static constexpr double kModelBiasLeanTrustedLast = 0.0;
+  static constexpr double kModelBiasRichFirst = 0.24541058704997007;
+  static constexpr double kModelBiasRichLast = 0.62444540714191688;
+  static constexpr double kModelBiasRichOhm[24] = {
+      -0.00064588848741307069, -0.00045217344979198116, -0.00010375515474452218, 0.00025143312754556365,
+      0.00054524757714577996, 0.00075303747389856559, 0.00087835470031487686, 0.00093699049321838233,
+      0.00094501244381390995, 0.00091072714002118308, 0.0007979534714535508, 0.00053620068304685055,
+      0.00011361175944557544, -0.00041142981944250999, -0.00097656332948048213, -0.0015365071187316555,
+      -0.0020600639381781246, -0.0025083134772726718, -0.0027988656937761643, -0.0027536858748499421,
+      -0.00208741401571455, -0.00070515291037693824, 0.00078850685495588432, 0.0014996771733224892};
+  static constexpr double kModelBiasRichTrustedLast = 0.0;
+  static constexpr std::uint32_t kRecordCrc32 = 0x2D8615F9u;
   static constexpr HermiteTable<1025> kOcpNeg{0.002, 0.98891700000000005,
      {2.2336792743637277, 2.1655658728586138, 2.0999873439332184, 2.0368492769723057,
       1.9760607733779811, 1.9175343156763514, 1.8611856414882175, 1.8069336221822261,

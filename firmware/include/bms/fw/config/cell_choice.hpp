@@ -117,27 +117,46 @@ constexpr std::uint32_t cell_config_crc32() {
   crc = cell_crc::add(cell_crc::add(crc, Cell::kModelBiasTableFirst), Cell::kModelBiasTableLast);
   for (double v : Cell::kModelBiasTableOhm) crc = cell_crc::add(crc, v);
   crc = cell_crc::add(crc, Cell::kModelBiasTableTrustedLast);
+  crc = cell_crc::add(crc, Cell::kModelBiasInventoryStep);
+  crc = cell_crc::add(cell_crc::add(crc, Cell::kModelBiasLeanFirst), Cell::kModelBiasLeanLast);
+  for (double v : Cell::kModelBiasLeanOhm) crc = cell_crc::add(crc, v);
+  crc = cell_crc::add(crc, Cell::kModelBiasLeanTrustedLast);
+  crc = cell_crc::add(cell_crc::add(crc, Cell::kModelBiasRichFirst), Cell::kModelBiasRichLast);
+  for (double v : Cell::kModelBiasRichOhm) crc = cell_crc::add(crc, v);
+  crc = cell_crc::add(crc, Cell::kModelBiasRichTrustedLast);
   return ~crc;
 }
 
-/// A generated configuration's design-time bias table (kModelBiasTable*; a header without one: off).
-template <class Cell, class = void>
-struct BiasTableOf {
-  static constexpr ModelBiasTable<double> value() { return {}; }
-};
+/// One level of a header's bias table (its first and last knots' stoichiometry, knots, trusted end; 0: none).
+constexpr ModelBiasTable<double> bias_level_of(double first, double last, const double (&ohm)[kModelBiasKnots],
+                                               double trusted_last) {
+  ModelBiasTable<double> t{};
+  t.x_first = first;
+  t.x_last = last;
+  for (int k = 0; k < kModelBiasKnots; ++k) t.ohm[k] = ohm[k];
+  if (trusted_last > 0.0) t.x_trusted_last = trusted_last;
+  return t;
+}
+
+/// A generated configuration's design-time bias tables: the nominal inventory's (kModelBiasTable*)
+/// and the lean and rich levels (kModelBiasLean*, kModelBiasRich*, kModelBiasInventoryStep apart).
 template <class Cell>
-struct BiasTableOf<Cell, std::void_t<decltype(Cell::kModelBiasTableOhm)>> {
-  static constexpr ModelBiasTable<double> value() {
-    static_assert(sizeof(Cell::kModelBiasTableOhm) / sizeof(double) == kModelBiasKnots,
-                  "cell configuration: kModelBiasTableOhm has another number of knots than the firmware's table");
-    ModelBiasTable<double> t{};
-    t.x_first = Cell::kModelBiasTableFirst;
-    t.x_last = Cell::kModelBiasTableLast;
-    for (int k = 0; k < kModelBiasKnots; ++k) t.ohm[k] = Cell::kModelBiasTableOhm[k];
-    if (Cell::kModelBiasTableTrustedLast > 0.0) t.x_trusted_last = Cell::kModelBiasTableTrustedLast;  // 0: none
-    return t;
-  }
-};
+constexpr ModelBiasTables<double> bias_tables_of() {
+  static_assert(sizeof(Cell::kModelBiasTableOhm) / sizeof(double) == kModelBiasKnots &&
+                    sizeof(Cell::kModelBiasLeanOhm) / sizeof(double) == kModelBiasKnots &&
+                    sizeof(Cell::kModelBiasRichOhm) / sizeof(double) == kModelBiasKnots,
+                "cell configuration: a bias table has another number of knots than the firmware's table");
+  static_assert(kModelBiasLevels == 3, "the header holds three levels: lean, nominal, rich");
+  ModelBiasTables<double> t{};
+  t.level[0] = bias_level_of(Cell::kModelBiasLeanFirst, Cell::kModelBiasLeanLast, Cell::kModelBiasLeanOhm,
+                             Cell::kModelBiasLeanTrustedLast);
+  t.level[1] = bias_level_of(Cell::kModelBiasTableFirst, Cell::kModelBiasTableLast, Cell::kModelBiasTableOhm,
+                             Cell::kModelBiasTableTrustedLast);
+  t.level[2] = bias_level_of(Cell::kModelBiasRichFirst, Cell::kModelBiasRichLast, Cell::kModelBiasRichOhm,
+                             Cell::kModelBiasRichTrustedLast);
+  t.nu_step = Cell::kModelBiasInventoryStep;
+  return t;
+}
 
 /// The paper cell: its exact expressions (PaperCellTraits), the paper's mesh, its bias.
 struct PaperCell {
@@ -145,7 +164,7 @@ struct PaperCell {
   using Mesh = ReducedMesh<>;
   static constexpr const char* kName = "paper";
   static constexpr double kModelBiasOhm = kPaperReducedModelBiasOhm;
-  static constexpr ModelBiasTable<double> kModelBiasTable{};  // the constant alone
+  static constexpr ModelBiasTables<double> kModelBiasTable{};  // the constant alone
 };
 
 /// A generated configuration: its tables, the mesh the host runs every other cell on (16
@@ -160,7 +179,7 @@ struct GeneratedCell {
   using Traits = Cell;
   using Mesh = ReducedMesh<3, 1, 3, 16, 16>;
   static constexpr double kModelBiasOhm = Cell::kModelBiasOhm;
-  static constexpr ModelBiasTable<double> kModelBiasTable = BiasTableOf<Cell>::value();
+  static constexpr ModelBiasTables<double> kModelBiasTable = bias_tables_of<Cell>();
 };
 
 struct LcoName {

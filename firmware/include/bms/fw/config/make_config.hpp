@@ -113,9 +113,9 @@ struct NominalCell {
   double model_bias_ohm{};                    ///< the reduced model's design-time film bias
   double lower_voltage_v{};                   ///< the cell's voltage window
   double upper_voltage_v{};
-  /// The state-of-charge-dependent part of the design-time bias, added to model_bias_ohm (off:
-  /// the constant alone, as for the paper cell).
-  ModelBiasTable<double> model_bias_table{};
+  /// The state-of-charge-dependent part of the design-time bias, added to model_bias_ohm, over
+  /// the model's inventory where it has levels (off: the constant alone, as for the paper cell).
+  ModelBiasTables<double> model_bias_table{};
   /// The cell's nominal capacity [Ah] (0: not given). The currents that mark a protocol's phases
   /// (rest, the CV end the re-synchronisation and the current offset anchor on) are the paper
   /// cell's amperes scaled by it: a C-rate, so that a smaller cell's CV tail is not read as rest.
@@ -137,7 +137,7 @@ NominalCell paper_nominal_cell() {
           kPaperReducedModelBiasOhm,
           Cell::kLowerVoltageV,
           Cell::kUpperVoltageV,
-          {},
+          ModelBiasTables<double>{},
           paper::kNominalCapacity_ah};
 }
 
@@ -190,6 +190,7 @@ struct Overrides {
   Given<bool> learn_inventory;         // --no-inventory (false)
   Given<double> model_bias_ohm;        // --model-bias-ohm
   Given<bool> model_bias_table;        // --no-bias-table (false): the constant bias alone
+  Given<bool> model_bias_levels;       // --no-bias-levels (false): the nominal inventory's table alone
   Given<bool> trusted_span;            // --no-trusted-span (false): learn past the calibration's trusted span
   Given<double> trusted_span_end;      // --trusted-span-end X: the span's end (mean anode stoichiometry)
   Given<double> relinearise_inventory; // --relinearise
@@ -266,6 +267,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"no-inventory", o.learn_inventory.given, id, only_best},
       {"model-bias-ohm", o.model_bias_ohm.given, id, only_best},
       {"no-bias-table", o.model_bias_table.given, id, only_best},
+      {"no-bias-levels", o.model_bias_levels.given, id, only_best},
       {"no-trusted-span", o.trusted_span.given, id, only_best},
       {"trusted-span-end", o.trusted_span_end.given, id, only_best},
       {"relinearise", o.relinearise_inventory.given, id && observer, id ? no_observer : only_best},
@@ -440,14 +442,12 @@ void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   set_if(o.learn_inventory, cfg.film_path.identifier.learn_inventory);
   set_if(o.model_bias_ohm, cfg.film_path.model_bias_ohm);
   auto& table = cfg.film_path.model_bias_table;
-  if (o.model_bias_table.given && !o.model_bias_table.value) {
-    const auto span_end = table.x_trusted_last;  // the span has its own ablation (--no-trusted-span)
-    table = {};
-    table.x_trusted_last = span_end;
-  }
-  set_if(o.trusted_span_end, table.x_trusted_last);
+  if (o.model_bias_levels.given && !o.model_bias_levels.value) table.nu_step = 0;  // the nominal level alone
+  if (o.model_bias_table.given && !o.model_bias_table.value) table.drop_knots();  // the span has its own ablation
+  using TableScalar = decltype(table.nu_step);
+  if (o.trusted_span_end.given) table.set_trusted_last(static_cast<TableScalar>(o.trusted_span_end.value));
   if (o.trusted_span.given && !o.trusted_span.value)
-    table.x_trusted_last = std::decay_t<decltype(table)>{}.x_trusted_last;  // the default: trusted everywhere
+    table.set_trusted_last(ModelBiasTable<TableScalar>{}.x_trusted_last);  // the default: trusted everywhere
   set_if(o.relinearise_inventory, cfg.film_path.relinearise_inventory);
   set_if(o.hold_until_settled, cfg.film_path.hold_until_settled);
   set_if(o.hold_restarted_charge, cfg.film_path.hold_through_restarted_charge);

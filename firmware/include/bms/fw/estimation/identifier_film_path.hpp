@@ -34,9 +34,10 @@ class IdentifierFilmPath {
     // film would carry it (about 2.7 % of R_film for the paper cell).
     Scalar model_bias_ohm = Scalar(0);
     // The state-of-charge-dependent part of the same bias (ModelBiasTable over the model's mean
-    // anode stoichiometry), added to model_bias_ohm; off by default (the constant alone). A model
-    // that does not give its mean anode stoichiometry runs on the constant alone.
-    ModelBiasTable<Scalar> model_bias_table{};
+    // anode stoichiometry, and over the model's inventory where it has levels: ModelBiasTables),
+    // added to model_bias_ohm; off by default (the constant alone). A model that does not give its
+    // mean anode stoichiometry runs on the constant alone.
+    ModelBiasTables<Scalar> model_bias_table{};
     // A re-synchronisation that moves the model's inventory by more than this (relative)
     // restarts the film parameters' learning (FilmGrowthIdentifier::relinearise).
     Scalar relinearise_inventory = Scalar(1e-3);
@@ -189,10 +190,14 @@ class IdentifierFilmPath {
     if (t.probed) {
       const bool start = gate.should_start_identifying(t.probed);
       if (start) identifier_.begin_charge();
+      bias_nu_ = resync.inventory_deviation_model();  // the levels' abscissa: where the model is placed
       const Scalar x_neg = mean_stoich_of(model);  // once: the bias table and the trusted span read it
       const Scalar bias_ohm = model_bias_ohm_at(x_neg);
       l.status |= innovation_test(t.z_v + bias_ohm * t.current_a, start, t.dt_s);
-      l.inventory_sensitivity_v = (t.v_probe_v - t.r.voltage_v) / kInventoryProbe;
+      // The residual's sensitivity to the inventory: the model's, and the bias's where it has levels
+      // (the bias is evaluated where the model is placed; an inventory the fit moves moves it too).
+      l.inventory_sensitivity_v = (t.v_probe_v - t.r.voltage_v) / kInventoryProbe +
+                                  t.current_a * c_.model_bias_table.slope(x_neg, bias_nu_);
       const Scalar per_k = (v_warm_v_ - t.r.voltage_v) / (kTemperatureProbeK * t.r.markov_v_per_ohm_m2);
       if (c_.temperature_sd_k > Scalar(0) && std::isfinite(per_k)) film_per_kelvin_ohm_m2_ = std::fabs(per_k);
       update_spread(model, t.r);
@@ -319,7 +324,7 @@ class IdentifierFilmPath {
     return model_bias_ohm_at(mean_stoich_of(model));
   }
   Scalar model_bias_ohm_at(Scalar x_neg) const {
-    return c_.model_bias_table.on() && !std::isnan(x_neg) ? c_.model_bias_ohm + c_.model_bias_table.at(x_neg)
+    return c_.model_bias_table.on() && !std::isnan(x_neg) ? c_.model_bias_ohm + c_.model_bias_table.at(x_neg, bias_nu_)
                                                           : c_.model_bias_ohm;
   }
   // The model's mean anode stoichiometry where the table or the trusted span needs it (NaN: a
@@ -327,7 +332,7 @@ class IdentifierFilmPath {
   template <class Model>
   Scalar mean_stoich_of(const Model& model) const {
     if constexpr (kGivesStoichiometry<Model, Scalar>) {
-      if (c_.model_bias_table.on() || std::isfinite(c_.model_bias_table.x_trusted_last)) return model.mean_stoich_neg();
+      if (c_.model_bias_table.on() || c_.model_bias_table.has_trusted_span()) return model.mean_stoich_neg();
     } else {
       (void)model;
     }
@@ -360,9 +365,10 @@ class IdentifierFilmPath {
   // The stop condition of the design-time calibration (ModelBiasTable::x_trusted_last): the model's
   // mean anode stoichiometry past the span where it fits the nominal cell; latched to the charge's end.
   bool beyond_trusted_span(Scalar x_neg) {
-    if (!std::isfinite(c_.model_bias_table.x_trusted_last)) return false;
+    const Scalar x_last = c_.model_bias_table.trusted_last(bias_nu_);
+    if (!std::isfinite(x_last)) return false;
     if (stopped_in_charge_) return true;
-    stopped_in_charge_ = x_neg > c_.model_bias_table.x_trusted_last;  // NaN: no stoichiometry, no stop
+    stopped_in_charge_ = x_neg > x_last;  // NaN: no stoichiometry, no stop
     return stopped_in_charge_;
   }
 
@@ -438,6 +444,7 @@ class IdentifierFilmPath {
   Scalar innovation_mean_v_ = Scalar(0);
   Scalar innovation_ratio_ = Scalar(0);
   Scalar fusion_mean_v_ = Scalar(0);  // the regression innovation's mean (fusion_rejected)
+  Scalar bias_nu_ = Scalar(0);        // the model's inventory deviation the bias levels are read at
   bool stopped_in_charge_ = false;    // this charge's learning stopped (beyond_trusted_span)
   bool identifying_ = false;
   Scalar v_warm_v_ = Scalar(0);                // this tick's voltage at +kTemperatureProbeK

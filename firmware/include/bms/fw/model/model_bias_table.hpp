@@ -73,4 +73,96 @@ struct ModelBiasTable {
   }
 };
 
+// The same calibration at three lithium inventories (issue 28): the nominal DFN run with its
+// inventory at -step, 0 and +step of nominal, each level the table of the reduced model placed at
+// that inventory. With another inventory than nominal the cathode sits elsewhere for the same
+// anode stoichiometry, and a table of the nominal inventory reads the difference as film
+// (measured: docs/results/firmware-model.md). Read as the parabola through the three levels at an
+// inventory deviation within +-step (the end level's value outside), with its slope over the
+// inventory: the film path evaluates it where its model is placed and adds the slope to the
+// inventory's sensitivity, so that a fit that moves the inventory moves the bias with it.
+// nu_step 0 (the default): the nominal level alone, bit for bit as a single table.
+inline constexpr int kModelBiasLevels = 3;
+
+template <typename Scalar = double>
+struct ModelBiasTables {
+  static constexpr int kLevels = kModelBiasLevels;
+  static constexpr int kNominal = kLevels / 2;
+  static_assert(kLevels == 3, "a parabola through lean, nominal and rich");
+  ModelBiasTable<Scalar> level[kLevels] = {};  // at inventory deviation (k - kNominal) * nu_step
+  Scalar nu_step = Scalar(0);                  // relative inventory between levels (0: the nominal level alone)
+
+  const ModelBiasTable<Scalar>& nominal() const { return level[kNominal]; }
+  ModelBiasTable<Scalar>& nominal() { return level[kNominal]; }
+  bool on() const { return nominal().on(); }
+  bool by_inventory() const { return nu_step > Scalar(0); }
+
+  bool valid() const {
+    if (!std::isfinite(nu_step) || nu_step < Scalar(0)) return false;
+    for (const auto& t : level)
+      if (!t.valid()) return false;
+    return true;
+  }
+
+  // The bias per ampere at stoichiometry x and inventory deviation nu [ohm].
+  Scalar at(Scalar x, Scalar nu) const {
+    if (!by_inventory()) return nominal().at(x);
+    const Scalar s = clamped(nu), b0 = level[0].at(x), b1 = level[1].at(x), b2 = level[2].at(x);
+    return b1 + s * Scalar(0.5) * (b2 - b0) + s * s * Scalar(0.5) * (b2 - Scalar(2) * b1 + b0);
+  }
+  // Its slope over the inventory deviation at (x, nu) [ohm per unit of nu]; 0 outside +-step.
+  Scalar slope(Scalar x, Scalar nu) const {
+    if (!by_inventory() || !on()) return Scalar(0);
+    const Scalar s = clamped(nu);
+    if (s != nu / nu_step) return Scalar(0);
+    const Scalar b0 = level[0].at(x), b1 = level[1].at(x), b2 = level[2].at(x);
+    return (Scalar(0.5) * (b2 - b0) + s * (b2 - Scalar(2) * b1 + b0)) / nu_step;
+  }
+  // The trusted span's end at inventory deviation nu: linear between two finite ends, else the
+  // nearer level's (+inf: trusted everywhere).
+  Scalar trusted_last(Scalar nu) const {
+    if (!by_inventory()) return nominal().x_trusted_last;
+    const Scalar s = clamped(nu);
+    const int k = s < Scalar(0) ? 0 : 1;
+    const Scalar f = s < Scalar(0) ? s + Scalar(1) : s;  // the weight of level k + 1
+    const Scalar a = level[k].x_trusted_last, b = level[k + 1].x_trusted_last;
+    if (std::isfinite(a) && std::isfinite(b)) return a + f * (b - a);
+    return f < Scalar(0.5) ? a : b;
+  }
+  bool has_trusted_span() const {
+    for (const auto& t : level)
+      if (std::isfinite(t.x_trusted_last)) return true;
+    return false;
+  }
+
+  // --no-bias-table: every level's knots off, each level's trusted span kept.
+  void drop_knots() {
+    for (auto& t : level) {
+      const Scalar end = t.x_trusted_last;
+      t = ModelBiasTable<Scalar>{};
+      t.x_trusted_last = end;
+    }
+  }
+  // --trusted-span-end / --no-trusted-span: one end for every level.
+  void set_trusted_last(Scalar x) {
+    for (auto& t : level) t.x_trusted_last = x;
+  }
+
+  template <typename Other>
+  ModelBiasTables<Other> as() const {
+    ModelBiasTables<Other> t;
+    for (int k = 0; k < kLevels; ++k) t.level[k] = level[k].template as<Other>();
+    t.nu_step = Other(nu_step);
+    return t;
+  }
+
+ private:
+  // nu in units of the step, within [-1, 1] (NaN: the nominal level).
+  Scalar clamped(Scalar nu) const {
+    const Scalar s = nu / nu_step;
+    if (std::isnan(s)) return Scalar(0);
+    return s < Scalar(-1) ? Scalar(-1) : s > Scalar(1) ? Scalar(1) : s;
+  }
+};
+
 }  // namespace bms::fw
