@@ -10,6 +10,8 @@ compile), then over copies of it placed first on the include path, each changed 
   - one value of the OCP table changed, last bits                      -> the CRC static_assert;
   - the design-time bias changed, last bits (kModelBiasOhm)          -> the CRC static_assert;
   - one knot of the bias table changed, last bits (kModelBiasTableOhm) -> the CRC static_assert;
+  - one knot of the rich level changed (kModelBiasRichOhm)          -> the CRC static_assert;
+  - the inventory levels' step changed (kModelBiasInventoryStep 0.01 -> 0.02) -> the CRC static_assert;
   - the trusted span's end changed (kModelBiasTableTrustedLast 0 -> 0.7) -> the CRC static_assert;
   - the schema the header states changed (2 -> 3)                   -> the schema static_assert;
   - a field removed (kSideAlpha)                                    -> an error naming kSideAlpha.
@@ -70,6 +72,12 @@ def main():
          re.sub(r"(kModelBiasOhm = )([0-9.e+-]+)", lambda m: m.group(1) + nudge(m.group(2)), text, count=1), r"CRC-32 of the header's numbers"),
         ("a bias table knot changed (kModelBiasTableOhm)",
          re.sub(r"(kModelBiasTableOhm\[[0-9]+\] = \{\s*)([0-9.e+-]+)", lambda m: m.group(1) + nudge(m.group(2)), text, count=1),
+         r"CRC-32 of the header's numbers"),
+        ("a rich-level knot changed (kModelBiasRichOhm)",
+         re.sub(r"(kModelBiasRichOhm\[[0-9]+\] = \{\s*)([0-9.e+-]+)", lambda m: m.group(1) + nudge(m.group(2)), text, count=1),
+         r"CRC-32 of the header's numbers"),
+        ("the inventory step changed (kModelBiasInventoryStep)",
+         text.replace("kModelBiasInventoryStep = 0.01;", "kModelBiasInventoryStep = 0.02;"),
          r"CRC-32 of the header's numbers"),
         ("the trusted span's end changed (kModelBiasTableTrustedLast)",
          text.replace("kModelBiasTableTrustedLast = 0.0;", "kModelBiasTableTrustedLast = 0.7;"),

@@ -7,7 +7,8 @@
 //
 // A generated configuration (bms/fw/cells/*_cell.hpp, `bmssim cell-config`) states the schema
 // it was written for (a static_assert in the header) and the CRC-32 of its numbers
-// (kRecordCrc32), the design-time bias (kModelBiasOhm, kModelBiasTable*) included; GeneratedCell
+// (kRecordCrc32), the design-time bias (kModelBiasOhm, kModelBiasTable*, its inventory levels
+// kModelBiasLean*, kModelBiasRich*, kModelBiasInventoryStep) included; GeneratedCell
 // recomputes that CRC at compile time from the numbers the header holds, so an edited or damaged
 // header does not compile. The state a model of that
 // cell saves to NVM is tagged with the same CRC (nvm/state_schema.hpp: CellIdentity), so a

@@ -192,12 +192,12 @@ class IdentifierFilmPath {
       if (start) identifier_.begin_charge();
       bias_nu_ = resync.inventory_deviation_model();  // the levels' abscissa: where the model is placed
       const Scalar x_neg = mean_stoich_of(model);  // once: the bias table and the trusted span read it
-      const Scalar bias_ohm = model_bias_ohm_at(x_neg);
+      const auto table = bias_table_at(x_neg);
+      const Scalar bias_ohm = c_.model_bias_ohm + table.ohm;
       l.status |= innovation_test(t.z_v + bias_ohm * t.current_a, start, t.dt_s);
       // The residual's sensitivity to the inventory: the model's, and the bias's where it has levels
       // (the bias is evaluated where the model is placed; an inventory the fit moves moves it too).
-      l.inventory_sensitivity_v = (t.v_probe_v - t.r.voltage_v) / kInventoryProbe +
-                                  t.current_a * c_.model_bias_table.slope(x_neg, bias_nu_);
+      l.inventory_sensitivity_v = (t.v_probe_v - t.r.voltage_v) / kInventoryProbe + t.current_a * table.slope;
       const Scalar per_k = (v_warm_v_ - t.r.voltage_v) / (kTemperatureProbeK * t.r.markov_v_per_ohm_m2);
       if (c_.temperature_sd_k > Scalar(0) && std::isfinite(per_k)) film_per_kelvin_ohm_m2_ = std::fabs(per_k);
       update_spread(model, t.r);
@@ -323,9 +323,12 @@ class IdentifierFilmPath {
   Scalar model_bias_ohm_of(const Model& model) const {
     return model_bias_ohm_at(mean_stoich_of(model));
   }
-  Scalar model_bias_ohm_at(Scalar x_neg) const {
-    return c_.model_bias_table.on() && !std::isnan(x_neg) ? c_.model_bias_ohm + c_.model_bias_table.at(x_neg, bias_nu_)
-                                                          : c_.model_bias_ohm;
+  Scalar model_bias_ohm_at(Scalar x_neg) const { return c_.model_bias_ohm + bias_table_at(x_neg).ohm; }
+  // The table's part of the bias and its slope over the inventory at the model's state (0 and 0:
+  // no table, or no stoichiometry).
+  typename ModelBiasTables<Scalar>::Reading bias_table_at(Scalar x_neg) const {
+    if (!c_.model_bias_table.on() || std::isnan(x_neg)) return {Scalar(0), Scalar(0)};
+    return c_.model_bias_table.read(x_neg, bias_nu_);
   }
   // The model's mean anode stoichiometry where the table or the trusted span needs it (NaN: a
   // model without one, or neither needs it).

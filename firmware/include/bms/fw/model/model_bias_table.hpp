@@ -104,20 +104,22 @@ struct ModelBiasTables {
     return true;
   }
 
-  // The bias per ampere at stoichiometry x and inventory deviation nu [ohm].
-  Scalar at(Scalar x, Scalar nu) const {
-    if (!by_inventory()) return nominal().at(x);
+  // The bias per ampere at stoichiometry x and inventory deviation nu [ohm], and its slope over
+  // the inventory deviation [ohm per unit of nu; 0 outside +-step and without levels]: one
+  // lookup per level for both.
+  struct Reading {
+    Scalar ohm;
+    Scalar slope;
+  };
+  Reading read(Scalar x, Scalar nu) const {
+    if (!by_inventory()) return {nominal().at(x), Scalar(0)};
     const Scalar s = clamped(nu), b0 = level[0].at(x), b1 = level[1].at(x), b2 = level[2].at(x);
-    return b1 + s * Scalar(0.5) * (b2 - b0) + s * s * Scalar(0.5) * (b2 - Scalar(2) * b1 + b0);
+    const Scalar half_span = Scalar(0.5) * (b2 - b0), curve = b2 - Scalar(2) * b1 + b0;
+    const bool inside = s == nu / nu_step;
+    return {b1 + s * half_span + s * s * Scalar(0.5) * curve, inside ? (half_span + s * curve) / nu_step : Scalar(0)};
   }
-  // Its slope over the inventory deviation at (x, nu) [ohm per unit of nu]; 0 outside +-step.
-  Scalar slope(Scalar x, Scalar nu) const {
-    if (!by_inventory() || !on()) return Scalar(0);
-    const Scalar s = clamped(nu);
-    if (s != nu / nu_step) return Scalar(0);
-    const Scalar b0 = level[0].at(x), b1 = level[1].at(x), b2 = level[2].at(x);
-    return (Scalar(0.5) * (b2 - b0) + s * (b2 - Scalar(2) * b1 + b0)) / nu_step;
-  }
+  Scalar at(Scalar x, Scalar nu) const { return read(x, nu).ohm; }
+  Scalar slope(Scalar x, Scalar nu) const { return read(x, nu).slope; }
   // The trusted span's end at inventory deviation nu: linear between two finite ends, else the
   // nearer level's (+inf: trusted everywhere).
   Scalar trusted_last(Scalar nu) const {
