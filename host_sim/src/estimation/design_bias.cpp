@@ -6,7 +6,7 @@
 #include <future>
 #include <optional>
 #include <string>
-#include <utility>
+#include <tuple>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -188,18 +188,23 @@ double trusted_span_end(const fw::ModelBiasTable<double>& t, const std::array<do
 
 namespace {
 
-// One level's table over its ticks, less the nominal level's constant, with its trusted span.
-fw::ModelBiasTable<double> level_table(const CalibrationTicks& t, double bias_ohm,
-                                       std::array<double, fw::kModelBiasKnots>* misfit_out = nullptr) {
-  std::vector<double> ratios(t.z_v.size()), residual(t.z_v.size());
+// One level's table over its ticks, less the nominal level's constant, with its trusted span, the
+// per-knot misfit that set it and the ticks' residual less the constant and the table.
+struct Level {
+  fw::ModelBiasTable<double> table;
+  std::array<double, fw::kModelBiasKnots> misfit_v{};
+  std::vector<double> residual_v;
+};
+
+Level level_of(const CalibrationTicks& t, double bias_ohm) {
+  std::vector<double> ratios(t.z_v.size());
   for (std::size_t i = 0; i < t.z_v.size(); ++i) ratios[i] = t.z_v[i] / t.charge_a[i] - bias_ohm;
-  fw::ModelBiasTable<double> table = bias_table_of(t.stoich, ratios);
+  Level l{bias_table_of(t.stoich, ratios), {}, std::vector<double>(t.z_v.size())};
   for (std::size_t i = 0; i < t.z_v.size(); ++i)
-    residual[i] = t.z_v[i] - (bias_ohm + table.at(t.stoich[i])) * t.charge_a[i];
-  const auto misfit = knot_misfit_v(table, t.stoich, residual);
-  table.x_trusted_last = trusted_span_end(table, misfit, kTrustedMisfitV);
-  if (misfit_out != nullptr) *misfit_out = misfit;
-  return table;
+    l.residual_v[i] = t.z_v[i] - (bias_ohm + l.table.at(t.stoich[i])) * t.charge_a[i];
+  l.misfit_v = knot_misfit_v(l.table, t.stoich, l.residual_v);
+  l.table.x_trusted_last = trusted_span_end(l.table, l.misfit_v, kTrustedMisfitV);
+  return l;
 }
 
 }  // namespace
@@ -213,40 +218,41 @@ DesignBias design_time_bias(const CellParameters& nominal_in) {
   // The lean and rich levels on other threads (independent DFN runs), the nominal one here.
   // A level whose DFN cannot run the protocol (an electrode full at the CV end: the cell's window
   // leaves no room for more lithium) stays the nominal level, said in DesignBias::level_notes.
-  const auto off_level = [&](double nu) -> std::optional<CalibrationTicks> {
+  struct OffLevel {
+    std::optional<CalibrationTicks> ticks;
+    std::string failure;  // why the nominal DFN could not run there
+  };
+  const auto off_level = [&](double nu) {
     try {
-      return calibration_ticks(nominal, nu);
-    } catch (const RuntimeFailure&) {
-      return std::nullopt;
+      return OffLevel{calibration_ticks(nominal, nu), {}};
+    } catch (const RuntimeFailure& e) {
+      return OffLevel{std::nullopt, e.what()};
     }
   };
   auto lean = std::async(std::launch::async, off_level, -kInventoryLevelStep);
   auto rich = std::async(std::launch::async, off_level, kInventoryLevelStep);
   const CalibrationTicks t = calibration_ticks(nominal, 0.0);
-  const std::optional<CalibrationTicks> t_lean = lean.get(), t_rich = rich.get();
-  std::vector<double> ratios(t.z_v.size());
+  const OffLevel t_lean = lean.get(), t_rich = rich.get();
+  std::vector<double> ratios(t.z_v.size()), with_constant(t.z_v.size());
   for (std::size_t i = 0; i < t.z_v.size(); ++i) ratios[i] = t.z_v[i] / t.charge_a[i];
   DesignBias b;
   b.bias_ohm = median_of(ratios);
   b.ticks = ratios.size();
-  fw::ModelBiasTable<double>& table = b.table.nominal();
-  table = level_table(t, b.bias_ohm, &b.knot_misfit_v);
-  std::vector<double> with_constant(t.z_v.size()), with_table(t.z_v.size());
-  for (std::size_t i = 0; i < t.z_v.size(); ++i) {
-    with_constant[i] = t.z_v[i] - b.bias_ohm * t.charge_a[i];
-    with_table[i] = with_constant[i] - table.at(t.stoich[i]) * t.charge_a[i];
-  }
+  const Level nominal_level = level_of(t, b.bias_ohm);
+  const fw::ModelBiasTable<double>& table = b.table.nominal() = nominal_level.table;
+  b.knot_misfit_v = nominal_level.misfit_v;
+  for (std::size_t i = 0; i < t.z_v.size(); ++i) with_constant[i] = t.z_v[i] - b.bias_ohm * t.charge_a[i];
   b.residual_constant_v = percentiles(with_constant);
-  b.residual_table_v = percentiles(with_table);
+  b.residual_table_v = percentiles(nominal_level.residual_v);
   if (table.on()) {  // a cell whose one state needs no table needs no levels either
-    b.table.level[0] = t_lean ? level_table(*t_lean, b.bias_ohm) : table;
-    b.table.level[2] = t_rich ? level_table(*t_rich, b.bias_ohm) : table;
     b.table.nu_step = kInventoryLevelStep;
-    for (const auto& [ticks, name] : {std::pair{&t_lean, "lean"}, std::pair{&t_rich, "rich"}})
-      if (!*ticks)
+    for (const auto& [k, off, name] : {std::tuple{0, &t_lean, "lean"}, std::tuple{2, &t_rich, "rich"}}) {
+      b.table.level[k] = off->ticks ? level_of(*off->ticks, b.bias_ohm).table : table;
+      if (!off->ticks)
         b.level_notes.push_back(fmt::format("the {} level ({:+.0f} % inventory) is the nominal one: the nominal DFN "
-                                            "does not run the protocol there",
-                                            name, name[0] == 'l' ? -100.0 * kInventoryLevelStep : 100.0 * kInventoryLevelStep));
+                                            "does not run the protocol there ({})",
+                                            name, (k - 1) * 100.0 * kInventoryLevelStep, off->failure));
+    }
   }
   b.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   return b;

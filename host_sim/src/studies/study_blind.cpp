@@ -172,9 +172,12 @@ struct StudyCell {
   std::string arg = "paper";  // as --cell names it
   CellParameters nominal;
   DesignBias bias;            // not the paper cell's (its bias is compiled in)
-  int truth_points = 20;      // the truths' DFN mesh and tolerance (the study's, beside the cell)
-  double truth_rtol = 1e-6;
-  bool default_truth_mesh() const { return truth_points == 20 && truth_rtol == 1e-6; }
+  int truth_points = SimulateOptions{}.points;  // the truths' DFN mesh and tolerance (the study's, beside the cell)
+  double truth_rtol = SimulateOptions{}.rtol;
+  bool default_truth_mesh() const {
+    const SimulateOptions d;
+    return truth_points == d.points && truth_points == d.radial && truth_rtol == d.rtol;
+  }
   bool paper() const { return nominal.name == "paper"; }
 };
 
@@ -386,7 +389,8 @@ std::string simulate_command(const SimulateOptions& so) {
                               shell_word(so.cell), shell_word(so.protocol), so.cycles, so.noise_v_mv, so.noise_i_ma);
   if (so.cell != "paper") c += fmt::format(" --current-a {} --cv-end-current-a {}", so.current_a, so.cv_end_current_a);
   if (so.noise_t_k > 0.0) c += fmt::format(" --noise-t-k {}", so.noise_t_k);
-  if (so.points != 20 || so.radial != 20 || so.rtol != 1e-6)
+  const SimulateOptions d;
+  if (so.points != d.points || so.radial != d.radial || so.rtol != d.rtol)
     c += fmt::format(" --points {}:{} --rtol {}", so.points, so.radial, so.rtol);
   c += fmt::format(" --seed {}", so.seed);
   for (const auto& a : so.set) c += " --set " + a;
