@@ -27,7 +27,13 @@ refused points "--truth-points" study blind --cell lco --truth-points 5 --list-c
 
 # --truth-points / --truth-rtol: the truths' mesh and tolerance in every simulate line.
 "$bmssim" study blind --cell lco --sets 1 --seeds 1 --truth-points 60 --truth-rtol 1e-8 --list-cases > "$work/fine.txt"
-grep -c -- "--points 60:60 --rtol 1e-08 " "$work/fine.txt" | grep -qx 2 || fail "--truth-points not in the lines: $(cat "$work/fine.txt")"
+grep -c -- "--points 60 --radial 60 --rtol 1e-08 " "$work/fine.txt" | grep -qx 2 || fail "--truth-points not in the lines: $(cat "$work/fine.txt")"
+# A printed line is one simulate accepts: with an unknown protocol swapped in it is refused for
+# the protocol (after every option parsed), not for an option's syntax.
+line=$(head -1 "$work/fine.txt"); line=${line#*: bmssim }; line=${line/--protocol cccv/--protocol nosuch}
+set +e; eval "\"\$bmssim\" ${line/TRUTH/\"\$work/t\"}" > /dev/null 2> "$work/line.err"; rc=$?; set -e
+[[ $rc -eq 2 ]] && grep -q "nosuch" "$work/line.err" ||
+  fail "the printed simulate line is not accepted (exit $rc): $(cat "$work/line.err")"
 
 "$bmssim" study blind --cell lco --sets 1 --seeds 3 --list-cases > "$work/cases.txt" 2> "$work/list.err" ||
   fail "--list-cases exited $?: $(cat "$work/list.err")"

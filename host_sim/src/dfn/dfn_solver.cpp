@@ -170,6 +170,24 @@ int klu_initialize_once(SUNLinearSolver ls) {
   return SUNLS_SUCCESS;
 }
 
+// That condition check is KLU's cheap estimate (the ratio of U's smallest to largest diagonal),
+// and it can pass a refactorisation whose stale pivot order is useless for the new matrix: at a
+// switch from current to voltage control (an LCO cell at 80 volumes entering its CV charge) the
+// solution came back NaN and IDACalcIC failed for good. A non-finite solution therefore gets one
+// fresh factorisation with its own pivoting, and the solve is repeated; a solve that was finite
+// is untouched, so runs that never met this are unchanged bit for bit.
+int klu_solve_refactor_on_nan(SUNLinearSolver ls, SUNMatrix a, N_Vector x, N_Vector b, realtype tol) {
+  int flag = SUNLinSolSolve_KLU(ls, a, x, b, tol);
+  if (flag != SUNLS_SUCCESS) return flag;
+  const double* xv = N_VGetArrayPointer(x);
+  const auto n = N_VGetLength(x);
+  if (std::all_of(xv, xv + n, [](double v) { return std::isfinite(v); })) return flag;
+  flag = SUNLinSolInitialize_KLU(ls);
+  if (flag == SUNLS_SUCCESS) flag = SUNLinSolSetup_KLU(ls, a);
+  if (flag == SUNLS_SUCCESS) flag = SUNLinSolSolve_KLU(ls, a, x, b, tol);
+  return flag;
+}
+
 // IDA's own error text, kept for the exception instead of IDA printing it to stderr: a caller
 // that recovers from a failed step (the estimator's full main model) must not flood the
 // terminal, and one that does not gets the text in its error message.
@@ -432,6 +450,7 @@ void DfnSolver::start(double t0, const std::vector<double>& y0) {
   im.ls = SUNLinSol_KLU(im.y, im.jac, im.ctx);
   if (!im.jac || !im.ls) throw RuntimeFailure("cannot create the KLU sparse solver");
   im.ls->ops->initialize = klu_initialize_once;
+  im.ls->ops->solve = klu_solve_refactor_on_nan;
   check(IDASetLinearSolver(im.ida, im.ls, im.jac), "IDASetLinearSolver");
   check(IDASetJacFn(im.ida, jacobian_fn), "IDASetJacFn");
   check(IDARootInit(im.ida, 4, root_fn), "IDARootInit");

@@ -391,7 +391,7 @@ std::string simulate_command(const SimulateOptions& so) {
   if (so.noise_t_k > 0.0) c += fmt::format(" --noise-t-k {}", so.noise_t_k);
   const SimulateOptions d;
   if (so.points != d.points || so.radial != d.radial || so.rtol != d.rtol)
-    c += fmt::format(" --points {}:{} --rtol {}", so.points, so.radial, so.rtol);
+    c += fmt::format(" --points {} --radial {} --rtol {}", so.points, so.radial, so.rtol);
   c += fmt::format(" --seed {}", so.seed);
   for (const auto& a : so.set) c += " --set " + a;
   for (const auto& e : so.effects) c += " --effect " + e;
