@@ -5,6 +5,7 @@
 
 #include "estimation/estimate_run.hpp"
 #include "estimation/film_bound.hpp"
+#include "sim/cell_catalog.hpp"
 
 namespace {
 
@@ -76,3 +77,20 @@ TEST(FilmBound, GrowthBoundWithoutATrueGrowthIsNoPercentage) {
 }
 
 }  // namespace
+
+// The current noise is folded in with each cell's own reduced model: the LCO's dV/dI at the start
+// of its 1C charge, not the paper cell's. Without current noise the voltage noise is returned.
+TEST(FilmBound, EffectiveNoiseUsesTheCellsOwnResistance) {
+  const bms::CellParameters paper = bms::load_cell("paper"), lco = bms::load_cell("lco");
+  const double sv = 0.2e-3, si = 5e-3;
+  EXPECT_DOUBLE_EQ(bms::effective_voltage_noise_v(sv, 0.0, 0.873, lco), sv);
+  const double r_paper = bms::effective_voltage_noise_v(0.0, si, 2.3, paper) / si;
+  const double r_lco = bms::effective_voltage_noise_v(0.0, si, 0.873, lco) / si;
+  EXPECT_GT(r_lco, 0.0);
+  EXPECT_TRUE(std::isfinite(r_lco));
+  // An 18650-class LCO cell is tens of milliohms; the paper cell's resistance is not it.
+  EXPECT_LT(r_lco, 1.0);
+  EXPECT_GT(std::abs(r_lco - r_paper) / r_paper, 0.05);
+  const double both = bms::effective_voltage_noise_v(sv, si, 0.873, lco);
+  EXPECT_NEAR(both, std::hypot(sv, r_lco * si), 1e-12);
+}

@@ -6,6 +6,7 @@
 #include <Eigen/Dense>
 
 #include "bms/fw/model/reduced_cell.hpp"
+#include "cell/reduced_cell_record.hpp"
 
 namespace bms {
 
@@ -19,6 +20,16 @@ double bound_of(const Mat3& j, const Vec3& a) {
   const Eigen::LDLT<Mat3> f(j);
   if (f.info() != Eigen::Success || !f.isPositive() || (f.vectorD().array() <= 0.0).any()) return std::nan("");
   return std::sqrt(a.dot(f.solve(a)));
+}
+
+// dV/dI [ohm] of a reduced model at rest at these stoichiometries, one tick into a charge at current_a.
+template <class Model>
+double charge_start_resistance_ohm(double stoich_neg, double stoich_pos, double electrolyte_mol_m3, double r_film_ohm_m2,
+                                   double current_a) {
+  Model cell;
+  cell.init(stoich_neg, stoich_pos, electrolyte_mol_m3);
+  const double dt = 0.2, di = 1e-3;
+  return (cell.peek_voltage(-current_a + di, r_film_ohm_m2, dt) - cell.peek_voltage(-current_a, r_film_ohm_m2, dt)) / -di;
 }
 
 }  // namespace
@@ -64,11 +75,18 @@ FilmBound film_cramer_rao(const std::vector<EstimateRow>& rows, double sigma_v) 
   return out;
 }
 
-double effective_voltage_noise_v(double sigma_v, double sigma_i, double current_a) {
-  fw::ReducedCell<double> cell;
-  cell.init(0.05, 0.95, fw::PaperCellTraits::kElectrolyteInitMolM3);  // discharged, as a CC charge starts
-  const double r0 = fw::PaperCellTraits::kInitialFilmOhmM2, dt = 0.2, di = 1e-3;
-  const double r_ohm = (cell.peek_voltage(-current_a + di, r0, dt) - cell.peek_voltage(-current_a, r0, dt)) / -di;
+double effective_voltage_noise_v(double sigma_v, double sigma_i, double current_a, const CellParameters& cell) {
+  double r_ohm = 0.0;
+  if (cell.name == "paper") {
+    r_ohm = charge_start_resistance_ohm<fw::ReducedCell<double>>(0.05, 0.95, fw::PaperCellTraits::kElectrolyteInitMolM3,
+                                                                 fw::PaperCellTraits::kInitialFilmOhmM2, current_a);
+  } else {
+    const ReducedCellRecord record = make_reduced_cell_record(cell);
+    const RuntimeCellScope scope(record);
+    r_ohm = charge_start_resistance_ohm<fw::ReducedCell<double, RuntimeCellTraits, AnyCellMesh>>(
+        cell.negative.stoich_min, cell.positive.stoich_min, cell.initial_electrolyte_mol_m3,
+        cell.side.enabled ? cell.side.initial_film_resistance_ohm_m2 : 0.0, current_a);
+  }
   return std::sqrt(sigma_v * sigma_v + r_ohm * r_ohm * sigma_i * sigma_i);
 }
 

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <vector>
 
+#include "cell/cell_parameters.hpp"
 #include "estimation/estimate_run.hpp"
 
 namespace bms {
@@ -34,7 +35,8 @@ struct FilmBound {
 FilmBound film_cramer_rao(const std::vector<EstimateRow>& rows, double sigma_v);
 
 // The voltage noise the estimator sees: sqrt(sigma_v^2 + (R sigma_i)^2), R = dV/dI of the
-// nominal reduced model at the start of a CC charge at `current_a` (one tick).
-double effective_voltage_noise_v(double sigma_v, double sigma_i, double current_a);
+// cell's nominal reduced model (the firmware's, as the estimator runs it) at the start of a CC
+// charge at `current_a` (one tick), from the cell's 0 % state of charge.
+double effective_voltage_noise_v(double sigma_v, double sigma_i, double current_a, const CellParameters& cell);
 
 }  // namespace bms

@@ -490,15 +490,13 @@ json run_case(const TruthDraw& t, const Noise& n, int cycles, const StudyCell& c
     return j;
   }
   const EstimateData data = estimate_data_of(run);
-  // The current noise is folded in with the paper cell's reduced model: on another cell the bound
-  // is given for voltage noise alone.
-  const bool bounded = cell.paper() || n.i_ma == 0.0;
-  const double sigma_eff = effective_voltage_noise_v(n.v_mv * 1e-3, n.i_ma * 1e-3, so.current_a);
+  // The current noise is folded in with the cell's own nominal reduced model.
+  const double sigma_eff = effective_voltage_noise_v(n.v_mv * 1e-3, n.i_ma * 1e-3, so.current_a, nominal);
   for (const auto& arm : arms()) {
     if (!wanted(only, arm.name) || (only.empty() && arm.other_cells_only && cell.paper())) continue;
     const EstimateResult r = run_estimate(data, nominal, arm_options(arm, cell));
     j["arms"][arm.name] = score(r, data.true_mode);
-    if (std::string(arm.name) == "best" && bounded) j["crlb"] = film_bound_json(film_cramer_rao(r.rows, sigma_eff));
+    if (std::string(arm.name) == "best") j["crlb"] = film_bound_json(film_cramer_rao(r.rows, sigma_eff));
   }
   if (cell.paper()) run_baselines(data, n, nominal, only, j);
   if (j.contains("crlb")) j["crlb"]["sigma_v_effective_mv"] = sigma_eff * 1e3;
