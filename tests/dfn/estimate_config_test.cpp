@@ -343,7 +343,8 @@ TEST(EstimateConfig, ProfileNames) {
 }  // namespace
 
 // The phase currents are C-rates of the cell: the paper cell's rest threshold and CV end at its
-// own capacity (bit for bit), the same fractions of a smaller cell's, and --resync-current wins.
+// own capacity (bit for bit), the same fractions of a smaller cell's, and --resync-current wins;
+// the plausibility limits scale up only.
 TEST(EstimateConfig, PhaseCurrentsScaleWithTheCellsCapacity) {
   const auto paper = fw::paper_cell_config<IdentifierCore>(fw::Profile::best);
   EXPECT_EQ(paper.detector.rest_current_a, 0.05);
@@ -354,6 +355,14 @@ TEST(EstimateConfig, PhaseCurrentsScaleWithTheCellsCapacity) {
   EXPECT_DOUBLE_EQ(lco.detector.rest_current_a, 0.05 * 0.873 / 2.3);
   EXPECT_DOUBLE_EQ(lco.resync_current_a, 0.25 * 0.873 / 2.3);
   EXPECT_LT(lco.detector.rest_current_a, 0.873 / 20.0) << "the CV tail must not read as rest";
+  // The plausibility limits never shrink below the paper cell's 20 A, and grow with a larger cell.
+  EXPECT_EQ(lco.current_limit_a, paper.current_limit_a);
+  EXPECT_EQ(lco.current_step_limit_a, paper.current_step_limit_a);
+  fw::NominalCell large = small;
+  large.nominal_capacity_ah = 5.0;  // the NMC template's
+  const auto nmc = fw::make_config<IdentifierCore>(large, fw::Profile::best);
+  EXPECT_DOUBLE_EQ(nmc.current_limit_a, 20.0 * 5.0 / 2.3);
+  EXPECT_DOUBLE_EQ(nmc.current_step_limit_a, 20.0 * 5.0 / 2.3);
   small.nominal_capacity_ah = 0.0;  // not given: the paper cell's amperes
   EXPECT_EQ(fw::make_config<IdentifierCore>(small, fw::Profile::best).resync_current_a, 0.25);
   small.nominal_capacity_ah = 0.873;

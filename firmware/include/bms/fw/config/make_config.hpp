@@ -301,6 +301,8 @@ void apply_voltage_window(const NominalCell& cell, Config& cfg) {
 /// The phase currents as C-rates of the cell (NominalCell::nominal_capacity_ah): the paper cell's
 /// rest threshold (0.05 A, C/46) and CV end (0.25 A, C/9.2) at its 2.3 Ah, the same fractions of
 /// another cell's capacity. The paper cell's own are unchanged (a factor of exactly 1).
+/// The plausibility limits (20 A, about 9C of the paper cell) grow with a larger cell but never
+/// shrink: they catch a sensor fault, and a small high-power cell's real pulses must pass.
 template <class Config>
 void apply_capacity_scale(const NominalCell& cell, Config& cfg) {
   using Scalar = decltype(Config::dt_s);
@@ -308,6 +310,9 @@ void apply_capacity_scale(const NominalCell& cell, Config& cfg) {
   const double k = cell.nominal_capacity_ah / paper::kNominalCapacity_ah;
   cfg.detector.rest_current_a = Scalar(static_cast<double>(cfg.detector.rest_current_a) * k);
   cfg.resync_current_a = Scalar(static_cast<double>(cfg.resync_current_a) * k);
+  const double k_limit = k > 1.0 ? k : 1.0;
+  cfg.current_limit_a = Scalar(static_cast<double>(cfg.current_limit_a) * k_limit);
+  cfg.current_step_limit_a = Scalar(static_cast<double>(cfg.current_step_limit_a) * k_limit);
 }
 
 // A gap without samples longer than this [s] is a power cycle (BmsCore::Config::power_cycle_after_s):
