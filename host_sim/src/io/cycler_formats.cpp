@@ -550,6 +550,9 @@ CyclerLayoutGuess detect_cycler_layout(std::string_view head) {
 }
 
 CyclerLayoutGuess detect_cycler_layout_of(const std::filesystem::path& file) {
+  // A FIFO or device would block the read; read_text_file refuses it with its reason.
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) return {};
   std::ifstream in(file, std::ios::binary);
   if (!in) return {};
   std::string head(64 * 1024, '\0');
