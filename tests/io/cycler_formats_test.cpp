@@ -448,5 +448,19 @@ TEST(CyclerFormats, DayAndMonthTakenFromTheDatesOrRefused) {
                          "month/day cannot be told (write them as YYYY-MM-DD)");
 }
 
+TEST(CyclerFormats, CurrentSignAgainstTheStepTypesIsRefused) {
+  // --current-sign overrode the step types' evidence (caught only if the voltage said so), and was
+  // dropped without a word for a file of magnitudes.
+  const auto cycle = one_cycle(0.0, 60.0);
+  const fs::path n = write("neware_sign.csv", neware(cycle));
+  EXPECT_EQ(error_of([&] { read_cycler_record({n}, CurrentSign::discharge_positive); }),
+            n.string() + ": line 5, column 7 ('Current(mA)'): --current-sign discharge-positive contradicts the step "
+                         "type ('CC_Chg' in column 6, current 550)");
+  EXPECT_NO_THROW(read_cycler_record({n}, CurrentSign::charge_positive));
+  const fs::path m = write("maccor_sign.001.txt", maccor(cycle));
+  EXPECT_NE(read_cycler_record({m}, CurrentSign::discharge_positive).note.find("--current-sign not used"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace bms

@@ -208,9 +208,21 @@ std::string settle_sign(const DelimitedTable& t, RawColumns& raw, CurrentSign si
       how = fmt::format("{} (from the step types)", negate ? "charge-positive" : "discharge-positive");
     }
   }
-  if (sign != CurrentSign::by_layout && !magnitude) {
-    negate = sign == CurrentSign::charge_positive;
-    how = fmt::format("{} (--current-sign)", negate ? "charge-positive" : "discharge-positive");
+  if (sign != CurrentSign::by_layout) {
+    const bool given = sign == CurrentSign::charge_positive;
+    if (magnitude) {
+      how += " (--current-sign not used)";
+    } else if (!how.empty() && given != negate) {
+      // The step types said the other way: the first row under current is read against its step.
+      std::size_t r = 0;
+      while (raw.kind[r] == kRest || std::abs(raw.current_a[r]) <= under) ++r;
+      throw InputError(fmt::format("{}: --current-sign {} contradicts the step type ('{}' in column {}, current {})",
+                                   row_where(t, r, raw.current_col), given ? "charge-positive" : "discharge-positive",
+                                   t.cell(r, raw.kind_col), raw.kind_col + 1, t.cell(r, raw.current_col)));
+    } else {
+      negate = given;
+      how = fmt::format("{} (--current-sign)", negate ? "charge-positive" : "discharge-positive");
+    }
   }
   if (how.empty()) how = fmt::format("{} (the layout's convention)", negate ? "charge-positive" : "discharge-positive");
   for (std::size_t r = 0; r < raw.current_a.size(); ++r) {
