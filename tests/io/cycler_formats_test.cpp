@@ -462,5 +462,19 @@ TEST(CyclerFormats, CurrentSignAgainstTheStepTypesIsRefused) {
             std::string::npos);
 }
 
+TEST(CyclerFormats, ThousandsSeparatorBesideDecimalPointsIsRefused) {
+  // A tab-separated export with '.' decimals and a thousands separator: "1,100" was read as 1.1.
+  std::string text = maccor(one_cycle(0.0, 10.0));
+  const auto row = text.find("\n25\t");  // a discharge row (1.1 A), line 27
+  ASSERT_NE(row, std::string::npos);
+  const auto amps = text.find("\t1.1\t", row);
+  ASSERT_NE(amps, std::string::npos);
+  text.replace(amps, 5, "\t1,100\t");
+  const fs::path f = write("thousands.001.txt", text);
+  const std::string e = error_of([&] { read_cycler_record({f}, CurrentSign::by_layout); });
+  EXPECT_NE(e.find("line 27, column 8 ('Amps'): '1,100' after '"), std::string::npos) << e;
+  EXPECT_NE(e.find("a decimal point and a decimal comma in one column"), std::string::npos) << e;
+}
+
 }  // namespace
 }  // namespace bms

@@ -182,7 +182,7 @@ std::string settle_sign(const DelimitedTable& t, RawColumns& raw, CurrentSign si
     }
     if (any_neg == 0 && raw.unsigned_possible && dis_pos > 0) {
       magnitude = true;
-      how = "current logged as a magnitude; direction from the step type";
+      how = "logged as a magnitude, its direction from the step type";
       // A magnitude in a step of no direction (Maccor's O, a Neware pulse) has no sign to give.
       for (std::size_t r = 0; r < raw.current_a.size(); ++r)
         if (raw.kind[r] == kRest && raw.current_a[r] > under)

@@ -199,21 +199,47 @@ std::string DelimitedTable::where_header(std::size_t column) const {
 
 std::string_view DelimitedTable::cell(std::size_t row, std::size_t column) const { return rows_[row][column]; }
 
+namespace {
+// Where a comma may be the decimal mark, a column holding both "12.5" and "1,500" has a
+// thousands separator in it (1,500 read as 1.5): refused at the second kind's first cell.
+struct DecimalMarks {
+  std::size_t point = DelimitedTable::npos, comma = DelimitedTable::npos;
+  void see(std::string_view cell, std::size_t row) {
+    if (cell.find('.') != std::string_view::npos) point = std::min(point, row);
+    else if (cell.find(',') != std::string_view::npos) comma = std::min(comma, row);
+  }
+  void check(const DelimitedTable& t, std::size_t column) const {
+    if (point == DelimitedTable::npos || comma == DelimitedTable::npos) return;
+    const std::size_t later = std::max(point, comma), first = std::min(point, comma);
+    throw InputError(fmt::format("{}: '{}' after '{}' on line {}: a decimal point and a decimal comma in one column "
+                                 "(a thousands separator?)",
+                                 t.where(later, column), t.cell(later, column), t.cell(first, column),
+                                 t.line_of_row(first)));
+  }
+};
+}  // namespace
+
 std::vector<double> DelimitedTable::numbers(std::size_t column) const {
   std::vector<double> out(rows_.size());
   const bool decimal_comma = delimiter_ != ',';
-  for (std::size_t r = 0; r < rows_.size(); ++r)
+  DecimalMarks marks;
+  for (std::size_t r = 0; r < rows_.size(); ++r) {
     if (!parse_plain(rows_[r][column], out[r], decimal_comma))
       throw InputError(fmt::format("{}: not a finite number: '{}'", where(r, column), rows_[r][column]));
+    if (decimal_comma) marks.see(rows_[r][column], r);
+  }
+  marks.check(*this, column);
   return out;
 }
 
 std::vector<double> DelimitedTable::durations_s(std::size_t column, double number_scale_s) const {
   std::vector<double> out(rows_.size());
   const bool decimal_comma = delimiter_ != ',';
+  DecimalMarks marks;
   for (std::size_t r = 0; r < rows_.size(); ++r) {
     const std::string_view c = rows_[r][column];
     if (parse_plain(c, out[r], decimal_comma)) {
+      if (decimal_comma) marks.see(c, r);
       if (std::isnan(number_scale_s))
         throw InputError(fmt::format("{}: a number of no stated unit: '{}' (name the unit in the header, e.g. "
                                      "'Time (s)')", where(r, column), c));
@@ -222,6 +248,7 @@ std::vector<double> DelimitedTable::durations_s(std::size_t column, double numbe
       throw InputError(fmt::format("{}: not a time (a number, or [Nd ]H:MM:SS[.fff]): '{}'", where(r, column), c));
     }
   }
+  marks.check(*this, column);
   return out;
 }
 
