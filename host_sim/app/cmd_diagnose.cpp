@@ -264,8 +264,8 @@ Runner add_diagnose(CLI::App& app) {
   auto o = std::make_shared<DiagnoseOptions>();
   sub->add_option("--data", o->data,
                   "Measured record: About:Energy 'Time [s],I[A],U[V]', truth.csv (its current_meas_a and "
-                  "voltage_meas_v; temperature_k when present), or any CSV with time, current and voltage columns "
-                  "(picked by name). Repeatable: each record is scored with the parameters fitted on the others")
+                  "voltage_meas_v; temperature_k when present), a cycler's export (Arbin, Maccor, Neware, BioLogic "
+                  ".mpt, NASA PCoE), or any CSV with time, current and voltage columns (picked by name). Repeatable: each record is scored with the parameters fitted on the others")
       ->required();
   sub->add_option("--cell", o->cell, "paper | aboutenergy | lco | nmc | FILE.bpx.json")->required();
   sub->add_option("--out", o->out, "Output folder (summary.json, report.md, residual.csv, PNG plots)")->required();

@@ -10,8 +10,8 @@ void register_simulate_options(CLI::App& sub, SimulateOptions& o) {
                  "(\"Discharge at 1C until 2.0 V; Rest for 30 minutes; Charge at 2.5 A until 3.6 V; Hold at 3.6 V "
                  "until 50 mA\": steps split by ';', Discharge|Charge at A, mA, xC or C/n, 'for D "
                  "seconds|minutes|hours' and/or 'until V'; Rest for D; Hold at V until A or C/n; repeated --cycles "
-                 "times), or csv:FILE (drive with a measured current: truth.csv or About:Energy "
-                 "'Time [s],I[A],U[V]' format)")
+                 "times), or csv:FILE (drive with a measured current: truth.csv, About:Energy "
+                 "'Time [s],I[A],U[V]' format, or a cycler's export: Arbin, Maccor, Neware, BioLogic .mpt, NASA PCoE)")
       ->capture_default_str();
   sub.add_option("--current-sign", o.current_sign,
                  "discharge-positive | charge-positive: the sign of a csv:FILE's current (default: by its layout, "

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -12,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "io/delimited_table.hpp"
 #include "io/input_error.hpp"
 
 namespace bms {
@@ -307,6 +309,171 @@ TEST(CyclerFormats, CalceCs2FolderReadAsItComes) {
   for (std::size_t i = 1; i < r.t_s.size(); ++i) ASSERT_GT(r.t_s[i], r.t_s[i - 1]) << i;
   ASSERT_EQ(r.step_time_s.size(), r.t_s.size());  // Arbin's Step_Time(s) in every file
   for (double s : r.step_time_s) ASSERT_GE(s, 0.0);
+}
+
+// Cycler exports as real ones come, each read wrongly in silence or refused before these tests.
+
+TEST(CyclerFormats, MaccorMagnitudeInAStepOfNoDirectionIsRefused) {
+  // Maccor's "O" state (neither charge, discharge nor rest) with an unsigned current: its sign
+  // was taken as discharge.
+  std::string text = maccor(one_cycle(0.0, 10.0));
+  const auto row = text.find("\n8\t");  // a charge row at 0.55 A, line 10
+  ASSERT_NE(row, std::string::npos);
+  text.replace(text.find("\tC\t", row), 3, "\tO\t");
+  const fs::path f = write("other_state.001.txt", text);
+  EXPECT_EQ(error_of([&] { read_cycler_record({f}, CurrentSign::by_layout); }),
+            f.string() + ": line 10, column 8 ('Amps'): current 0.55 A logged as a magnitude in a step of no "
+                         "direction ('O' in column 10): charge or discharge cannot be told");
+}
+
+TEST(CyclerFormats, MaccorRecHeaderWithDayClockTimes) {
+  // Maccor's other text export: "Rec", "TestTime" as "Nd HH:MM:SS.ff", "Current [A]", "Md".
+  std::string text = "Rec\tCycle P\tCycle C\tStep\tTestTime\tStepTime\tCap. [Ah]\tCurrent [A]\tVoltage [V]\tMd\tES\n";
+  int rec = 1;
+  for (const Sample& s : one_cycle(86340.0, 10.0)) {
+    const int t = static_cast<int>(s.t_s);
+    text += fmt::format("{}\t1\t1\t{}\t{}d {:02d}:{:02d}:{:02d}.00\t0d 00:00:00.00\t0\t{}\t{}\t{}\t0\n", rec++, s.step,
+                        t / 86400, t / 3600 % 24, t / 60 % 60, t % 60, std::abs(s.current_a), s.voltage_v, s.state);
+  }
+  const fs::path f = write("rec_variant.txt", text);
+  EXPECT_EQ(detect_cycler_layout_of(f).layout, CyclerLayout::maccor);
+  const CyclerRecord r = read_cycler_record({f}, CurrentSign::by_layout);
+  EXPECT_DOUBLE_EQ(r.t_s[7] - r.t_s[6], 10.0);  // across the day's end
+  EXPECT_DOUBLE_EQ(r.current_a[5], -0.55);
+  EXPECT_DOUBLE_EQ(r.current_a.back(), 1.1);
+}
+
+TEST(CyclerFormats, SemicolonsAndDecimalCommas) {
+  // An Arbin CSV saved in a European locale: ';' between cells, ',' as the decimal mark.
+  std::string text = arbin(one_cycle(30.0, 30.0), 1, 0.0);
+  std::replace(text.begin(), text.end(), ',', ';');
+  std::replace(text.begin(), text.end(), '.', ',');
+  const fs::path f = write("arbin_semicolon.csv", text);
+  const CyclerLayoutGuess g = detect_cycler_layout_of(f);
+  EXPECT_EQ(g.layout, CyclerLayout::arbin);
+  EXPECT_EQ(g.delimiter, ';');
+  const CyclerRecord r = read_cycler_record({f}, CurrentSign::by_layout);
+  EXPECT_DOUBLE_EQ(r.current_a[5], -0.55);
+  EXPECT_DOUBLE_EQ(r.voltage_v[5], 3.68);
+  EXPECT_DOUBLE_EQ(r.t_s[1] - r.t_s[0], 30.0);
+}
+
+TEST(CyclerFormats, ByteOrderMarkBeforeTheHeader) {
+  // A NASA PCoE file saved with a UTF-8 BOM was not recognised (its first column name carried it).
+  const auto cycle = one_cycle(0.0, 10.0);
+  const fs::path f = write("nasa_bom.csv", "\xEF\xBB\xBF" + nasa(cycle, 0.0));
+  EXPECT_EQ(detect_cycler_layout_of(f).layout, CyclerLayout::nasa);
+  const CyclerRecord r = read_cycler_record({f}, CurrentSign::by_layout);
+  EXPECT_DOUBLE_EQ(r.current_a[5], -0.55);
+}
+
+TEST(CyclerFormats, Latin1DegreeSignAndAnIndexColumn) {
+  // A data set converted by pandas (an unnamed index column first) from a Windows export whose
+  // temperature unit is a Latin-1 degree sign.
+  std::string text;
+  int row = -1;
+  const std::string arbin_text = arbin(one_cycle(30.0, 30.0), 1, 0.0);
+  for (std::size_t at = 0; at < arbin_text.size();) {
+    const auto nl = arbin_text.find('\n', at);
+    const std::string line = arbin_text.substr(at, nl - at);
+    const std::string temperature = row < 0 ? ",Temperature (\xb0" "C)_1" : ",24.5";
+    text += (row < 0 ? std::string() : std::to_string(row)) + "," + line + temperature + "\n";
+    ++row;
+    at = nl + 1;
+  }
+  const fs::path f = write("calce_pandas.csv", text);
+  const CyclerRecord r = read_cycler_record({f}, CurrentSign::by_layout);
+  ASSERT_EQ(r.temperature_k.size(), r.t_s.size());
+  EXPECT_NEAR(r.temperature_k.front(), 297.65, 1e-9);
+  EXPECT_DOUBLE_EQ(r.current_a[5], -0.55);
+}
+
+TEST(CyclerFormats, DotNetDaysInAClockTime) {
+  // Windows cycler software writes a duration past a day as .NET's "D.HH:MM:SS": "1.00:00:30"
+  // is a day and 30 s, not 1.0 h.
+  double s = 0.0;
+  ASSERT_TRUE(parse_duration_s("1.02:03:04", s));
+  EXPECT_DOUBLE_EQ(s, 93784.0);
+  ASSERT_TRUE(parse_duration_s("12:03:04.5", s));
+  EXPECT_DOUBLE_EQ(s, 43384.5);
+  EXPECT_FALSE(parse_duration_s("1.5:03", s));  // no clock has fractional minutes before its seconds
+  std::string text = "Record ID,Total Time,Step ID,Cycle ID,Step Type,Current(A),Voltage(V)\n";
+  int rec = 1;
+  for (const Sample& x : one_cycle(86280.0, 30.0)) {
+    const int t = static_cast<int>(x.t_s);
+    const std::string clock = fmt::format("{:02d}:{:02d}:{:02d}", t / 3600 % 24, t / 60 % 60, t % 60);
+    text += fmt::format("{},{},{},1,{},{},{}\n", rec++, t >= 86400 ? fmt::format("{}.{}", t / 86400, clock) : clock,
+                        x.step, x.state == 'C' ? "CC_Chg" : x.state == 'D' ? "CC_DChg" : "Rest", x.current_a,
+                        x.voltage_v);
+  }
+  const fs::path f = write("neware_days.csv", text);
+  const CyclerRecord r = read_cycler_record({f}, CurrentSign::by_layout);
+  for (std::size_t i = 1; i < r.t_s.size(); ++i) ASSERT_DOUBLE_EQ(r.t_s[i] - r.t_s[i - 1], 30.0) << i;
+}
+
+std::string neware_realtime(const std::vector<Sample>& cycle, bool day_first, int day, bool dotted = false) {
+  std::string out = "Record ID,Realtime,Step ID,Cycle ID,Step Name,Current(A),Voltage(V)\n";
+  int rec = 1;
+  for (const Sample& s : cycle) {
+    const int t = static_cast<int>(s.t_s) + 23 * 3600 + 50 * 60;  // from 23:50, over midnight
+    const int d = day + t / 86400;
+    out += fmt::format("{},{:02d}{}{:02d}{}2021 {:02d}:{:02d}:{:02d},{},1,{},{},{}\n", rec++, day_first ? d : 3,
+                       dotted ? '.' : '/', day_first ? 3 : d, dotted ? '.' : '/', t / 3600 % 24, t / 60 % 60, t % 60,
+                       s.step, s.state == 'C' ? "CC_Chg" : s.state == 'D' ? "CC_DChg" : "Rest", s.current_a,
+                       s.voltage_v);
+  }
+  return out;
+}
+
+TEST(CyclerFormats, DayAndMonthTakenFromTheDatesOrRefused) {
+  // Dates "04/03/2021" in a day-first locale were read as 3 April: midnight became a month.
+  const auto cycle = one_cycle(0.0, 60.0);
+  double s = 0.0, t = 0.0;
+  ASSERT_TRUE(parse_date_time_s("04.03.2021 00:00:00", s));
+  ASSERT_TRUE(parse_date_time_s("2021-03-04 00:00:00", t));
+  EXPECT_EQ(s, t);
+  for (const bool dotted : {true, false}) {
+    // 12/03 -> 13/03: the 13 says day first.
+    const CyclerRecord r =
+        read_cycler_record({write("neware_dmy.csv", neware_realtime(cycle, true, 12, dotted))}, CurrentSign::by_layout);
+    for (std::size_t i = 1; i < r.t_s.size(); ++i) ASSERT_DOUBLE_EQ(r.t_s[i] - r.t_s[i - 1], 60.0) << i;
+  }
+  const CyclerRecord us =
+      read_cycler_record({write("neware_mdy.csv", neware_realtime(cycle, false, 12))}, CurrentSign::by_layout);
+  for (std::size_t i = 1; i < us.t_s.size(); ++i) ASSERT_DOUBLE_EQ(us.t_s[i] - us.t_s[i - 1], 60.0) << i;
+  // 04/03 -> 05/03: either reading is a date; the times differ by a month between them.
+  const fs::path f = write("neware_ambiguous.csv", neware_realtime(cycle, true, 4));
+  EXPECT_EQ(error_of([&] { read_cycler_record({f}, CurrentSign::by_layout); }),
+            f.string() + ": line 2, column 2 ('Realtime'): dates A/B/YYYY where no day is over 12: day/month or "
+                         "month/day cannot be told (write them as YYYY-MM-DD)");
+}
+
+TEST(CyclerFormats, CurrentSignAgainstTheStepTypesIsRefused) {
+  // --current-sign overrode the step types' evidence (caught only if the voltage said so), and was
+  // dropped without a word for a file of magnitudes.
+  const auto cycle = one_cycle(0.0, 60.0);
+  const fs::path n = write("neware_sign.csv", neware(cycle));
+  EXPECT_EQ(error_of([&] { read_cycler_record({n}, CurrentSign::discharge_positive); }),
+            n.string() + ": line 5, column 7 ('Current(mA)'): --current-sign discharge-positive contradicts the step "
+                         "type ('CC_Chg' in column 6, current 550)");
+  EXPECT_NO_THROW(read_cycler_record({n}, CurrentSign::charge_positive));
+  const fs::path m = write("maccor_sign.001.txt", maccor(cycle));
+  EXPECT_NE(read_cycler_record({m}, CurrentSign::discharge_positive).note.find("--current-sign not used"),
+            std::string::npos);
+}
+
+TEST(CyclerFormats, ThousandsSeparatorBesideDecimalPointsIsRefused) {
+  // A tab-separated export with '.' decimals and a thousands separator: "1,100" was read as 1.1.
+  std::string text = maccor(one_cycle(0.0, 10.0));
+  const auto row = text.find("\n25\t");  // a discharge row (1.1 A), line 27
+  ASSERT_NE(row, std::string::npos);
+  const auto amps = text.find("\t1.1\t", row);
+  ASSERT_NE(amps, std::string::npos);
+  text.replace(amps, 5, "\t1,100\t");
+  const fs::path f = write("thousands.001.txt", text);
+  const std::string e = error_of([&] { read_cycler_record({f}, CurrentSign::by_layout); });
+  EXPECT_NE(e.find("line 27, column 8 ('Amps'): '1,100' after '"), std::string::npos) << e;
+  EXPECT_NE(e.find("a decimal point and a decimal comma in one column"), std::string::npos) << e;
 }
 
 }  // namespace

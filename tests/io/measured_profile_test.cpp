@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <string>
 
 #include "io/input_error.hpp"
@@ -183,6 +185,40 @@ TEST(MeasuredProfile, SignContradictingTheVoltageRefused) {
   const MeasuredProfile p =
       parse_measured_profile(text, "p.csv", ProfileColumns::measured, CurrentSign::discharge_positive);
   EXPECT_DOUBLE_EQ(p.current_a[1], 2.0);
+}
+
+// simulate --protocol csv: and diagnose read a cycler's export by its layout, as estimate does:
+// a Maccor text file (a metadata line before the header, |I| with the direction in 'State') was
+// refused as having no time column.
+TEST(MeasuredProfile, CyclerExportReadByItsLayout) {
+  std::string text = "Today's Date\t03/05/2021\tDate of Test:\t03/04/2021\n"
+                     "Rec#\tCyc#\tStep\tTest (Sec)\tStep (Sec)\tAmp-hr\tWatt-hr\tAmps\tVolts\tState\tES\tDPt Time\n";
+  const auto row = [&](int rec, double t, double amps, double volts, char state) {
+    text += std::to_string(rec) + "\t0\t1\t" + std::to_string(t) + "\t0\t0\t0\t" + std::to_string(amps) + "\t" +
+            std::to_string(volts) + "\t" + state + "\t0\t03/04/2021 2:00:00 PM\n";
+  };
+  int rec = 1;
+  double t = 0.0;
+  for (int k = 0; k < 20; ++k, t += 2.0) row(rec++, t, 1.0, 3.30 - 0.002 * k, 'D');
+  for (int k = 0; k < 20; ++k, t += 2.0) row(rec++, t, 1.0, 3.35 + 0.002 * k, 'C');
+  const auto file = std::filesystem::path(::testing::TempDir()) / "maccor_profile.txt";
+  std::ofstream(file) << text;
+  const MeasuredProfile p = read_measured_profile(file, ProfileColumns::truth);
+  ASSERT_EQ(p.t_s.size(), 40u);
+  EXPECT_EQ(p.layout, "Maccor");
+  EXPECT_DOUBLE_EQ(p.current_a.front(), 1.0);  // discharge positive
+  EXPECT_DOUBLE_EQ(p.current_a.back(), -1.0);
+  // A logging gap under current: refused here (the model would be driven across it).
+  row(rec++, t + 600.0, 1.0, 3.40, 'C');
+  std::ofstream(file) << text;
+  try {
+    read_measured_profile(file, ProfileColumns::truth);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(file.string() + ": line 43, column 'Test (Sec)': gap of 602 s"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace

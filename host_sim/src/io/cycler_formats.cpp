@@ -102,7 +102,8 @@ double time_scale(const DelimitedTable& t, std::size_t c, std::string unit) {
 std::vector<double> temperature_k(const DelimitedTable& t, std::size_t c) {
   std::vector<double> v = t.numbers(c);
   std::string unit = parts_of(t.columns()[c]).unit;
-  for (const char* degc : {"c", "degc", "°c", "\xe2\x84\x83", "oc", "deg c"})
+  // "\xb0c": the degree sign of a Latin-1 file (EC-Lab and Arbin write Windows code pages).
+  for (const char* degc : {"c", "degc", "°c", "\xb0" "c", "\xe2\x84\x83", "oc", "deg c"})
     if (unit == degc) unit = "c";
   if (unit.empty()) {
     const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
@@ -151,7 +152,9 @@ struct RawColumns {
   std::vector<double> step_time_s;  // time since the cycler's step began; empty when not logged
   std::vector<int> cycle, step, kind;  // kind empty when the file has no step type
   std::size_t time_col = 0, current_col = 0;
+  std::size_t kind_col = DelimitedTable::npos;  // the step type's column
   double start_epoch_s = std::nan("");
+  std::string no_start_why;  // why a file with dates has no start, else empty
   bool charge_positive = true;  // the layout's convention when no step type decides
   bool unsigned_possible = false;  // the layout may log |I| with the direction in the step type
 };
@@ -179,7 +182,14 @@ std::string settle_sign(const DelimitedTable& t, RawColumns& raw, CurrentSign si
     }
     if (any_neg == 0 && raw.unsigned_possible && dis_pos > 0) {
       magnitude = true;
-      how = "current logged as a magnitude; direction from the step type";
+      how = "logged as a magnitude, its direction from the step type";
+      // A magnitude in a step of no direction (Maccor's O, a Neware pulse) has no sign to give.
+      for (std::size_t r = 0; r < raw.current_a.size(); ++r)
+        if (raw.kind[r] == kRest && raw.current_a[r] > under)
+          throw InputError(fmt::format("{}: current {} A logged as a magnitude in a step of no direction ('{}' in "
+                                       "column {}): charge or discharge cannot be told",
+                                       row_where(t, r, raw.current_col), raw.current_a[r],
+                                       t.cell(r, raw.kind_col), raw.kind_col + 1));
     } else if (dis_pos + ch_neg > 0 && dis_neg + ch_pos > 0) {
       const bool discharge_positive_majority = dis_pos + ch_neg > dis_neg + ch_pos;
       for (std::size_t r = 0; r < raw.current_a.size(); ++r) {
@@ -198,9 +208,21 @@ std::string settle_sign(const DelimitedTable& t, RawColumns& raw, CurrentSign si
       how = fmt::format("{} (from the step types)", negate ? "charge-positive" : "discharge-positive");
     }
   }
-  if (sign != CurrentSign::by_layout && !magnitude) {
-    negate = sign == CurrentSign::charge_positive;
-    how = fmt::format("{} (--current-sign)", negate ? "charge-positive" : "discharge-positive");
+  if (sign != CurrentSign::by_layout) {
+    const bool given = sign == CurrentSign::charge_positive;
+    if (magnitude) {
+      how += " (--current-sign not used)";
+    } else if (!how.empty() && given != negate) {
+      // The step types said the other way: the first row under current is read against its step.
+      std::size_t r = 0;
+      while (raw.kind[r] == kRest || std::abs(raw.current_a[r]) <= under) ++r;
+      throw InputError(fmt::format("{}: --current-sign {} contradicts the step type ('{}' in column {}, current {})",
+                                   row_where(t, r, raw.current_col), given ? "charge-positive" : "discharge-positive",
+                                   t.cell(r, raw.kind_col), raw.kind_col + 1, t.cell(r, raw.current_col)));
+    } else {
+      negate = given;
+      how = fmt::format("{} (--current-sign)", negate ? "charge-positive" : "discharge-positive");
+    }
   }
   if (how.empty()) how = fmt::format("{} (the layout's convention)", negate ? "charge-positive" : "discharge-positive");
   for (std::size_t r = 0; r < raw.current_a.size(); ++r) {
@@ -282,8 +304,14 @@ void read_optional(const DelimitedTable& t, RawColumns& raw, std::size_t cycle_c
 // The absolute start: the first row's date/time, less the time column's first value.
 void start_from_dates(const DelimitedTable& t, RawColumns& raw, std::size_t date_c) {
   if (date_c == DelimitedTable::npos || t.rows() == 0) return;
+  DayOrder order = DayOrder::month_first;
+  if (!t.day_order(date_c, order)) {
+    // Only the order among several files needs the start: refused there (read_cycler_record).
+    raw.no_start_why = fmt::format("its dates in column {} do not tell day/month from month/day", date_c + 1);
+    return;
+  }
   double s = 0.0;
-  if (!parse_date_time_s(t.cell(0, date_c), s))
+  if (!parse_date_time_s(t.cell(0, date_c), s, order))
     throw InputError(fmt::format("{}: not a date and time: '{}'", t.where(0, date_c), t.cell(0, date_c)));
   raw.start_epoch_s = s - raw.t_s.front();
 }
@@ -308,6 +336,7 @@ RawColumns read_maccor(const DelimitedTable& t) {
             require(t, column_named(t, {"volts", "voltage"}), "voltage", L, "Volts"));
   read_optional(t, raw, column_named(t, {"cyc#", "cycle", "cyclep"}), column_named(t, {"step"}));
   const std::size_t state = require(t, column_named(t, {"state", "md"}), "state (C/D/R)", L, "State");
+  raw.kind_col = state;
   raw.kind.resize(t.rows());
   for (std::size_t r = 0; r < t.rows(); ++r) raw.kind[r] = kind_of_name(t.cell(r, state));
   raw.unsigned_possible = true;
@@ -345,6 +374,7 @@ RawColumns read_neware(const DelimitedTable& t) {
                 column_named(t, {"stepid", "stepindex", "step"}));
   const std::size_t kind_c = column_named(t, {"stepname", "steptype", "status"});
   if (kind_c != DelimitedTable::npos) {
+    raw.kind_col = kind_c;
     raw.kind.resize(t.rows());
     for (std::size_t r = 0; r < t.rows(); ++r) raw.kind[r] = kind_of_name(t.cell(r, kind_c));
   }
@@ -362,6 +392,7 @@ RawColumns read_biologic(const DelimitedTable& t, double start_epoch_s) {
   read_optional(t, raw, column_named(t, {"cyclenumber"}), column_named(t, {"ns"}));
   const std::size_t ox = column_named(t, {"ox/red", "ox"});
   if (ox != DelimitedTable::npos) {
+    raw.kind_col = ox;
     raw.kind.resize(t.rows());
     for (std::size_t r = 0; r < t.rows(); ++r) raw.kind[r] = t.cell(r, ox) == "1" ? kCharge : kDischarge;
   }
@@ -447,7 +478,7 @@ CyclerLayout layout_of_header(const std::vector<std::string>& cells) {
     if (has_any(q, {"cycleindex"}) && has_any(q, {"chargetime", "dischargetime"}))
       return CyclerLayout::arbin_statistics;
   }
-  if (has_any(q, {"rec#"}) && has_any(q, {"amps", "current"}) && has_any(q, {"volts", "voltage"}))
+  if (has_any(q, {"rec#", "rec"}) && has_any(q, {"amps", "current"}) && has_any(q, {"volts", "voltage"}))
     return CyclerLayout::maccor;
   if (has_any(q, {"stepname", "steptype", "cycleid", "stepid", "recordid", "recordindex"}) &&
       has_any(q, {"current"}) && has_any(q, {"voltage"}))
@@ -511,15 +542,19 @@ std::string_view cycler_layout_name(CyclerLayout layout) {
 }
 
 CyclerLayoutGuess detect_cycler_layout(std::string_view head) {
+  constexpr std::string_view kBom = "\xEF\xBB\xBF";
+  if (head.substr(0, kBom.size()) == kBom) head.remove_prefix(kBom.size());
   const std::vector<std::string_view> lines = first_lines(head, 64);
   CyclerLayoutGuess g = biologic_guess(lines);
   if (g.layout != CyclerLayout::none) return g;
   // The header is the first of the first lines whose cells name a layout (Maccor has a metadata
-  // line first); tab- or comma-separated, whichever gives more cells.
+  // line first); tab-, comma- or semicolon-separated (a European locale's CSV), whichever gives
+  // more cells.
   for (std::size_t i = 0; i < lines.size() && i < 16; ++i) {
     const auto tabs = std::count(lines[i].begin(), lines[i].end(), '\t');
     const auto commas = std::count(lines[i].begin(), lines[i].end(), ',');
-    const char d = tabs > commas ? '\t' : ',';
+    const auto semicolons = std::count(lines[i].begin(), lines[i].end(), ';');
+    const char d = semicolons > std::max(tabs, commas) ? ';' : tabs > commas ? '\t' : ',';
     const CyclerLayout l = layout_of_header(split_delimited(lines[i], d));
     if (l != CyclerLayout::none) return {l, i, d};
   }
@@ -527,6 +562,9 @@ CyclerLayoutGuess detect_cycler_layout(std::string_view head) {
 }
 
 CyclerLayoutGuess detect_cycler_layout_of(const std::filesystem::path& file) {
+  // A FIFO or device would block the read; read_text_file refuses it with its reason.
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) return {};
   std::ifstream in(file, std::ios::binary);
   if (!in) return {};
   std::string head(64 * 1024, '\0');
@@ -557,6 +595,7 @@ CyclerFile parse_cycler_file(std::string text, const std::string& name, CurrentS
   f.name = name;
   f.layout = g.layout;
   f.start_epoch_s = raw.start_epoch_s;
+  f.no_start_why = std::move(raw.no_start_why);
   f.time_column = t.columns()[raw.time_col];
   f.current_column = t.columns()[raw.current_col];
   f.line.resize(t.rows());

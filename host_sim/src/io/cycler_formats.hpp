@@ -49,6 +49,7 @@ struct CyclerFile {
   std::string name;
   CyclerLayout layout = CyclerLayout::none;
   double start_epoch_s = std::nan("");  // absolute time of t_s = 0 (seconds since 1970, read as UTC)
+  std::string no_start_why;             // why a file with dates has no start time; empty otherwise
   std::vector<double> t_s, current_a, voltage_v, temperature_k;  // current positive = discharge
   std::vector<double> step_time_s;  // time since the cycler's step began (Step_Time); empty: not logged
   std::vector<int> cycle, step;

@@ -188,7 +188,9 @@ std::vector<CyclerFile> read_all(Inputs& in, CurrentSign sign) {
     if (std::isnan(f.start_epoch_s) && in.series.size() > 1)
       throw InputError(fmt::format(
           "{}: line 1: no absolute start time ({}), so it cannot be ordered among {} files; {}", f.name,
-          layout == CyclerLayout::nasa ? "not in the index" : "no date/time column or acquisition date",
+          layout == CyclerLayout::nasa     ? "not in the index"
+          : f.no_start_why.empty() ? "no date/time column or acquisition date"
+                                   : f.no_start_why.c_str(),
           in.series.size(),
           layout == CyclerLayout::nasa ? "give the index (a CSV with filename and start_time) as --data too"
                                        : "read it alone"));

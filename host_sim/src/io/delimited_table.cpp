@@ -67,13 +67,16 @@ bool parse_clock(std::string_view s, double& seconds) {
   if (c1 == std::string_view::npos) return false;
   const auto c2 = s.find(':', c1 + 1);
   double h = 0, m = 0, sec = 0;
-  if (!parse_plain(s.substr(0, c1), h, false)) return false;
+  // Whole hours and minutes: "1.02:03:04" is a day and 2 h (read by parse_duration_s), never 1.02 h.
+  if (!parse_plain(s.substr(0, c1), h, false) || h != std::floor(h)) return false;
   if (c2 == std::string_view::npos) {  // "MM:SS.f" (h:min:s with no hours is rare; accept M:S)
     if (!parse_plain(s.substr(c1 + 1), sec, false)) return false;
     seconds = h * 60.0 + sec;
     return h >= 0 && sec >= 0 && sec < 60.0;
   }
-  if (!parse_plain(s.substr(c1 + 1, c2 - c1 - 1), m, false) || !parse_plain(s.substr(c2 + 1), sec, false)) return false;
+  if (!parse_plain(s.substr(c1 + 1, c2 - c1 - 1), m, false) || m != std::floor(m) ||
+      !parse_plain(s.substr(c2 + 1), sec, false))
+    return false;
   if (h < 0 || m < 0 || m >= 60 || sec < 0 || sec >= 61.0) return false;
   seconds = h * 3600.0 + m * 60.0 + sec;
   return true;
@@ -92,16 +95,24 @@ bool parse_duration_s(std::string_view text, double& seconds) {
   if (parse_plain(text, seconds, false)) return true;
   double days = 0.0;
   const auto d = text.find('d');
+  const auto colon = text.find(':'), dot = text.find('.');
   if (d != std::string_view::npos) {
     if (!parse_plain(trim(text.substr(0, d)), days, false) || days < 0) return false;
     text = trim(text.substr(d + 1));
+  } else if (colon != std::string_view::npos && dot < colon && text.find(':', colon + 1) != std::string_view::npos) {
+    // .NET's TimeSpan "D.HH:MM:SS[.fff]" (Windows cycler software past a day): hours under 24.
+    double h = 0.0;
+    if (!parse_plain(text.substr(0, dot), days, false) || days < 0 || days != std::floor(days) ||
+        !parse_plain(text.substr(dot + 1, colon - dot - 1), h, false) || h >= 24.0)
+      return false;
+    text = text.substr(dot + 1);
   }
   if (!parse_clock(text, seconds)) return false;
   seconds += days * 86400.0;
   return true;
 }
 
-bool parse_date_time_s(std::string_view text, double& seconds) {
+bool parse_date_time_s(std::string_view text, double& seconds, DayOrder order) {
   text = trim(text);
   const auto space = text.find_first_of(" T");
   if (space == std::string_view::npos) return false;
@@ -121,10 +132,11 @@ bool parse_date_time_s(std::string_view text, double& seconds) {
       static_cast<std::size_t>(used) != date.size() || (s1 != '-' && s1 != '/' && s1 != '.'))
     return false;
   int y = a, m = b, d = c;
-  if (a < 100) {  // MM/DD/YYYY
+  if (a < 100) {  // MM/DD/YYYY, DD/MM/YYYY or DD.MM.YYYY
+    const bool day_first = s1 == '.' || order == DayOrder::day_first;
     y = c;
-    m = a;
-    d = b;
+    m = day_first ? b : a;
+    d = day_first ? a : b;
   }
   if (m < 1 || m > 12 || d < 1 || d > 31 || y < 1900 || y > 2200) return false;
   double clock_s = 0.0;
@@ -158,7 +170,8 @@ DelimitedTable::DelimitedTable(std::string text, std::string name, std::size_t h
                                  header_line_ + 1));
   for (std::string_view h : split_views(lines[header_line_], delimiter_)) columns_.emplace_back(h);
   while (!columns_.empty() && columns_.back().empty()) columns_.pop_back();
-  for (std::size_t c = 0; c < columns_.size(); ++c)
+  // An empty first name is a row index (pandas' to_csv, as data sets converted from Excel come).
+  for (std::size_t c = 1; c < columns_.size(); ++c)
     if (columns_[c].empty())
       throw InputError(fmt::format("{}: line {}, column {}: empty column name", name_, header_line_ + 1, c + 1));
   for (std::size_t i = header_line_ + 1; i < lines.size(); ++i) {
@@ -186,21 +199,47 @@ std::string DelimitedTable::where_header(std::size_t column) const {
 
 std::string_view DelimitedTable::cell(std::size_t row, std::size_t column) const { return rows_[row][column]; }
 
+namespace {
+// Where a comma may be the decimal mark, a column holding both "12.5" and "1,500" has a
+// thousands separator in it (1,500 read as 1.5): refused at the second kind's first cell.
+struct DecimalMarks {
+  std::size_t point = DelimitedTable::npos, comma = DelimitedTable::npos;
+  void see(std::string_view cell, std::size_t row) {
+    if (cell.find('.') != std::string_view::npos) point = std::min(point, row);
+    else if (cell.find(',') != std::string_view::npos) comma = std::min(comma, row);
+  }
+  void check(const DelimitedTable& t, std::size_t column) const {
+    if (point == DelimitedTable::npos || comma == DelimitedTable::npos) return;
+    const std::size_t later = std::max(point, comma), first = std::min(point, comma);
+    throw InputError(fmt::format("{}: '{}' after '{}' on line {}: a decimal point and a decimal comma in one column "
+                                 "(a thousands separator?)",
+                                 t.where(later, column), t.cell(later, column), t.cell(first, column),
+                                 t.line_of_row(first)));
+  }
+};
+}  // namespace
+
 std::vector<double> DelimitedTable::numbers(std::size_t column) const {
   std::vector<double> out(rows_.size());
   const bool decimal_comma = delimiter_ != ',';
-  for (std::size_t r = 0; r < rows_.size(); ++r)
+  DecimalMarks marks;
+  for (std::size_t r = 0; r < rows_.size(); ++r) {
     if (!parse_plain(rows_[r][column], out[r], decimal_comma))
       throw InputError(fmt::format("{}: not a finite number: '{}'", where(r, column), rows_[r][column]));
+    if (decimal_comma) marks.see(rows_[r][column], r);
+  }
+  marks.check(*this, column);
   return out;
 }
 
 std::vector<double> DelimitedTable::durations_s(std::size_t column, double number_scale_s) const {
   std::vector<double> out(rows_.size());
   const bool decimal_comma = delimiter_ != ',';
+  DecimalMarks marks;
   for (std::size_t r = 0; r < rows_.size(); ++r) {
     const std::string_view c = rows_[r][column];
     if (parse_plain(c, out[r], decimal_comma)) {
+      if (decimal_comma) marks.see(c, r);
       if (std::isnan(number_scale_s))
         throw InputError(fmt::format("{}: a number of no stated unit: '{}' (name the unit in the header, e.g. "
                                      "'Time (s)')", where(r, column), c));
@@ -209,15 +248,54 @@ std::vector<double> DelimitedTable::durations_s(std::size_t column, double numbe
       throw InputError(fmt::format("{}: not a time (a number, or [Nd ]H:MM:SS[.fff]): '{}'", where(r, column), c));
     }
   }
+  marks.check(*this, column);
   return out;
 }
 
+bool DelimitedTable::day_order(std::size_t column, DayOrder& order) const {
+  std::size_t day_first = npos, month_first = npos, first = npos;
+  bool differ = false;
+  int a0 = 0, b0 = 0;
+  for (std::size_t r = 0; r < rows_.size(); ++r) {
+    const std::string_view cell = trim(rows_[r][column]);
+    int a = 0, b = 0, y = 0;
+    char s1 = 0, s2 = 0;
+    const std::string date(cell.substr(0, cell.find_first_of(" T")));
+    if (std::sscanf(date.c_str(), "%d%c%d%c%d", &a, &s1, &b, &s2, &y) != 5 || s1 != '/' || s2 != '/' || a >= 100)
+      continue;
+    const std::string_view ampm = cell.size() > 2 ? cell.substr(cell.size() - 2) : std::string_view();
+    if (a > 12 && day_first == npos) day_first = r;
+    if ((b > 12 || ampm == "AM" || ampm == "PM") && month_first == npos) month_first = r;
+    if (first == npos) {
+      first = r;
+      a0 = a;
+      b0 = b;
+    } else if (a != a0 || b != b0) {
+      differ = true;
+    }
+  }
+  if (day_first != npos && month_first != npos)
+    throw InputError(fmt::format("{}: a date with the {} first, but line {} has the {} first",
+                                 where(std::max(day_first, month_first), column),
+                                 day_first > month_first ? "day" : "month",
+                                 line_of_row(std::min(day_first, month_first)),
+                                 day_first > month_first ? "month" : "day"));
+  order = day_first != npos ? DayOrder::day_first : DayOrder::month_first;
+  return day_first != npos || month_first != npos || !differ;
+}
+
 std::vector<double> DelimitedTable::date_times_s(std::size_t column) const {
+  DayOrder order = DayOrder::month_first;
+  if (!day_order(column, order))
+    throw InputError(fmt::format("{}: dates A/B/YYYY where no day is over 12: day/month or month/day cannot be told "
+                                 "(write them as YYYY-MM-DD)",
+                                 where(0, column)));
   std::vector<double> out(rows_.size());
   for (std::size_t r = 0; r < rows_.size(); ++r)
-    if (!parse_date_time_s(rows_[r][column], out[r]))
-      throw InputError(fmt::format("{}: not a date and time (YYYY-MM-DD HH:MM:SS or MM/DD/YYYY HH:MM:SS): '{}'",
-                                   where(r, column), rows_[r][column]));
+    if (!parse_date_time_s(rows_[r][column], out[r], order))
+      throw InputError(fmt::format("{}: not a date and time (YYYY-MM-DD HH:MM:SS, DD.MM.YYYY or {} HH:MM:SS): '{}'",
+                                   where(r, column), order == DayOrder::day_first ? "DD/MM/YYYY" : "MM/DD/YYYY",
+                                   rows_[r][column]));
   return out;
 }
 

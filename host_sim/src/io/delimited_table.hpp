@@ -1,9 +1,9 @@
 #pragma once
 // A text table as cycler software exports it: a header line somewhere after some metadata
-// lines, cells separated by commas or tabs, cells optionally in double quotes, a decimal comma
-// in tab-separated files (EC-Lab in a European locale). Numbers, clock times and dates are
-// parsed on request, column by column; every error names the file, the 1-based line and the
-// column ("FILE: line L, column C ('NAME'): ...").
+// lines, cells separated by commas, tabs or semicolons, cells optionally in double quotes, a
+// decimal comma in tab- or semicolon-separated files (a European locale's EC-Lab or CSV).
+// Numbers, clock times and dates are parsed on request, column by column; every error names the
+// file, the 1-based line and the column ("FILE: line L, column C ('NAME'): ...").
 #include <cstddef>
 #include <string>
 #include <string_view>
@@ -11,11 +11,16 @@
 
 namespace bms {
 
+// How a date "A/B/YYYY" is read: month first (the US) or day first (most other places). A date
+// "DD.MM.YYYY" is always day first.
+enum class DayOrder { month_first, day_first };
+
 class DelimitedTable {
  public:
   // `header_line`: 0-based index of the header among the text's lines. Lines after it up to
   // the end (blank lines at the end dropped) are data rows. A trailing empty header cell (a
   // line that ends in the delimiter) is dropped, and so is the matching trailing cell of a row.
+  // Only the first column may be unnamed (a row index).
   DelimitedTable(std::string text, std::string name, std::size_t header_line, char delimiter);
 
   const std::string& name() const { return name_; }
@@ -38,8 +43,13 @@ class DelimitedTable {
   // and a plain number is refused).
   std::vector<double> durations_s(std::size_t column, double number_scale_s) const;
   // Every cell as seconds since 1970-01-01 00:00 (a date read as UTC: only differences are used):
-  // "YYYY-MM-DD HH:MM:SS[.fff]", "YYYY/MM/DD ...", "MM/DD/YYYY HH:MM:SS[.fff][ AM|PM]".
+  // "YYYY-MM-DD HH:MM:SS[.fff]", "YYYY/MM/DD ...", "DD.MM.YYYY ...", "MM/DD/YYYY HH:MM:SS[.fff][ AM|PM]"
+  // or "DD/MM/YYYY ...", the order told by day_order (InputError where it cannot be told).
   std::vector<double> date_times_s(std::size_t column) const;
+  // The order of day and month in the column's "A/B/YYYY" dates, told by the cells: a first
+  // number over 12 says day first, a second over 12 or an AM/PM clock month first. InputError
+  // where cells disagree; false where none tells and the two readings give different times.
+  bool day_order(std::size_t column, DayOrder& order) const;
   std::vector<std::string> strings(std::size_t column) const;
 
  private:
@@ -56,7 +66,7 @@ class DelimitedTable {
 std::vector<std::string> split_delimited(std::string_view line, char delimiter);
 
 // Parses one date/time text as DelimitedTable::date_times_s does; false if it is none of those.
-bool parse_date_time_s(std::string_view text, double& seconds);
+bool parse_date_time_s(std::string_view text, double& seconds, DayOrder order = DayOrder::month_first);
 // Parses one duration "[Nd ]H:MM:SS[.fff]" or a plain number of seconds; false otherwise.
 bool parse_duration_s(std::string_view text, double& seconds);
 

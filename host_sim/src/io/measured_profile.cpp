@@ -7,6 +7,7 @@
 #include <cctype>
 
 #include "io/csv_table.hpp"
+#include "io/cycler_formats.hpp"
 #include "io/input_error.hpp"
 #include "io/text_file.hpp"
 
@@ -240,6 +241,32 @@ void check_sign_against_voltage(const CsvTable& table, const Layout& l, const Me
       given ? "check the file or" : "give", l.negate_current ? "discharge-positive" : "charge-positive"));
 }
 
+// A cycler's export read by its layout (units, sign and step types as cycler_formats.hpp reads
+// them), held to this reader's rule on gaps: the commands that read a profile drive a model with
+// the measured current, which cannot be interpolated over a gap under current.
+MeasuredProfile cycler_profile(const std::filesystem::path& file, CurrentSign sign) {
+  CyclerFile f = parse_cycler_file(read_text_file(file), file.string(), sign);
+  std::vector<double> steps(f.t_s.size() - 1);
+  for (std::size_t i = 1; i < f.t_s.size(); ++i) steps[i - 1] = f.t_s[i] - f.t_s[i - 1];
+  const double typical = median(steps);
+  for (std::size_t i = 1; i < f.t_s.size(); ++i) {
+    if (steps[i - 1] > kGapMedianFactor * typical && steps[i - 1] > kGapMinimumS && !rests_across(f.current_a, i))
+      throw InputError(fmt::format(
+          "{}: line {}, column '{}': gap of {} s in the record after t = {} s (line {}) under current; the median "
+          "time step is {} s (a gap is accepted only at rest; `estimate` steps over it)",
+          f.name, f.line[i], f.time_column, steps[i - 1], f.t_s[i - 1], f.line[i - 1], typical));
+  }
+  MeasuredProfile p;
+  p.source = f.name;
+  p.layout = std::string(cycler_layout_name(f.layout));
+  p.current_negated = f.sign_note.rfind("charge-positive", 0) == 0;
+  p.t_s = std::move(f.t_s);
+  p.current_a = std::move(f.current_a);
+  p.voltage_v = std::move(f.voltage_v);
+  p.temperature_k = std::move(f.temperature_k);
+  return p;
+}
+
 }  // namespace
 
 bool parse_current_sign(std::string_view text, CurrentSign& out) {
@@ -308,6 +335,7 @@ MeasuredProfile parse_measured_profile(std::string_view text, std::string_view n
 }
 
 MeasuredProfile read_measured_profile(const std::filesystem::path& file, ProfileColumns which, CurrentSign sign) {
+  if (detect_cycler_layout_of(file).layout != CyclerLayout::none) return cycler_profile(file, sign);
   return parse_measured_profile(read_text_file(file), file.string(), which, sign);
 }
 

@@ -4,7 +4,9 @@
 //  - our truth.csv (`t_s,current_a,voltage_v,current_meas_a,voltage_meas_v,...`);
 //  - About:Energy `Time [s],I[A],U[V]` (+ optional `T [degC]` / `Temperature [K]`), current
 //    negative on discharge: negated on input to our convention (positive = discharge);
-//  - any other cycler export: columns picked by name (time, current, voltage, temperature;
+//  - a cycler export of a known layout (Arbin, Maccor, Neware, BioLogic, NASA PCoE; read by
+//    read_measured_profile as cycler_formats.hpp reads it, a gap under current refused);
+//  - any other CSV: columns picked by name (time, current, voltage, temperature;
 //    units s/min/h, A/mA, V/mV, degC/K read from the name), current charge-positive unless
 //    told otherwise.
 #include <filesystem>
