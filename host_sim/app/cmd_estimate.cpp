@@ -79,6 +79,7 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--model-bias-ohm", v.model_bias_ohm);
   g("--no-bias-table", v.model_bias_table);
   g("--no-bias-levels", v.model_bias_levels);
+  g("--bias-table-any-start", v.bias_table_any_start);
   g("--no-trusted-span", v.trusted_span);
   g("--trusted-span-end", v.trusted_span_end);
   g("--relinearise", v.relinearise_inventory);
@@ -283,6 +284,11 @@ Runner add_estimate(CLI::App& app) {
                 "--settings best only: read the design-time bias table calibrated at the nominal lithium inventory "
                 "alone, not interpolated between its levels 1 % below and above at the model's identified inventory "
                 "(ablation)");
+  sub->add_flag("--bias-table-any-start", c->o.overrides.bias_table_any_start.value,
+                "--settings best only: apply the design-time bias table in every CC charge, also one whose learning "
+                "opens more than a tenth of the table's span above where its calibration's charges opened (a partial "
+                "charge begun mid-window, where the table's history does not hold; by default such a charge runs on "
+                "the constant bias alone; ablation)");
   sub->add_flag("!--no-trusted-span", c->o.overrides.trusted_span.value,
                 "--settings best only: learn in the whole CC charge, also past the design-time calibration's "
                 "trusted span (where the reduced model leaves the nominal cell: a flat-OCP cell's end-of-charge "

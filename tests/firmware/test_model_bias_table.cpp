@@ -146,6 +146,32 @@ TEST(ModelBiasTable, LearningStopsPastTheTrustedSpan) {
   EXPECT_EQ(ramp().as<float>().x_trusted_last, std::numeric_limits<float>::infinity());
 }
 
+// The table's start condition: a charge whose learning opens more than bias_table_start_margin of
+// the table's span above its first knot (a partial charge begun mid-window) runs on the constant
+// alone until the next charge; one that opens near the first knot reads the table; an infinite
+// margin (--bias-table-any-start) reads it in every charge.
+double bias_after_opening_at(const Path::Config& pc, double x_open, double x_read) {
+  Path path(pc, 0.2);
+  bms::fw::LearningGate<double> gate(bms::fw::LearningGate<double>::Config{});
+  const bms::fw::StateResync<double> resync(bms::fw::StateResync<double>::Config{});
+  const double u = path.film_in_use(true);
+  bms::fw::ModelTickResult<double> r{3.5, -2.0, -1e3, 1.0, 0u, true, true};
+  const bms::fw::FilmTick<double> t{r, -2.0, u, 0.0, 3.5003, 0.2, 1.0, true, true};
+  path.learn(t, StoichModel{x_open}, gate, resync);
+  return path.model_bias_ohm_of(StoichModel{x_read});
+}
+
+TEST(ModelBiasTable, ATableAppliesOnlyToChargesBegunWhereItsCalibrationsBegan) {
+  Path::Config pc = charge_config();
+  pc.model_bias_ohm = 3.0e-4;
+  ASSERT_EQ(pc.bias_table_start_margin, 0.1);  // of the span 0.2 .. 0.7: opening above x = 0.25
+  EXPECT_EQ(bias_after_opening_at(pc, 0.21, 0.45), 3.0e-4 + ramp().at(0.45)) << "begun at the bottom";
+  EXPECT_EQ(bias_after_opening_at(pc, 0.249, 0.45), 3.0e-4 + ramp().at(0.45)) << "within the margin";
+  EXPECT_EQ(bias_after_opening_at(pc, 0.40, 0.45), 3.0e-4) << "begun mid-window: the constant alone";
+  pc.bias_table_start_margin = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(bias_after_opening_at(pc, 0.40, 0.45), 3.0e-4 + ramp().at(0.45)) << "the ablation: every charge";
+}
+
 // Levels over the inventory: the nominal level alone without a step, bit for bit; with one, the
 // parabola through the three levels within +-step (the end level's value outside, slope 0 there),
 // its slope the parabola's derivative; the trusted span's end linear where both ends are finite.
@@ -199,6 +225,8 @@ TEST(ModelBiasTables, PathReadsTheLevelAtTheModelsInventory) {
   pc.model_bias_table.level[0] = ramp();
   pc.model_bias_table.level[2] = rich;
   pc.model_bias_table.nu_step = 0.01;
+  // Its single ticks open a charge mid-table: the start condition (tested above) is not the subject.
+  pc.bias_table_start_margin = std::numeric_limits<double>::infinity();
   const double at_nominal = film_error_of_charge(pc);
   EXPECT_LT(std::fabs(at_nominal), 1e-3) << "a resync that never ran: the model at nominal, the nominal level";
   const auto first_tick = [&](double nu_model) {

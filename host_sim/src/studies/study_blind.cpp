@@ -214,6 +214,8 @@ const std::vector<Arm>& arms() {
       {"best-no-bias", "--settings best --model-bias-ohm 0", P::best, [](O& o) { o.model_bias_ohm = 0.0; }},
       {"best-no-bias-levels", "--settings best --no-bias-levels", P::best,
        [](O& o) { o.model_bias_levels = false; }, true},
+      {"best-bias-table-any-start", "--settings best --bias-table-any-start", P::best,
+       [](O& o) { o.bias_table_any_start = true; }, true},
       {"best-no-relinearise", "--settings best --relinearise 1", P::best, [](O& o) { o.relinearise_inventory = 1.0; }},
       {"best-no-warmup", "--settings best --warmup 0", P::best, [](O& o) { o.warmup_s = 0.0; }},
       {"best-no-offset", "--settings best --no-current-offset", P::best, [](O& o) { o.current_offset = false; }},

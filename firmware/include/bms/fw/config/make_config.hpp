@@ -28,6 +28,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <type_traits>
 
 #include "bms/fw/estimation/bms_core.hpp"
@@ -191,6 +192,7 @@ struct Overrides {
   Given<double> model_bias_ohm;        // --model-bias-ohm
   Given<bool> model_bias_table;        // --no-bias-table (false): the constant bias alone
   Given<bool> model_bias_levels;       // --no-bias-levels (false): the nominal inventory's table alone
+  Given<bool> bias_table_any_start;    // --bias-table-any-start (true): the table for charges begun anywhere
   Given<bool> trusted_span;            // --no-trusted-span (false): learn past the calibration's trusted span
   Given<double> trusted_span_end;      // --trusted-span-end X: the span's end (mean anode stoichiometry)
   Given<double> relinearise_inventory; // --relinearise
@@ -268,6 +270,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"model-bias-ohm", o.model_bias_ohm.given, id, only_best},
       {"no-bias-table", o.model_bias_table.given, id, only_best},
       {"no-bias-levels", o.model_bias_levels.given, id, only_best},
+      {"bias-table-any-start", o.bias_table_any_start.given, id, only_best},
       {"no-trusted-span", o.trusted_span.given, id, only_best},
       {"trusted-span-end", o.trusted_span_end.given, id, only_best},
       {"relinearise", o.relinearise_inventory.given, id && observer, id ? no_observer : only_best},
@@ -449,6 +452,8 @@ void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   auto& table = cfg.film_path.model_bias_table;
   if (o.model_bias_levels.given && !o.model_bias_levels.value) table.nu_step = 0;  // the nominal level alone
   if (o.model_bias_table.given && !o.model_bias_table.value) table.drop_knots();  // the span has its own ablation
+  if (o.bias_table_any_start.given && o.bias_table_any_start.value)
+    cfg.film_path.bias_table_start_margin = std::numeric_limits<decltype(cfg.film_path.bias_table_start_margin)>::infinity();
   using TableScalar = decltype(table.nu_step);
   if (o.trusted_span_end.given) table.set_trusted_last(static_cast<TableScalar>(o.trusted_span_end.value));
   if (o.trusted_span.given && !o.trusted_span.value)

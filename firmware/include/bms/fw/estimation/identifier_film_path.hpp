@@ -38,6 +38,13 @@ class IdentifierFilmPath {
     // added to model_bias_ohm; off by default (the constant alone). A model that does not give its
     // mean anode stoichiometry runs on the constant alone.
     ModelBiasTables<Scalar> model_bias_table{};
+    // The table's start condition: it holds the reduced model's error along charges that began
+    // at the bottom of the window after a full discharge and rest, and that error depends on how
+    // long the charge has run (the particles' gradients), not on the stoichiometry alone. A charge
+    // whose learning opens more than this fraction of the table's span above its first knot
+    // (where the calibration's charges opened) began elsewhere: it runs on the constant alone.
+    // Infinity: the table for every charge (the ablation, --bias-table-any-start).
+    Scalar bias_table_start_margin = Scalar(0.1);
     // A re-synchronisation that moves the model's inventory by more than this (relative)
     // restarts the film parameters' learning (FilmGrowthIdentifier::relinearise).
     Scalar relinearise_inventory = Scalar(1e-3);
@@ -192,6 +199,7 @@ class IdentifierFilmPath {
       if (start) identifier_.begin_charge();
       bias_nu_ = resync.inventory_deviation_model();  // the levels' abscissa: where the model is placed
       const Scalar x_neg = mean_stoich_of(model);  // once: the bias table and the trusted span read it
+      if (start) table_in_charge_ = table_starts_at(x_neg);
       const auto table = bias_table_at(x_neg);
       const Scalar bias_ohm = c_.model_bias_ohm + table.ohm;
       l.status |= innovation_test(t.z_v + bias_ohm * t.current_a, start, t.dt_s);
@@ -327,7 +335,7 @@ class IdentifierFilmPath {
   // The table's part of the bias and its slope over the inventory at the model's state (0 and 0:
   // no table, or no stoichiometry).
   typename ModelBiasTables<Scalar>::Reading bias_table_at(Scalar x_neg) const {
-    if (!c_.model_bias_table.on() || std::isnan(x_neg)) return {Scalar(0), Scalar(0)};
+    if (!c_.model_bias_table.on() || std::isnan(x_neg) || !table_in_charge_) return {Scalar(0), Scalar(0)};
     return c_.model_bias_table.read(x_neg, bias_nu_);
   }
   // The model's mean anode stoichiometry where the table or the trusted span needs it (NaN: a
@@ -363,6 +371,14 @@ class IdentifierFilmPath {
     fusion_mean_v_ = window_start ? e : fusion_mean_v_ + a * (e - fusion_mean_v_);
     const Scalar limit = c_.innovation_gate * c_.innovation_sd_v;
     return (fusion_mean_v_ / limit) * (fusion_mean_v_ / limit) > Scalar(1);
+  }
+
+  // The table's start condition (Config::bias_table_start_margin) at the stoichiometry where a
+  // charge's learning opens; a NaN stoichiometry (no table needs it) passes.
+  bool table_starts_at(Scalar x_neg) const {
+    const auto& t = c_.model_bias_table.nominal();
+    if (!t.on() || std::isnan(x_neg)) return true;
+    return !(x_neg > t.x_first + c_.bias_table_start_margin * (t.x_last - t.x_first));
   }
 
   // The stop condition of the design-time calibration (ModelBiasTable::x_trusted_last): the model's
@@ -449,6 +465,7 @@ class IdentifierFilmPath {
   Scalar fusion_mean_v_ = Scalar(0);  // the regression innovation's mean (fusion_rejected)
   Scalar bias_nu_ = Scalar(0);        // the model's inventory deviation the bias levels are read at
   bool stopped_in_charge_ = false;    // this charge's learning stopped (beyond_trusted_span)
+  bool table_in_charge_ = true;       // this charge met the table's start condition
   bool identifying_ = false;
   Scalar v_warm_v_ = Scalar(0);                // this tick's voltage at +kTemperatureProbeK
   Scalar film_per_kelvin_ohm_m2_ = Scalar(0);  // |dV/dT / H| of the last learning tick
