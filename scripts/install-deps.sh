@@ -27,3 +27,6 @@ if [ ! -f "$stamp" ] || [ -z "$(find "$stamp" -mmin -720 2>/dev/null)" ]; then
   $SUDO apt-get update -qq && { $SUDO mkdir -p "$(dirname "$stamp")"; $SUDO touch "$stamp"; }
 fi
 DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+# The downloaded .deb files are not needed once installed; on a small disk they are what
+# the builds and tests run out of (gcc-arm-none-eabi alone is hundreds of MB).
+$SUDO apt-get clean

@@ -12,6 +12,7 @@ bmssim=$1
 work=$2
 rm -rf "$work"
 mkdir -p "$work"
+trap 'st=$?; [ "$st" -eq 0 ] && rm -rf "$work"; exit "$st"' EXIT  # kept only when the test fails
 fail() { echo "FAIL: $*" >&2; exit 1; }
 
 refused() {  # NAME PATTERN ARGS...: exit 2, one line matching PATTERN

@@ -12,6 +12,7 @@
 set -euo pipefail
 bmssim="$1"; src="$2"; work="$3"; paper_fw="$4"; frames_check="$5"
 rm -rf "$work"; mkdir -p "$work"
+trap 'st=$?; [ "$st" -eq 0 ] && rm -rf "$work"; exit "$st"' EXIT  # kept only when the test fails
 rc=0
 set +e
 "$paper_fw" --can vcan0 --lockstep --cell aboutenergy 2> "$work/refused.txt"; code=$?

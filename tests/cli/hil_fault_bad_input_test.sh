@@ -5,6 +5,7 @@
 set -uo pipefail
 bmssim="$1"; work="$2"; fw="${3:-}"
 rm -rf "$work"; mkdir -p "$work"
+trap 'st=$?; [ "$st" -eq 0 ] && rm -rf "$work"; exit "$st"' EXIT  # kept only when the test fails
 fail=0
 check() {  # SPEC EXPECTED_TEXT
   local err rc

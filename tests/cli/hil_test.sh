@@ -17,6 +17,7 @@ for t in candump; do
   command -v "$t" >/dev/null || { echo "SKIP: $t (can-utils) not installed: scripts/install-deps.sh can"; exit 77; }
 done
 rm -rf "$work"; mkdir -p "$work"
+trap 'st=$?; [ "$st" -eq 0 ] && rm -rf "$work"; exit "$st"' EXIT  # kept only when the test fails
 "$src/scripts/vcan-run.sh" -- bash "$src/tests/cli/hil_inside.sh" "$bmssim" "$fw" "$src" "$work"
 "$bmssim" estimate --data "$work/a/truth.csv" --quiet --out "$work/offline"
 rc=0

@@ -11,6 +11,7 @@ work=$2
 mode=${3:-all}
 rm -rf "$work"
 mkdir -p "$work"
+trap 'st=$?; [ "$st" -eq 0 ] && rm -rf "$work"; exit "$st"' EXIT  # kept only when the test fails
 out=$work/quick
 
 fail() { echo "FAIL: $*" >&2; exit 1; }

@@ -10,6 +10,7 @@ bmssim=$1
 work=$2
 rm -rf "$work"
 mkdir -p "$work"
+trap 'st=$?; [ "$st" -eq 0 ] && rm -rf "$work"; exit "$st"' EXIT  # kept only when the test fails
 fail() { echo "FAIL: $*" >&2; exit 1; }
 
 set +e
