@@ -87,6 +87,7 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--hold-restarted-charge", v.hold_restarted_charge);
   g("--innovation-reject", v.innovation_rejects);
   g("--innovation-gate", v.innovation_gate);
+  g("--misfit-stop-s", v.misfit_stop_s);
   g("--spread-anode-i0", v.spread_anode_i0_rel);
   g("--spread-cathode-i0", v.spread_cathode_i0_rel);
   g("--spread-transport", v.spread_transport_rel);
@@ -317,6 +318,13 @@ Runner add_estimate(CLI::App& app) {
                   "--settings best only: the innovation test's gate in units of the model's stated residual "
                   "(0.3 mV; default 5): the reported test and, with --innovation-reject on, the fusion's check")
       ->check(CLI::Range(0.5, 100.0));
+  sub->add_option("--misfit-stop-s", c->o.overrides.misfit_stop_s.value,
+                  "--settings best only: the stop condition of a charge's fusion: once the residual less the "
+                  "design-time bias and less what the fitted inventory explains has failed the innovation gate "
+                  "for more than this many seconds of a CC charge's learning within the trusted span, the fit "
+                  "goes back to where it was at the charge's start and learns nothing more in that charge "
+                  "(default 0: never stopped; 120 was chosen on About:Energy's spread and protocol truths)")
+      ->check(CLI::Range(0.0, 1e6));
   const std::string spread =
       "--settings best only: the cell's stated spread (a lot tolerance, relative 1-sigma in [0, 0.9], default 0: "
       "a characterised cell) of ";

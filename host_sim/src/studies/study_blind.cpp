@@ -216,6 +216,7 @@ const std::vector<Arm>& arms() {
        [](O& o) { o.model_bias_levels = false; }, true},
       {"best-bias-table-any-start", "--settings best --bias-table-any-start", P::best,
        [](O& o) { o.bias_table_any_start = true; }, true},
+      {"best-misfit-stop", "--settings best --misfit-stop-s 120", P::best, [](O& o) { o.misfit_stop_s = 120.0; }},
       {"best-no-relinearise", "--settings best --relinearise 1", P::best, [](O& o) { o.relinearise_inventory = 1.0; }},
       {"best-no-warmup", "--settings best --warmup 0", P::best, [](O& o) { o.warmup_s = 0.0; }},
       {"best-no-offset", "--settings best --no-current-offset", P::best, [](O& o) { o.current_offset = false; }},

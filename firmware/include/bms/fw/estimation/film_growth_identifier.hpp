@@ -55,6 +55,7 @@ class FilmGrowthIdentifier {
   // Cortex-M4F this is software double: one update per learning tick.
   using Real = double;
   using RlsType = Rls<Real, kParams>;
+  using RlsState = typename RlsType::State;
   using Vector = Eigen::Matrix<Scalar, kParams, 1>;
 
   struct Config {
@@ -221,6 +222,14 @@ class FilmGrowthIdentifier {
   void restart_from_prior() {
     rls_ = RlsType(make_rls_config(config_));
     refresh();
+  }
+
+  // The fit alone (theta and P), without G: the cell's history goes on whatever was learned.
+  typename RlsType::State fit() const { return rls_.save(); }
+  // Back to a fit saved by fit() (a charge's stop condition: IdentifierFilmPath); an invalid one
+  // changes nothing.
+  void restore_fit(const typename RlsType::State& s) {
+    if (rls_.restore(s)) refresh();
   }
 
   State save() const { return State{rls_.save(), growth_, growth_at_charge_, growth_carry_}; }
