@@ -10,6 +10,16 @@ inline constexpr double kPathChargeA = -2.5;  // 1C charge
 inline constexpr double kPathDtS = 0.2;
 inline constexpr double kPathH = 0.9;  // dV/dR_film [V per ohm m2] at a 1C charge tick, about
 
+// A path over the given nominal film with a small nominal law and no temperature term: what the
+// tests of the path's terms start from.
+inline IdentifierFilmPath<double>::Config plain_path_config(double film_ohm_m2) {
+  IdentifierFilmPath<double>::Config c;
+  c.identifier.r_film_nominal_ohm_m2 = film_ohm_m2;
+  c.identifier.growth_nominal_ohm_m2_per_a_m3_s = 1e-12;
+  c.temperature_sd_k = 0.0;
+  return c;
+}
+
 template <class Model>
 void learn_ticks(IdentifierFilmPath<double>& path, const Model& model, int ticks, double true_ohm_m2) {
   LearningGate<double> gate(LearningGate<double>::Config{});

@@ -17,17 +17,10 @@ using fw::test::kPathH;
 
 constexpr double kFilmOhmM2 = 3.391e-3;
 
-struct NoSpreadModel {
-  double spread_voltage_sd_v(double /*current_a*/, double /*voltage_v*/, const fw::StatedSpread<double>& /*s*/) const {
-    return 0.0;
-  }
-};
+struct NoSpreadModel {};
 
 Path::Config config(double stop_s) {
-  Path::Config c;
-  c.identifier.r_film_nominal_ohm_m2 = kFilmOhmM2;
-  c.identifier.growth_nominal_ohm_m2_per_a_m3_s = 1e-12;
-  c.temperature_sd_k = 0.0;
+  Path::Config c = fw::test::plain_path_config(kFilmOhmM2);
   c.misfit_stop_s = stop_s;
   return c;
 }

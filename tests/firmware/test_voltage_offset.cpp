@@ -21,10 +21,7 @@ constexpr double kH = fw::test::kPathH;
 struct NoSpreadModel {};
 
 Path::Config path_config(double voltage_sd_v) {
-  Path::Config c;
-  c.identifier.r_film_nominal_ohm_m2 = kFilmOhmM2;
-  c.identifier.growth_nominal_ohm_m2_per_a_m3_s = 1e-12;
-  c.temperature_sd_k = 0.0;
+  Path::Config c = bms::fw::test::plain_path_config(kFilmOhmM2);
   c.voltage_offset_sd_v = voltage_sd_v;
   return c;
 }
