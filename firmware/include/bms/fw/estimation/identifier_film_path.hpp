@@ -306,7 +306,7 @@ class IdentifierFilmPath {
   // The voltage sensor's stated offset accuracy as a film [ohm m2], last learning tick (0 without).
   Scalar film_voltage_offset_ohm_m2() const { return film_voltage_offset_ohm_m2_; }
   Scalar innovation_test_ratio() const { return innovation_ratio_; }
-  // This charge's fusion was stopped by its innovation test (Config::misfit_stop_s).
+  // This charge's fusion was stopped by its placed-residual test (Config::misfit_stop_s).
   bool misfit_stopped_in_charge() const { return misfit_stopped_; }
   // The identified parameters and their uncertainties. theta: the ARX subsystem RCSI fits is not
   // used here; it reads as the hold RCSI starts from, [M1 = 1, 0, ...] (the identifier's film
@@ -339,6 +339,7 @@ class IdentifierFilmPath {
     capacity_ah_ = std::numeric_limits<Scalar>::quiet_NaN();  // recomputed from the restored inventory
     identifying_ = false;
     holding_ = false;  // not in the image: the restored identifier is reported
+    fit_at_charge_ = identifier_.fit();  // a stop before the next charge's start goes back to it
     return true;
   }
 
@@ -417,10 +418,8 @@ class IdentifierFilmPath {
     return !(x_neg > t.x_first + c_.bias_table_start_margin * (t.x_last - t.x_first));
   }
 
-  // The stop condition of the design-time calibration (ModelBiasTable::x_trusted_last): the model's
-  // mean anode stoichiometry past the span where it fits the nominal cell; latched to the charge's end.
   // The charge's stop condition (Config::misfit_stop_s): at the charge's first learning tick the
-  // fit is kept; past the limit of failed innovation tests it is put back, once per charge.
+  // fit is kept; past the limit of failed placed-residual tests it is put back, once per charge.
   void misfit_stop(bool start, bool misfit, Scalar dt_s) {
     if (start) {
       misfit_in_charge_s_ = Scalar(0);
@@ -435,6 +434,8 @@ class IdentifierFilmPath {
     }
   }
 
+  // The stop condition of the design-time calibration (ModelBiasTable::x_trusted_last): the model's
+  // mean anode stoichiometry past the span where it fits the nominal cell; latched to the charge's end.
   bool beyond_trusted_span(Scalar x_neg) {
     const Scalar x_last = c_.model_bias_table.trusted_last(bias_nu_);
     if (!std::isfinite(x_last)) return false;
