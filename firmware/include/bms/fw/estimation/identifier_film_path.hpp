@@ -88,7 +88,7 @@ class IdentifierFilmPath {
     bool innovation_rejects = false;
     // Stop condition of a charge's fusion (PX4 EKF2 stops fusing a source whose innovation test
     // keeps failing): once the residual less the bias and less the part the fitted inventory
-    // explains (placed_test_fails: the model is placed at a new inventory only at the next
+    // explains (placed_test_fails: the model moves to the fitted inventory only at the next
     // re-synchronisation), averaged and gated as the innovation test above, has failed for more
     // than misfit_stop_s of a charge's learning ticks within the trusted span, the model does not
     // describe this charge and what the fit took from it is not film: the fit goes back to where
@@ -372,13 +372,19 @@ class IdentifierFilmPath {
   }
 
  private:
+  // The exponential mean of e over innovation_time_constant_s (restarted at a learning window's
+  // start) and its test ratio against the gate: (mean / (gate sd))^2.
+  Scalar averaged_ratio(Scalar& mean_v, Scalar e, bool window_start, Scalar dt_s) const {
+    const Scalar a = dt_s / (c_.innovation_time_constant_s + dt_s);
+    mean_v = window_start ? e : mean_v + a * (e - mean_v);
+    const Scalar limit = c_.innovation_gate * c_.innovation_sd_v;
+    return (mean_v / limit) * (mean_v / limit);
+  }
+
   // The innovation test (Config::innovation_*) on this learning tick's bias-corrected residual.
   StatusWord innovation_test(Scalar z_corrected_v, bool window_start, Scalar dt_s) {
     if (!(c_.innovation_sd_v > Scalar(0)) || !std::isfinite(z_corrected_v)) return 0u;
-    const Scalar a = dt_s / (c_.innovation_time_constant_s + dt_s);
-    innovation_mean_v_ = window_start ? z_corrected_v : innovation_mean_v_ + a * (z_corrected_v - innovation_mean_v_);
-    const Scalar limit = c_.innovation_gate * c_.innovation_sd_v;
-    innovation_ratio_ = (innovation_mean_v_ / limit) * (innovation_mean_v_ / limit);
+    innovation_ratio_ = averaged_ratio(innovation_mean_v_, z_corrected_v, window_start, dt_s);
     return innovation_ratio_ > Scalar(1) ? bit(FwStatus::kModelMisfit) : 0u;
   }
 
@@ -392,10 +398,7 @@ class IdentifierFilmPath {
     const Scalar placement_v = std::isfinite(s_v) ? s_v * (nu_model - identifier_.inventory_deviation()) : Scalar(0);
     const Scalar e = (t.z_v - bias_v) - placement_v;
     if (!std::isfinite(e)) return false;
-    const Scalar a = t.dt_s / (c_.innovation_time_constant_s + t.dt_s);
-    placed_mean_v_ = window_start ? e : placed_mean_v_ + a * (e - placed_mean_v_);
-    const Scalar limit = c_.innovation_gate * c_.innovation_sd_v;
-    return (placed_mean_v_ / limit) * (placed_mean_v_ / limit) > Scalar(1);
+    return averaged_ratio(placed_mean_v_, e, window_start, t.dt_s) > Scalar(1);
   }
 
   // The consistency check on the fusion (Config::innovation_rejects): true when this tick's
@@ -404,10 +407,7 @@ class IdentifierFilmPath {
     if (!c_.innovation_rejects || !(c_.innovation_sd_v > Scalar(0))) return false;
     const Scalar e = identifier_.innovation_v(t.u_ohm_m2, t.z_v, t.r.markov_v_per_ohm_m2, s_v, nu_model, bias_v);
     if (!std::isfinite(e)) return false;  // learn() rejects it and says why
-    const Scalar a = t.dt_s / (c_.innovation_time_constant_s + t.dt_s);
-    fusion_mean_v_ = window_start ? e : fusion_mean_v_ + a * (e - fusion_mean_v_);
-    const Scalar limit = c_.innovation_gate * c_.innovation_sd_v;
-    return (fusion_mean_v_ / limit) * (fusion_mean_v_ / limit) > Scalar(1);
+    return averaged_ratio(fusion_mean_v_, e, window_start, t.dt_s) > Scalar(1);
   }
 
   // The table's start condition (Config::bias_table_start_margin) at the stoichiometry where a
