@@ -321,9 +321,11 @@ Runner add_estimate(CLI::App& app) {
   sub->add_option("--misfit-stop-s", c->o.overrides.misfit_stop_s.value,
                   "--settings best only: the stop condition of a charge's fusion: once the residual less the "
                   "design-time bias and less what the fitted inventory explains has failed the innovation gate "
-                  "for more than this many seconds of a CC charge's learning within the trusted span, the fit "
-                  "goes back to where it was at the charge's start and learns nothing more in that charge "
-                  "(default 0: never stopped; 120 was chosen on About:Energy's spread and protocol truths)")
+                  "for more than this many seconds of a CC charge's learning within the trusted span, the fit the "
+                  "charge started with did not explain it: the fit goes back to the last one a charge verified (the "
+                  "prior before any) and learns nothing more in that charge. A charge is tested when its starting "
+                  "fit is settled or a stop has fired before (default 0: never stopped; 120 was chosen on "
+                  "About:Energy's spread and protocol truths)")
       ->check(CLI::Range(0.0, 1e6));
   const std::string spread =
       "--settings best only: the cell's stated spread (a lot tolerance, relative 1-sigma in [0, 0.9], default 0: "
