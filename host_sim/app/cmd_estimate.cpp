@@ -88,6 +88,7 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--innovation-reject", v.innovation_rejects);
   g("--innovation-gate", v.innovation_gate);
   g("--misfit-stop-s", v.misfit_stop_s);
+  g("--inventory-sd", v.inventory_sd);
   g("--spread-anode-i0", v.spread_anode_i0_rel);
   g("--spread-cathode-i0", v.spread_cathode_i0_rel);
   g("--spread-transport", v.spread_transport_rel);
@@ -327,6 +328,13 @@ Runner add_estimate(CLI::App& app) {
                   "fit is settled or a stop has fired before (default 0: never stopped; 120 was chosen on "
                   "About:Energy's spread and protocol truths)")
       ->check(CLI::Range(0.0, 1e6));
+  sub->add_option("--inventory-sd", c->o.overrides.inventory_sd.value,
+                  "--settings best only: the cell's stated lithium-inventory tolerance (relative 1-sigma, e.g. "
+                  "0.00577 for +-1 % uniform; default 0: not tested). A fit whose inventory leaves 3 of these is "
+                  "not plausible (the film and inventory run together where the model's kinetics are not the "
+                  "cell's): the fit goes back to the last one a charge verified (the prior before any) and learns "
+                  "nothing more in that charge")
+      ->check(CLI::Range(0.0, 0.05));
   const std::string spread =
       "--settings best only: the cell's stated spread (a lot tolerance, relative 1-sigma in [0, 0.9], default 0: "
       "a characterised cell) of ";

