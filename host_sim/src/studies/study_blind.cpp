@@ -243,6 +243,18 @@ const std::vector<Arm>& arms() {
          o.spread_transport_rel = 0.1155;
          o.spread_area_rel = 0.01732;
        }},
+      // The same spread with the inventory's tolerance (best-inventory-sd): every tolerance of set 4 stated.
+      {"best-stated-tolerances",
+       "--settings best --spread-anode-i0 0.1732 --spread-cathode-i0 0.1732 --spread-transport 0.1155 "
+       "--spread-area 0.01732 --inventory-sd 0.00577",
+       P::best,
+       [](O& o) {
+         o.spread_anode_i0_rel = 0.1732;
+         o.spread_cathode_i0_rel = 0.1732;
+         o.spread_transport_rel = 0.1155;
+         o.spread_area_rel = 0.01732;
+         o.inventory_sd = 0.00577;
+       }},
       // Set 5's voltage offset U(-0.5, 0.5) mV stated as a front end's datasheet bound: 1-sigma
       // 0.5 / sqrt(3) mV; not tuned on any truth.
       {"best-stated-voltage", "--settings best --voltage-offset-sd-mv 0.2887", P::best,
