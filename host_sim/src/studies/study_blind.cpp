@@ -204,6 +204,15 @@ struct Arm {
   bool other_cells_only = false;            // an ablation of what only another cell's calibration has
 };
 
+// Set 4's four tolerances as `bmssim estimate` takes them, and as the arms state them.
+#define SET4_SPREAD_CLI "--spread-anode-i0 0.1732 --spread-cathode-i0 0.1732 --spread-transport 0.1155 --spread-area 0.01732"
+void state_set4_spread(fw::Overrides& o) {
+  o.spread_anode_i0_rel = 0.1732;
+  o.spread_cathode_i0_rel = 0.1732;
+  o.spread_transport_rel = 0.1155;
+  o.spread_area_rel = 0.01732;
+}
+
 const std::vector<Arm>& arms() {
   using P = fw::Profile;
   using O = fw::Overrides;
@@ -233,26 +242,11 @@ const std::vector<Arm>& arms() {
       {"best-no-resync", "--settings best --no-resync", P::best, [](O& o) { o.resync = false; }},
       // Set 4's spread stated as a datasheet would: a uniform +-a tolerance as its 1-sigma a / sqrt(3)
       // (kinetics +-30 %, transport +-20 %, area +-3 %); not tuned on any truth.
-      {"best-stated-spread",
-       "--settings best --spread-anode-i0 0.1732 --spread-cathode-i0 0.1732 --spread-transport 0.1155 "
-       "--spread-area 0.01732",
-       P::best,
-       [](O& o) {
-         o.spread_anode_i0_rel = 0.1732;
-         o.spread_cathode_i0_rel = 0.1732;
-         o.spread_transport_rel = 0.1155;
-         o.spread_area_rel = 0.01732;
-       }},
+      {"best-stated-spread", "--settings best " SET4_SPREAD_CLI, P::best, state_set4_spread},
       // The same spread with the inventory's tolerance (best-inventory-sd): every tolerance of set 4 stated.
-      {"best-stated-tolerances",
-       "--settings best --spread-anode-i0 0.1732 --spread-cathode-i0 0.1732 --spread-transport 0.1155 "
-       "--spread-area 0.01732 --inventory-sd 0.00577",
-       P::best,
+      {"best-stated-tolerances", "--settings best " SET4_SPREAD_CLI " --inventory-sd 0.00577", P::best,
        [](O& o) {
-         o.spread_anode_i0_rel = 0.1732;
-         o.spread_cathode_i0_rel = 0.1732;
-         o.spread_transport_rel = 0.1155;
-         o.spread_area_rel = 0.01732;
+         state_set4_spread(o);
          o.inventory_sd = 0.00577;
        }},
       // Set 5's voltage offset U(-0.5, 0.5) mV stated as a front end's datasheet bound: 1-sigma
