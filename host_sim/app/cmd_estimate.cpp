@@ -332,8 +332,8 @@ Runner add_estimate(CLI::App& app) {
                   "--settings best only: the cell's stated lithium-inventory tolerance (relative 1-sigma, e.g. "
                   "0.00577 for +-1 % uniform; default 0: not tested). A fit whose inventory leaves 3 of these is "
                   "not plausible (the film and inventory run together where the model's kinetics are not the "
-                  "cell's): the fit goes back to the last one a charge verified (the prior before any) and learns "
-                  "nothing more in that charge")
+                  "cell's; tested at each charge's start): the fit goes back to the last one a charge verified (the "
+                  "prior before any) and learns nothing more until a restart")
       ->check(CLI::Range(0.0, 0.05));
   const std::string spread =
       "--settings best only: the cell's stated spread (a lot tolerance, relative 1-sigma in [0, 0.9], default 0: "
