@@ -45,6 +45,14 @@ std::string type_name_for(const std::string& name) {
   return t + "CellTraits";
 }
 
+// Per lower charge rate, the fit's 90th percentile (null: the nominal DFN could not run it).
+nlohmann::json coverage_json(const std::vector<DesignBias::RateFit>& fits) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const auto& f : fits)
+    j.push_back({{"c_rate", f.c_rate}, {"fit_v_p90", std::isfinite(f.fit_p90_v) ? nlohmann::json(f.fit_p90_v) : nlohmann::json(nullptr)}});
+  return j;
+}
+
 int run_cell_config(const CellConfigCli& c) {
   const CellParameters cell = load_cell(c.cell);
   const ReducedCellRecord record = make_reduced_cell_record(cell);
@@ -70,6 +78,10 @@ int run_cell_config(const CellConfigCli& c) {
       {"model_bias_ticks", bias.ticks},
       {"model_bias_table", model_bias_tables_json(bias.table)},
       {"model_bias_level_notes", bias.level_notes},
+      {"coverage_covered_charge_a_min", bias.table.covered_charge_a_min},
+      {"coverage_constant_alone_covered", bias.table.constant_alone_covered},
+      {"coverage_constant_alone_fit_v_p90", bias.constant_alone_fit_p90_v},
+      {"coverage_fit_v_p90_by_c_rate", coverage_json(bias.coverage)},
       {"knot_misfit_v_p90", bias.table.on() ? nlohmann::json(bias.knot_misfit_v) : nlohmann::json(nullptr)},
       {"nominal_residual_constant_v_p10_p50_p90", bias.residual_constant_v},
       {"nominal_residual_table_v_p10_p50_p90", bias.residual_table_v},

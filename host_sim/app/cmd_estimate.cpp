@@ -75,11 +75,13 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--no-start-resync", v.resync_at_start);
   g("--resync-window", v.resync_window_ticks);
   g("--resync-current", v.resync_current_a);
+  g("--resync-settle-s", v.resync_settle_s);
   g("--no-inventory", v.learn_inventory);
   g("--model-bias-ohm", v.model_bias_ohm);
   g("--no-bias-table", v.model_bias_table);
   g("--no-bias-levels", v.model_bias_levels);
   g("--bias-table-any-start", v.bias_table_any_start);
+  g("--no-charge-coverage", v.charge_coverage);
   g("--no-trusted-span", v.trusted_span);
   g("--trusted-span-end", v.trusted_span_end);
   g("--relinearise", v.relinearise_inventory);
@@ -291,6 +293,11 @@ Runner add_estimate(CLI::App& app) {
                 "opens more than a tenth of the table's span above where its calibration's charges opened (a partial "
                 "charge begun mid-window, where the table's history does not hold; by default such a charge runs on "
                 "the constant bias alone; ablation)");
+  sub->add_flag("!--no-charge-coverage", c->o.overrides.charge_coverage.value,
+                "--settings best only: learn in every CC charge, also one the design-time calibration does not "
+                "cover: a charge current below the lowest one at which the calibration's bias fits the nominal cell, "
+                "or a charge that runs on the constant bias alone where the constant does not fit it (by default "
+                "such a charge is not learned from; the film goes on with its growth law; ablation)");
   sub->add_flag("!--no-trusted-span", c->o.overrides.trusted_span.value,
                 "--settings best only: learn in the whole CC charge, also past the design-time calibration's "
                 "trusted span (where the reduced model leaves the nominal cell: a flat-OCP cell's end-of-charge "
@@ -424,6 +431,12 @@ Runner add_estimate(CLI::App& app) {
       ->check(CLI::Range(1u, 3000u));
   sub->add_option("--resync-current", c->o.overrides.resync_current_a.value,
                   "With the observer: |current| [A] below which a CV phase counts as ended (default 0.25)");
+  sub->add_option("--resync-settle-s", c->o.overrides.resync_settle_s.value,
+                  "With the observer: a record that begins under a current (above --resync-current) is "
+                  "re-synchronised at power-up only after this many seconds, once the first seconds' "
+                  "transients, where the reduced model and the cell differ by tens of mV, have passed; at "
+                  "rest at once (default 30; 0: at the first sample, the ablation)")
+      ->check(CLI::Range(0.0, 1e6));
   sub->add_option("--inventory-error-pct", c->o.inventory_error_pct.value,
                   "Reduced model with the observer or --settings best: the lithium inventory the estimator assumes "
                   "is off the cell's nominal one by this percent (how well a BMS must know its cell's inventory)");

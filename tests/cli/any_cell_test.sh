@@ -55,7 +55,7 @@ s = json.load(open("cfg/summary.json"))
 assert s["traits"] == "bms::fw::cells::LcoCellTraits", s
 assert s["model_bias_ohm"] == 1e-4 and s["ocp_neg_max_err_v"] < 3e-5 and s["ocp_pos_max_err_v"] < 3e-5, s
 h = open("cfg/lco_cell.hpp").read()
-assert "struct LcoCellTraits" in h and "kRecordCrc32 = " + s["record_crc32"] in h and "kCellConfigSchema == 2" in h
+assert "struct LcoCellTraits" in h and "kRecordCrc32 = " + s["record_crc32"] in h and "kCellConfigSchema == 3" in h
 PY
 then pass "cell_config_lco"; else fail "cell_config_lco" "$(head -n 1 err_cfg)"; fi
 

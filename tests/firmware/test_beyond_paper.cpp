@@ -160,10 +160,13 @@ struct StartRig {
   double stoich_error() const { return std::abs(model.mean_stoich_neg() - plant.mean_stoich_neg()); }
 };
 
-Core::Config start_config(std::uint32_t window) {
+// settle_s 0: the window from the first sample (the mechanics); the default waits 30 s under a
+// current (PowerUpUnderACurrentWaitsForTheTransients).
+Core::Config start_config(std::uint32_t window, double settle_s = 0.0) {
   Core::Config cfg;
   cfg.resync_at_start = true;
   cfg.resync_window_ticks = window;
+  cfg.resync_settle_s = settle_s;
   cfg.nominal_inventory_mol = Model::inventory_of(0.8408, 0.1592);
   return cfg;
 }
@@ -185,6 +188,19 @@ TEST(BmsCoreStartResync, RemovesTheInitialConditionErrorAfterItsWindow) {
   StartRig plain(off);
   plain.ticks(250);
   EXPECT_GT(plain.stoich_error(), 5e-3);
+}
+
+// Under the 2.5 A discharge the window opens after 30 s (150 ticks) and still removes the 1 %
+// initial-condition error.
+TEST(BmsCoreStartResync, PowerUpUnderACurrentWaitsForTheTransients) {
+  StartRig rig(start_config(50, 30.0));
+  rig.ticks(198);
+  EXPECT_EQ(rig.core.resync_count(), 0u);
+  EXPECT_GT(rig.stoich_error(), 5e-3);
+  rig.ticks(2);
+  EXPECT_EQ(rig.core.resync_count(), 1u);
+  EXPECT_LT(rig.stoich_error(), 5e-4);
+  EXPECT_EQ(rig.core.status() & bms::fw::bit(FwStatus::kResyncFailed), 0u);
 }
 
 TEST(BmsCoreStartResync, TheWindowAveragesOutVoltageNoise) {

@@ -215,6 +215,43 @@ TEST(ModelBiasTables, LevelsAreReadAtTheInventoryDeviation) {
   EXPECT_FALSE(t.valid());
 }
 
+// The calibration's coverage (ModelBiasTables::covers): a charge below the lowest covered current,
+// or one that runs on the constant alone where the constant does not fit, is not covered; the
+// defaults cover every charge.
+TEST(ModelBiasTables, CoverAChargeByItsCurrentAndItsStart) {
+  Tables t;
+  EXPECT_TRUE(t.covers(0.01, false)) << "the defaults: every charge";
+  t.covered_charge_a_min = 1.5;
+  EXPECT_FALSE(t.covers(1.4, true));
+  EXPECT_TRUE(t.covers(1.5, true));
+  t.constant_alone_covered = false;
+  EXPECT_TRUE(t.covers(2.0, false)) << "no table: the constant is the whole bias, the calibration's own";
+  t.nominal() = ramp();
+  EXPECT_FALSE(t.covers(2.0, false)) << "on the constant alone where only the table fits";
+  EXPECT_TRUE(t.covers(2.0, true));
+  t.covered_charge_a_min = -1.0;
+  EXPECT_FALSE(t.valid());
+  EXPECT_EQ(t.as<float>().constant_alone_covered, false);
+  EXPECT_EQ(t.as<float>().covered_charge_a_min, -1.0f);
+}
+
+// A charge the calibration does not cover is not learned from: the film stays the prior's (8 %
+// below the charge's; it grows by its law, 0.03 % over the charge); covered, the same charge
+// identifies it.
+TEST(ModelBiasTables, AChargeTheCalibrationDoesNotCoverIsNotLearned) {
+  const double prior_error = (3.4e-3 - 3.7e-3) / 3.7e-3;
+  Path::Config pc = charge_config();
+  pc.model_bias_table.covered_charge_a_min = 1.0;  // the charge runs at 2 A
+  EXPECT_LT(std::fabs(film_error_of_charge(pc)), 1e-3);
+  pc.model_bias_table.covered_charge_a_min = 2.5;
+  EXPECT_NEAR(film_error_of_charge(pc), prior_error, 1e-3) << "below the covered current (the prior and its growth)";
+  pc.model_bias_table.covered_charge_a_min = 0.0;
+  pc.bias_table_start_margin = -1.0;  // the charge opens above the margin: the constant alone
+  EXPECT_GT(std::fabs(film_error_of_charge(pc) - prior_error), 1e-3) << "the constant alone, covered: learned";
+  pc.model_bias_table.constant_alone_covered = false;
+  EXPECT_NEAR(film_error_of_charge(pc), prior_error, 1e-3) << "the constant alone, not covered";
+}
+
 // The identifier's path reads the levels at the inventory its model was last placed at
 // (StateResync::inventory_deviation_model), not at the nominal one, and adds the bias's slope over
 // the inventory to the inventory's sensitivity (S = dV/dnu, the residual's regressor).

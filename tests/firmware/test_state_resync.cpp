@@ -42,6 +42,35 @@ TEST(StateResync, PowerUpWindowFillsAndFitsAStraightLine) {
   EXPECT_FALSE(r.should_continue()) << "closed once full";
 }
 
+// The power-up window under a current waits settle_s (the first seconds' transients); at rest,
+// or with settle_s 0, it opens at the first sample; a later sample starts none.
+TEST(StateResync, PowerUpUnderACurrentWaitsForTheTransientsToPass) {
+  Resync::Config c = observer(3u);
+  c.settle_s = 0.9;
+  Resync loaded(c);
+  loaded.follow_power_up(true, 2.0, 0.2);
+  EXPECT_FALSE(loaded.should_continue()) << "under 2 A: pending";
+  for (int k = 0; k < 3; ++k) loaded.follow_power_up(false, k == 1 ? 0.0 : 2.0, 0.2);
+  EXPECT_FALSE(loaded.should_continue()) << "0.8 s of the 0.9 s (a zero crossing is not rest)";
+  loaded.follow_power_up(false, 2.0, 0.2);
+  EXPECT_TRUE(loaded.should_continue()) << "0.9 s under the current: the window opens";
+  EXPECT_TRUE(loaded.power_up_window());
+  Resync resting(c);
+  resting.follow_power_up(true, 0.1, 0.2);
+  EXPECT_TRUE(resting.should_continue()) << "at rest: at once";
+  c.settle_s = 0.0;
+  Resync at_once(c);
+  at_once.follow_power_up(true, 2.0, 0.2);
+  EXPECT_TRUE(at_once.should_continue()) << "settle_s 0: the first sample, as before";
+  Resync later(c);
+  later.follow_power_up(false, 0.0, 0.2);
+  EXPECT_FALSE(later.should_continue()) << "no power-up: nothing";
+  c.at_start = false;
+  Resync off(c);
+  off.follow_power_up(true, 0.0, 0.2);
+  EXPECT_FALSE(off.should_continue());
+}
+
 TEST(StateResync, CvEndStartsOncePerPhaseWhenTheCurrentHasFallen) {
   Resync r(observer(2u));
   EXPECT_FALSE(r.should_start_at_cv_end(true, -0.5)) << "current still above the trigger";

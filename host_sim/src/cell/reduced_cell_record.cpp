@@ -225,6 +225,8 @@ std::uint32_t record_crc32(const ReducedCellRecord& r, double model_bias_ohm,
   c.add(model_bias_table.nu_step);
   add_level(model_bias_table.level[0]);
   add_level(model_bias_table.level[2]);
+  c.add(model_bias_table.covered_charge_a_min);
+  c.add(model_bias_table.constant_alone_covered ? 1.0 : 0.0);
   return c.value();
 }
 
@@ -240,7 +242,7 @@ std::string cell_header_text(const ReducedCellRecord& r, const std::string& type
       "// 0.2-2.5 c_e0.{notes}\n"
       "#include <cstdint>\n\n#include \"bms/fw/model/cell_table.hpp\"\n#include \"bms/fw/model/paper_cell.hpp\"\n\n"
       "namespace bms::fw::cells {{\n\n"
-      "static_assert(kCellConfigSchema == 2, \"generated for cell configuration schema 2: regenerate\");\n\n"
+      "static_assert(kCellConfigSchema == 3, \"generated for cell configuration schema 3: regenerate\");\n\n"
       "struct {type} {{\n",
       fmt::arg("name", r.name), fmt::arg("source", std::filesystem::path(r.source).filename().string()), fmt::arg("en", r.ocp_neg_max_err_v),
       fmt::arg("ep", r.ocp_pos_max_err_v), fmt::arg("ed", r.diffusivity_max_rel_err),
@@ -288,6 +290,10 @@ std::string cell_header_text(const ReducedCellRecord& r, const std::string& type
   field("kModelBiasInventoryStep", model_bias_table.nu_step);
   level("kModelBiasLean", model_bias_table.level[0]);
   level("kModelBiasRich", model_bias_table.level[2]);
+  s += "  // The calibration's coverage: a CC charge below this current [A], or one on the constant alone\n"
+       "  // (begun above the table's start margin) where ConstantAloneCovered is 0, is not learned from\n";
+  field("kModelBiasCoveredChargeA", model_bias_table.covered_charge_a_min);
+  field("kModelBiasConstantAloneCovered", model_bias_table.constant_alone_covered ? 1.0 : 0.0);
   s += fmt::format("  static constexpr std::uint32_t kRecordCrc32 = 0x{:08X}u;\n", record_crc32(r, model_bias_ohm, model_bias_table));
   s += fmt::format("  static constexpr HermiteTable<{}> kOcpNeg{};\n", kOcpTableNodes, table_text(r.ocp_neg));
   s += fmt::format("  static constexpr HermiteTable<{}> kOcpPos{};\n", kOcpTableNodes, table_text(r.ocp_pos));

@@ -35,7 +35,10 @@ constexpr double kCvEndCRate = 0.1;  // C/10: at C/20 the NMC template's anode f
 // inventory within +-1 % of it (a cell's spread; FilmGrowthIdentifier identifies it).
 constexpr double kInventoryLevelStep = 0.01;
 
-EstimateData nominal_run(const CellParameters& cell) {
+// The coverage's charge currents below the calibration's 1C, highest first (DesignBias::coverage).
+constexpr std::array<double, 3> kCoverageCRates = {0.7, 0.5, 0.3};
+
+EstimateData nominal_run(const CellParameters& cell, double c_rate) {
   SimulationConfig cfg;
   cfg.cell = cell;
   cfg.mesh = {kMeshVolumes, kMeshVolumes, kMeshVolumes, kMeshVolumes};
@@ -44,7 +47,7 @@ EstimateData nominal_run(const CellParameters& cell) {
   cfg.ic = default_initial_conditions(cell);
   CccvProtocol p;
   p.cycles = kCycles;
-  p.current_a = cell.nominal_capacity_ah;  // 1C
+  p.current_a = c_rate * cell.nominal_capacity_ah;
   p.cv_end_current_a = kCvEndCRate * cell.nominal_capacity_ah;
   p.v_min = cell.lower_voltage_v;
   p.v_max = cell.upper_voltage_v;
@@ -68,12 +71,13 @@ EstimateData nominal_run(const CellParameters& cell) {
 // mean anode stoichiometry.
 struct CalibrationTicks {
   std::vector<double> z_v, charge_a, stoich;
+  std::vector<int> cycle;
 };
 
-CalibrationTicks calibration_ticks(const CellParameters& nominal, double nu) {
+CalibrationTicks calibration_ticks(const CellParameters& nominal, double nu, double c_rate = 1.0) {
   CellParameters cell = nominal;
   scale_initial_inventory(cell, 1.0 + nu);
-  const EstimateData d = nominal_run(cell);
+  const EstimateData d = nominal_run(cell, c_rate);
   EstimateOptions o;
   o.model = "reduced";
   o.profile = fw::Profile::best;
@@ -94,6 +98,7 @@ CalibrationTicks calibration_ticks(const CellParameters& nominal, double nu) {
       t.z_v.push_back(row.z_v);
       t.charge_a.push_back(-row.model_current_a);
       t.stoich.push_back(row.model_stoich_neg);
+      t.cycle.push_back(row.cycle);
     }
   }
   if (t.z_v.empty())
@@ -207,6 +212,42 @@ Level level_of(const CalibrationTicks& t, double bias_ohm) {
   return l;
 }
 
+// The 90th percentile of |z - (bias + table) I| over the ticks within the table's trusted span
+// (the table off: the constant alone) from cycle first_cycle on.
+double fit_p90_v(const CalibrationTicks& t, double bias_ohm, const fw::ModelBiasTable<double>& table, int first_cycle) {
+  std::vector<double> e;
+  for (std::size_t i = 0; i < t.z_v.size(); ++i)
+    if (!(t.stoich[i] > table.x_trusted_last) && t.cycle[i] >= first_cycle) e.push_back(std::fabs(t.z_v[i] - (bias_ohm + table.at(t.stoich[i])) * t.charge_a[i]));
+  return e.empty() ? std::numeric_limits<double>::infinity() : percentiles(e)[2];
+}
+
+// The coverage (ModelBiasTables::covered_charge_a_min, constant_alone_covered): the 1C
+// calibration's bias against the nominal DFN's charges at the lower rates of kCoverageCRates,
+// and the constant alone against the 1C charges. The rates' first cycle is left out: it holds the
+// estimator's start (its initial state and power-up re-synchronisation), not the rate's bias. A
+// rate fits when that percentile is within the
+// trusted span's tolerance; the covered currents reach down from 1C over every rate that fits,
+// to halfway to the first that does not (to 0.15C when all fit: halfway to none).
+void set_coverage(DesignBias& b, const CellParameters& nominal, const CalibrationTicks& at_1c,
+                  std::vector<std::optional<CalibrationTicks>>& at_rates) {
+  const fw::ModelBiasTable<double>& table = b.table.nominal();
+  fw::ModelBiasTable<double> constant_only;
+  constant_only.x_trusted_last = table.x_trusted_last;
+  b.constant_alone_fit_p90_v = fit_p90_v(at_1c, b.bias_ohm, constant_only, 1);
+  b.table.constant_alone_covered = !table.on() || b.constant_alone_fit_p90_v <= kTrustedMisfitV;
+  double lowest = 1.0, below = 0.0;
+  bool fits = true;
+  for (std::size_t k = 0; k < kCoverageCRates.size(); ++k) {
+    const double p90 = at_rates[k] ? fit_p90_v(*at_rates[k], b.bias_ohm, table, 2) : std::numeric_limits<double>::infinity();
+    b.coverage.push_back({kCoverageCRates[k], p90});
+    if (!fits) continue;
+    fits = p90 <= kTrustedMisfitV;
+    if (fits) lowest = kCoverageCRates[k];
+    else below = kCoverageCRates[k];
+  }
+  b.table.covered_charge_a_min = 0.5 * (lowest + below) * nominal.nominal_capacity_ah;
+}
+
 }  // namespace
 
 DesignBias design_time_bias(const CellParameters& nominal_in) {
@@ -231,6 +272,15 @@ DesignBias design_time_bias(const CellParameters& nominal_in) {
   };
   auto lean = std::async(std::launch::async, off_level, -kInventoryLevelStep);
   auto rich = std::async(std::launch::async, off_level, kInventoryLevelStep);
+  std::vector<std::future<std::optional<CalibrationTicks>>> rate_runs;
+  for (double c_rate : kCoverageCRates)
+    rate_runs.push_back(std::async(std::launch::async, [&nominal, c_rate]() -> std::optional<CalibrationTicks> {
+      try {
+        return calibration_ticks(nominal, 0.0, c_rate);
+      } catch (const RuntimeFailure&) {
+        return std::nullopt;  // a rate the nominal DFN cannot run: not covered
+      }
+    }));
   const CalibrationTicks t = calibration_ticks(nominal, 0.0);
   const OffLevel t_lean = lean.get(), t_rich = rich.get();
   std::vector<double> ratios(t.z_v.size()), with_constant(t.z_v.size());
@@ -254,6 +304,9 @@ DesignBias design_time_bias(const CellParameters& nominal_in) {
                                             name, (k - 1) * 100.0 * kInventoryLevelStep, off->failure));
     }
   }
+  std::vector<std::optional<CalibrationTicks>> at_rates;
+  for (auto& f : rate_runs) at_rates.push_back(f.get());
+  set_coverage(b, nominal, t, at_rates);
   b.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   return b;
 }

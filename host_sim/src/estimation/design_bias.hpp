@@ -3,7 +3,9 @@
 // charge per ampere of charge current (ohm), the median over the charges' ticks after the best
 // profile's warm-up, against a converged DFN (40/40 volumes, rtol 1e-9) of the *nominal* cell
 // (its own film, growth law and inventory; nothing of a cell in use; without the cell's own effects
-// of CellParameters::effects) over 3 CCCV cycles at 1C (CV to C/10).
+// of CellParameters::effects) over 3 CCCV cycles at 1C (CV to C/10). Its coverage (the charge
+// currents and starts where the bias fits the nominal cell: ModelBiasTables::covers) from the
+// same DFN at 0.7, 0.5 and 0.3C.
 // Beside the constant, its state-of-charge-dependent part: a ModelBiasTable over the model's mean
 // anode stoichiometry, each knot the median of (z / -I less the constant) over the same ticks
 // within half a knot step of it (a median: the charge's end can be 100 mV off on a knee), a knot
@@ -36,6 +38,16 @@ struct DesignBias {
   // (0 for a knot without ticks): the misfit that sets the nominal level's x_trusted_last.
   std::array<double, fw::kModelBiasKnots> knot_misfit_v{};
   std::vector<std::string> level_notes;  // a level that stayed the nominal one, and why
+  // The coverage's measurements (table.covered_charge_a_min, table.constant_alone_covered): per
+  // lower charge rate, the 90th percentile of |residual less the 1C bias and table| over its CC
+  // charges within the trusted span [V] (+inf: the nominal DFN could not run it); the same of the
+  // constant alone at 1C.
+  struct RateFit {
+    double c_rate;
+    double fit_p90_v;
+  };
+  std::vector<RateFit> coverage;
+  double constant_alone_fit_p90_v = 0.0;
   double wall_s = 0.0;
 };
 

@@ -49,6 +49,7 @@ nlohmann::json options_json(const EstimateConfigSummary& c, const EstimateOption
   }
   if (c.resync_at_cv_end)
     j.update({{"resync_at_start", c.resync_at_start}, {"resync_window_ticks", c.resync_window_ticks},
+              {"resync_settle_s", c.resync_settle_s},
               {"resync_current_a", c.resync_current_a}, {"inventory_error_pct", o.inventory_error_pct.or_else(0.0)}});
   return j;
 }

@@ -109,6 +109,7 @@ struct EstimateConfigSummary {
   double h_v_per_ohm_m2 = 0, p0_u = 0, p0_y0 = 0, lambda = 0, eta = 0;
   bool h_from_model = false, resync_at_cv_end = false, resync_at_start = false;
   unsigned resync_window_ticks = 0, reference_after_resyncs = 0;
+  double resync_settle_s = 0.0;
   double resync_current_a = 0, warmup_s = 0, nominal_inventory_mol = 0, voltage_min_v = 0, voltage_max_v = 0, dt_s = 0;
   bool calibrate_bias = false, average_estimate = false, learning = true, identify_growth = false, learn_inventory = true;
   double propagated_growth_ohm_m2_per_a_m3_s = 0, model_bias_ohm = 0, relinearise_inventory = 0;
@@ -127,6 +128,7 @@ EstimateConfigSummary summarise_config(const Config& c, int nc) {
   s.resync_at_cv_end = c.resync_at_cv_end;
   s.resync_at_start = c.resync_at_start;
   s.resync_window_ticks = c.resync_window_ticks;
+  s.resync_settle_s = static_cast<double>(c.resync_settle_s);
   s.resync_current_a = c.resync_current_a;
   s.warmup_s = c.rcsi_warmup_s;
   s.nominal_inventory_mol = c.nominal_inventory_mol;

@@ -225,6 +225,8 @@ const std::vector<Arm>& arms() {
        [](O& o) { o.model_bias_levels = false; }, true},
       {"best-bias-table-any-start", "--settings best --bias-table-any-start", P::best,
        [](O& o) { o.bias_table_any_start = true; }, true},
+      {"best-no-charge-coverage", "--settings best --no-charge-coverage", P::best,
+       [](O& o) { o.charge_coverage = false; }, true},
       {"best-misfit-stop", "--settings best --misfit-stop-s 120", P::best, [](O& o) { o.misfit_stop_s = 120.0; }},
       // The blind sets' inventory range (+-1 %) stated as a datasheet's tolerance: 1-sigma 0.01 / sqrt(3).
       {"best-inventory-sd", "--settings best --inventory-sd 0.00577", P::best, [](O& o) { o.inventory_sd = 0.00577; }},
@@ -240,6 +242,8 @@ const std::vector<Arm>& arms() {
        [](O& o) { o.hold_restarted_charge = true; }},
       {"best-window1", "--settings best --resync-window 1", P::best, [](O& o) { o.resync_window_ticks = 1u; }},
       {"best-no-resync", "--settings best --no-resync", P::best, [](O& o) { o.resync = false; }},
+      {"best-no-start-resync", "--settings best --no-start-resync", P::best, [](O& o) { o.resync_at_start = false; }},
+      {"best-resync-at-once", "--settings best --resync-settle-s 0", P::best, [](O& o) { o.resync_settle_s = 0.0; }},
       // Set 4's spread stated as a datasheet would: a uniform +-a tolerance as its 1-sigma a / sqrt(3)
       // (kinetics +-30 %, transport +-20 %, area +-3 %); not tuned on any truth.
       {"best-stated-spread", "--settings best " SET4_SPREAD_CLI, P::best, state_set4_spread},

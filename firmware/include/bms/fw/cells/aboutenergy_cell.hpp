@@ -12,7 +12,7 @@
 
 namespace bms::fw::cells {
 
-static_assert(kCellConfigSchema == 2, "generated for cell configuration schema 2: regenerate");
+static_assert(kCellConfigSchema == 3, "generated for cell configuration schema 3: regenerate");
 
 struct AboutenergyCellTraits {
   static constexpr double kAreaM2 = 0.089599979999999996;
@@ -73,7 +73,11 @@ struct AboutenergyCellTraits {
       4.9607320206979328e-05, -0.00014064145812509011, -0.00038203854086948908, -0.0010727422827097042,
       -0.0024290424758288687, -0.0046579294471844612, -0.0087941266132600671, -0.010598850640344938};
   static constexpr double kModelBiasRichTrustedLast = 0.73960606984089328;
-  static constexpr std::uint32_t kRecordCrc32 = 0x9B798AFDu;
+  // The calibration's coverage: a CC charge below this current [A], or one on the constant alone
+  // (begun above the table's start margin) where ConstantAloneCovered is 0, is not learned from
+  static constexpr double kModelBiasCoveredChargeA = 0.29999999999999999;
+  static constexpr double kModelBiasConstantAloneCovered = 0.0;
+  static constexpr std::uint32_t kRecordCrc32 = 0x07E082B0u;
   static constexpr HermiteTable<1025> kOcpNeg{0.002, 0.90467538999999997,
      {1.2673466042786217, 1.0394418504043728, 0.88289516278792846, 0.77603813826506851,
       0.70320053529288984, 0.65321329789440341, 0.61824318184324412, 0.59289591297346078,

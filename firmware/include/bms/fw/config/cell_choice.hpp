@@ -125,6 +125,7 @@ constexpr std::uint32_t cell_config_crc32() {
   crc = cell_crc::add(cell_crc::add(crc, Cell::kModelBiasRichFirst), Cell::kModelBiasRichLast);
   for (double v : Cell::kModelBiasRichOhm) crc = cell_crc::add(crc, v);
   crc = cell_crc::add(crc, Cell::kModelBiasRichTrustedLast);
+  crc = cell_crc::add(cell_crc::add(crc, Cell::kModelBiasCoveredChargeA), Cell::kModelBiasConstantAloneCovered);
   return ~crc;
 }
 
@@ -156,6 +157,8 @@ constexpr ModelBiasTables<double> bias_tables_of() {
   t.level[2] = bias_level_of(Cell::kModelBiasRichFirst, Cell::kModelBiasRichLast, Cell::kModelBiasRichOhm,
                              Cell::kModelBiasRichTrustedLast);
   t.nu_step = Cell::kModelBiasInventoryStep;
+  t.covered_charge_a_min = Cell::kModelBiasCoveredChargeA;
+  t.constant_alone_covered = Cell::kModelBiasConstantAloneCovered != 0.0;
   return t;
 }
 

@@ -184,6 +184,7 @@ struct Overrides {
   Given<bool> resync_at_start;         // --no-start-resync (false): with the observer
   Given<unsigned> resync_window_ticks; // --resync-window: with the observer
   Given<double> resync_current_a;      // --resync-current: with the observer
+  Given<double> resync_settle_s;       // --resync-settle-s: with the observer
   Given<bool> current_offset;          // --no-current-offset (false): the sensor offset from CV end points
   Given<bool> area_scale;              // --no-area-scale (false): the electrode-capacity scale from CV-end pins
   Given<bool> area_scale_model_sees;   // --area-scale-in-model (true): the model runs on I / a too
@@ -193,6 +194,7 @@ struct Overrides {
   Given<bool> model_bias_table;        // --no-bias-table (false): the constant bias alone
   Given<bool> model_bias_levels;       // --no-bias-levels (false): the nominal inventory's table alone
   Given<bool> bias_table_any_start;    // --bias-table-any-start (true): the table for charges begun anywhere
+  Given<bool> charge_coverage;         // --no-charge-coverage (false): learn in charges the calibration does not cover
   Given<bool> trusted_span;            // --no-trusted-span (false): learn past the calibration's trusted span
   Given<double> trusted_span_end;      // --trusted-span-end X: the span's end (mean anode stoichiometry)
   Given<double> relinearise_inventory; // --relinearise
@@ -264,6 +266,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"no-start-resync", o.resync_at_start.given, observer, no_observer},
       {"resync-window", o.resync_window_ticks.given, observer, no_observer},
       {"resync-current", o.resync_current_a.given, observer, no_observer},
+      {"resync-settle-s", o.resync_settle_s.given, observer, no_observer},
       {"no-current-offset", o.current_offset.given, true, ""},
       {"no-area-scale", o.area_scale.given, true, ""},
       {"area-scale-in-model", o.area_scale_model_sees.given, o.area_scale.or_else(p == Profile::best),
@@ -273,6 +276,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"no-bias-table", o.model_bias_table.given, id, only_best},
       {"no-bias-levels", o.model_bias_levels.given, id, only_best},
       {"bias-table-any-start", o.bias_table_any_start.given, id, only_best},
+      {"no-charge-coverage", o.charge_coverage.given, id, only_best},
       {"no-trusted-span", o.trusted_span.given, id, only_best},
       {"trusted-span-end", o.trusted_span_end.given, id, only_best},
       {"relinearise", o.relinearise_inventory.given, id && observer, id ? no_observer : only_best},
@@ -421,6 +425,7 @@ void apply_observer(const Overrides& o, Config& cfg) {
   set_if(o.resync_at_start, cfg.resync_at_start);
   set_if(o.resync_window_ticks, cfg.resync_window_ticks);
   set_if(o.resync_current_a, cfg.resync_current_a);
+  set_if(o.resync_settle_s, cfg.resync_settle_s);
   if constexpr (kRcsi) set_if(o.reference_after_resyncs, cfg.film_path.reference_after_resyncs);
 }
 
@@ -459,6 +464,10 @@ void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   if (o.bias_table_any_start.given && o.bias_table_any_start.value)
     cfg.film_path.bias_table_start_margin = std::numeric_limits<decltype(cfg.film_path.bias_table_start_margin)>::infinity();
   using TableScalar = decltype(table.nu_step);
+  if (o.charge_coverage.given && !o.charge_coverage.value) {  // every charge covered: the defaults
+    table.covered_charge_a_min = ModelBiasTables<TableScalar>{}.covered_charge_a_min;
+    table.constant_alone_covered = ModelBiasTables<TableScalar>{}.constant_alone_covered;
+  }
   if (o.trusted_span_end.given) table.set_trusted_last(static_cast<TableScalar>(o.trusted_span_end.value));
   if (o.trusted_span.given && !o.trusted_span.value)
     table.set_trusted_last(ModelBiasTable<TableScalar>{}.x_trusted_last);  // the default: trusted everywhere

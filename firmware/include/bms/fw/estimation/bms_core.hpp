@@ -144,6 +144,9 @@ class BmsCore {
     // Each re-synchronisation matches a straight line fitted to this many ticks of measured
     // voltage and current (ResyncWindow), taken from the trigger on; 1 = the trigger sample.
     std::uint32_t resync_window_ticks = 1u;
+    // The power-up re-synchronisation under a current waits this long [s] for the first seconds'
+    // transients to pass (StateResync::follow_power_up); at rest it is at once.
+    Scalar resync_settle_s = Scalar(30);
     Scalar nominal_inventory_mol = Scalar(0);
     // LearningGate. Beyond the paper: RCSI learns only after this long in a CC charge. The first seconds
     // after a deep CV discharge are where the reduced model is least accurate (a reaction
@@ -340,7 +343,7 @@ class BmsCore {
     return {c.rcsi_warmup_s, c.dt_s, c.learning};
   }
   static typename StateResync<Scalar>::Config resync_config(const Config& c) {
-    return {c.resync_at_start, c.resync_at_cv_end, c.resync_current_a, c.resync_window_ticks};
+    return {c.resync_at_start, c.resync_at_cv_end, c.resync_current_a, c.resync_window_ticks, c.resync_settle_s};
   }
   static typename CurrentOffset<Scalar>::Config offset_config(const Config& c) {
     typename CurrentOffset<Scalar>::Config o{};
@@ -400,7 +403,7 @@ class BmsCore {
     have_sample_ = true;
     last_current_ = in.current_a;
     last_voltage_ = in.voltage_v;
-    if (resync_.should_start_at_power_up(first_sample || power_cycle)) resync_.start_at_power_up();
+    resync_.follow_power_up(first_sample || power_cycle, in.current_a, config_.dt_s);
     return in;
   }
 

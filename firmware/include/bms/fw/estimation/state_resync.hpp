@@ -9,6 +9,12 @@
 //   should_start_at_power_up  the first accepted sample with no restored state (a BMS wakes
 //                    from rest: uniform particles), before a discharge can clip the particle
 //                    profiles at the stoichiometry limits, which a later uniform shift cannot repair;
+//                    under a current (|I| above Config::current_a at that sample) only once
+//                    settle_s of samples have passed (follow_power_up): in its first seconds under load the cell's
+//                    voltage and the model's differ by tens of mV (their electrolyte and particle
+//                    surfaces start from rest differently: About:Energy at 0.84C, 43 mV at the first
+//                    sample, under 1 mV after 6 s), and the window would read that as state of
+//                    charge (on About:Energy's flat LFP curve it moved the model to its empty end);
 //   should_start_at_cv_end    once per CV phase, when |I| has fallen to Config::current_a;
 //   should_continue  a window is open: each accepted sample is added; collect() says when it
 //                    is full and the model is to be re-synchronised;
@@ -30,6 +36,7 @@ class StateResync {
     bool at_cv_end = false;
     Scalar current_a = Scalar(0.25);  // |I| at which a CV phase's window opens
     std::uint32_t window_ticks = 1u;  // 1 = the trigger sample alone
+    Scalar settle_s = Scalar(0);      // the power-up window under a current opens after this [s]
   };
 
   // Trivially copyable, for the NVM image.
@@ -44,6 +51,28 @@ class StateResync {
   explicit StateResync(const Config& config) : c_(config) {}
 
   bool should_start_at_power_up(bool first_sample) const { return c_.at_start && first_sample; }
+  // Each accepted sample. A power-up (first_sample) at rest (|I| <= Config::current_a: the BMS
+  // woke from rest) opens its window at once; one under a current is pending until settle_s of
+  // samples have passed, whatever the current does meanwhile (a drive cycle's zero crossings are
+  // not rest). A restored state has no power-up; a pending one is not saved (a restore within
+  // settle_s has none either).
+  void follow_power_up(bool first_sample, Scalar current_a, Scalar dt_s) {
+    if (should_start_at_power_up(first_sample)) {
+      if (std::fabs(current_a) <= c_.current_a) {
+        power_up_pending_ = false;
+        start_at_power_up();
+        return;
+      }
+      power_up_pending_ = true;
+      power_up_elapsed_s_ = Scalar(0);
+    }
+    if (!power_up_pending_) return;
+    power_up_elapsed_s_ += dt_s;
+    if (power_up_elapsed_s_ >= c_.settle_s) {
+      power_up_pending_ = false;
+      start_at_power_up();
+    }
+  }
   void start_at_power_up() {
     window_.open(c_.window_ticks);
     power_up_window_ = true;
@@ -116,6 +145,8 @@ class StateResync {
   std::uint32_t count_ = 0u;
   bool done_in_phase_ = false;
   bool power_up_window_ = false;
+  bool power_up_pending_ = false;
+  Scalar power_up_elapsed_s_ = Scalar(0);
 };
 
 }  // namespace bms::fw

@@ -14,7 +14,7 @@ namespace bms::fw {
 
 // Version of the generated cell configuration's layout (the traits' fields and this table):
 // a generated header states the version it was written for and fails to compile on another.
-inline constexpr int kCellConfigSchema = 2;
+inline constexpr int kCellConfigSchema = 3;
 
 template <int N>
 struct HermiteTable {

@@ -91,6 +91,15 @@ struct ModelBiasTables {
   static_assert(kLevels == 3, "a parabola through lean, nominal and rich");
   ModelBiasTable<Scalar> level[kLevels] = {};  // at inventory deviation (k - kNominal) * nu_step
   Scalar nu_step = Scalar(0);                  // relative inventory between levels (0: the nominal level alone)
+  // The calibration's coverage of a CC charge (IdentifierFilmPath's start condition of a charge's
+  // fusion). The bias is calibrated on charges at 1C from the bottom of the window; at another
+  // charge current, or on the constant alone (a charge begun above the table's start margin), the
+  // reduced model may leave the nominal cell by more than the film the charge is to identify, and
+  // fused, that misfit is read as film and growth. covered_charge_a_min: the lowest charge current
+  // [A] the calibration found the bias fits at (0: every current). constant_alone_covered: the
+  // constant alone fits the calibration's charges.
+  Scalar covered_charge_a_min = Scalar(0);
+  bool constant_alone_covered = true;
 
   const ModelBiasTable<Scalar>& nominal() const { return level[kNominal]; }
   ModelBiasTable<Scalar>& nominal() { return level[kNominal]; }
@@ -99,6 +108,7 @@ struct ModelBiasTables {
 
   bool valid() const {
     if (!std::isfinite(nu_step) || nu_step < Scalar(0)) return false;
+    if (!std::isfinite(covered_charge_a_min) || covered_charge_a_min < Scalar(0)) return false;
     for (const auto& t : level)
       if (!t.valid()) return false;
     return true;
@@ -131,6 +141,12 @@ struct ModelBiasTables {
     if (std::isfinite(a) && std::isfinite(b)) return a + f * (b - a);
     return f < Scalar(0.5) ? a : b;
   }
+  // Whether a CC charge at charge_a [A] (positive) is covered, given whether it met the table's
+  // start condition.
+  bool covers(Scalar charge_a, bool table_in_charge) const {
+    if (charge_a < covered_charge_a_min) return false;
+    return table_in_charge || !on() || constant_alone_covered;
+  }
   bool has_trusted_span() const {
     for (const auto& t : level)
       if (std::isfinite(t.x_trusted_last)) return true;
@@ -155,6 +171,8 @@ struct ModelBiasTables {
     ModelBiasTables<Other> t;
     for (int k = 0; k < kLevels; ++k) t.level[k] = level[k].template as<Other>();
     t.nu_step = Other(nu_step);
+    t.covered_charge_a_min = Other(covered_charge_a_min);
+    t.constant_alone_covered = constant_alone_covered;
     return t;
   }
 
