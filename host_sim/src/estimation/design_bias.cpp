@@ -217,7 +217,8 @@ Level level_of(const CalibrationTicks& t, double bias_ohm) {
 double fit_p90_v(const CalibrationTicks& t, double bias_ohm, const fw::ModelBiasTable<double>& table, int first_cycle) {
   std::vector<double> e;
   for (std::size_t i = 0; i < t.z_v.size(); ++i)
-    if (!(t.stoich[i] > table.x_trusted_last) && t.cycle[i] >= first_cycle) e.push_back(std::fabs(t.z_v[i] - (bias_ohm + table.at(t.stoich[i])) * t.charge_a[i]));
+    if (!(t.stoich[i] > table.x_trusted_last) && t.cycle[i] >= first_cycle)
+      e.push_back(std::fabs(t.z_v[i] - (bias_ohm + table.at(t.stoich[i])) * t.charge_a[i]));
   return e.empty() ? std::numeric_limits<double>::infinity() : percentiles(e)[2];
 }
 
@@ -225,11 +226,11 @@ double fit_p90_v(const CalibrationTicks& t, double bias_ohm, const fw::ModelBias
 // calibration's bias against the nominal DFN's charges at the lower rates of kCoverageCRates,
 // and the constant alone against the 1C charges. The rates' first cycle is left out: it holds the
 // estimator's start (its initial state and power-up re-synchronisation), not the rate's bias. A
-// rate fits when that percentile is within the
-// trusted span's tolerance; the covered currents reach down from 1C over every rate that fits,
-// to halfway to the first that does not (to 0.15C when all fit: halfway to none).
+// rate fits when that percentile is within the trusted span's tolerance; the covered currents
+// reach down from 1C over every rate that fits, to halfway to the first that does not (to 0.15C
+// when all fit: halfway to none).
 void set_coverage(DesignBias& b, const CellParameters& nominal, const CalibrationTicks& at_1c,
-                  std::vector<std::optional<CalibrationTicks>>& at_rates) {
+                  const std::vector<std::optional<CalibrationTicks>>& at_rates) {
   const fw::ModelBiasTable<double>& table = b.table.nominal();
   fw::ModelBiasTable<double> constant_only;
   constant_only.x_trusted_last = table.x_trusted_last;
@@ -238,7 +239,8 @@ void set_coverage(DesignBias& b, const CellParameters& nominal, const Calibratio
   double lowest = 1.0, below = 0.0;
   bool fits = true;
   for (std::size_t k = 0; k < kCoverageCRates.size(); ++k) {
-    const double p90 = at_rates[k] ? fit_p90_v(*at_rates[k], b.bias_ohm, table, 2) : std::numeric_limits<double>::infinity();
+    const double p90 =
+        at_rates[k] ? fit_p90_v(*at_rates[k], b.bias_ohm, table, 2) : std::numeric_limits<double>::infinity();
     b.coverage.push_back({kCoverageCRates[k], p90});
     if (!fits) continue;
     fits = p90 <= kTrustedMisfitV;
