@@ -10,11 +10,12 @@
 //                    from rest: uniform particles), before a discharge can clip the particle
 //                    profiles at the stoichiometry limits, which a later uniform shift cannot repair;
 //                    under a current (|I| above Config::current_a at that sample) only once
-//                    settle_s of samples have passed (follow_power_up): in its first seconds under load the cell's
-//                    voltage and the model's differ by tens of mV (their electrolyte and particle
-//                    surfaces start from rest differently: About:Energy at 0.84C, 43 mV at the first
-//                    sample, under 1 mV after 6 s), and the window would read that as state of
-//                    charge (on About:Energy's flat LFP curve it moved the model to its empty end);
+//                    settle_s of samples have passed (follow_power_up): in the first seconds
+//                    under load the cell's voltage and the model's differ by tens of mV (their
+//                    electrolyte and particle surfaces start from rest differently: About:Energy
+//                    at 0.84C, 43 mV at the first sample, under 1 mV after 6 s), and the window
+//                    would read that as state of charge (on About:Energy's flat LFP curve it
+//                    moved the model to its empty end);
 //   should_start_at_cv_end    once per CV phase, when |I| has fallen to Config::current_a;
 //   should_continue  a window is open: each accepted sample is added; collect() says when it
 //                    is full and the model is to be re-synchronised;
