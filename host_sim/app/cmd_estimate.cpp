@@ -95,6 +95,7 @@ void mark_given(const CLI::App& sub, EstimateCli& c) {
   g("--spread-cathode-i0", v.spread_cathode_i0_rel);
   g("--spread-transport", v.spread_transport_rel);
   g("--spread-area", v.spread_area_rel);
+  g("--fuse-level-only", v.fuse_level_only);
   g("--voltage-offset-sd-mv", v.voltage_offset_sd_mv);
   g("--current-gain-sd-pct", v.current_gain_sd_pct);
   g("--no-current-offset", v.current_offset);
@@ -355,6 +356,11 @@ Runner add_estimate(CLI::App& app) {
                            "diffusivity, independently)" + spread_end);
   sub->add_option("--spread-area", c->o.overrides.spread_area_rel.value,
                   spread + "the electrode area (both electrodes' capacity)" + spread_end);
+  sub->add_flag("--fuse-level-only", c->o.overrides.fuse_level_only.value,
+                "--settings best with a stated spread: combine the prior with the fitted film's level alone and "
+                "report the fit's growth on top (a spread offsets a cell's level, not its growth), not with the "
+                "whole fitted film; helps where the fitted growth is good (the paper cell), not where it is not "
+                "(off by default)");
   sub->add_option("--voltage-offset-sd-mv", c->o.overrides.voltage_offset_sd_mv.value,
                   "--settings best only: the voltage sensor's stated offset accuracy (the front end's datasheet "
                   "1-sigma in mV, in [0, 10], default 0); in CC charge an offset reads as film, so this over "

@@ -186,3 +186,53 @@ TEST(StatedSpread, TheReportedFilmIsTheInverseVarianceMeanOfThePriorAndTheFit) {
 }
 
 }  // namespace
+
+namespace {
+
+// With Config::fuse_level_only the prior is combined with the fitted level alone: the prior's
+// level carries the fit's growth, so the reported film grows as the fit does, not leaning to the
+// nominal law as the whole film's combination does. Two charges of a truth that grew twice as
+// the nominal law between them give the fit a gain of about 2.
+TEST(StatedSpread, TheLevelAloneCombinedReportsTheFitsGrowth) {
+  Path::Config cw = path_config(true), cl = path_config(true);
+  cw.identifier.growth_nominal_ohm_m2_per_a_m3_s = cl.identifier.growth_nominal_ohm_m2_per_a_m3_s = 1e-7;
+  cl.fuse_level_only = true;
+  Path whole(cw, kDtS), level(cl, kDtS);
+  const SpreadModel model{2.0 * kFilmOhmM2 * kH};
+  const double first = 1.5 * kFilmOhmM2;
+  for (Path* p : {&whole, &level}) {
+    fw::test::learn_ticks(*p, model, 200, first);
+    const double g0 = p->identifier().growth_ohm_m2();
+    p->propagate(-1.0, 1000.0);
+    fw::test::learn_ticks(*p, model, 200, first + 2.0 * (p->identifier().growth_ohm_m2() - g0));
+  }
+  ASSERT_FALSE(level.holding());
+  const fw::FilmGrowthIdentifier<double>& id = level.identifier();
+  EXPECT_EQ(id.film_ohm_m2(), whole.identifier().film_ohm_m2()) << "the option changes the report, not the fit";
+  const double g = id.growth_ohm_m2(), gain = id.gain();
+  ASSERT_GT(g, 0.02 * kFilmOhmM2);
+  ASSERT_GT(gain, 1.3) << "a gain the nominal law does not have";
+  // The prior's level with the fit's growth, and its sd (the gain's regression variance over G).
+  EXPECT_NEAR(id.prior_level_film_ohm_m2(), kFilmOhmM2 + gain * g, 1e-15);
+  EXPECT_GE(id.prior_level_film_sd_ohm_m2(), 1e-3);
+  // The report: the inverse-variance mean of that prior and the fit.
+  const double sp = id.prior_level_film_sd_ohm_m2(), sf = level.fitted_sd_ohm_m2();
+  const double wp = 1.0 / (sp * sp), wf = 1.0 / (sf * sf);
+  EXPECT_NEAR(level.r_film_ohm_m2(), (wp * id.prior_level_film_ohm_m2() + wf * id.film_ohm_m2()) / (wp + wf),
+              1e-12 * kFilmOhmM2);
+  EXPECT_NEAR(level.film_sd_ohm_m2(), 1.0 / std::sqrt(wp + wf), 1e-12 * sp);
+  // Over more growth and no learning, the level-only report moves by the fit's gain times the
+  // growth; the whole film's by a mean of that and the nominal law's.
+  const double before_level = level.r_film_ohm_m2(), before_whole = whole.r_film_ohm_m2();
+  level.propagate(-1.0, 1000.0);
+  whole.propagate(-1.0, 1000.0);
+  const double dg = level.identifier().growth_ohm_m2() - g;
+  ASSERT_GT(dg, 0.0);
+  EXPECT_NEAR((level.r_film_ohm_m2() - before_level) / dg, gain, 0.02 * std::fabs(gain));
+  const double whole_rate = (whole.r_film_ohm_m2() - before_whole) / dg;
+  EXPECT_GT(std::fabs(whole_rate - gain), 0.1 * std::fabs(gain - 1.0)) << "the whole film leans to the nominal law";
+  std::printf("gain %.3f: reported growth per G %.3f (level alone), %.3f (whole film)\n", gain,
+              (level.r_film_ohm_m2() - before_level) / dg, whole_rate);
+}
+
+}  // namespace

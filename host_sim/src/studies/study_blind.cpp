@@ -257,6 +257,30 @@ const std::vector<Arm>& arms() {
       // 0.5 / sqrt(3) mV; not tuned on any truth.
       {"best-stated-voltage", "--settings best --voltage-offset-sd-mv 0.2887", P::best,
        [](O& o) { o.voltage_offset_sd_mv = 0.2887; }},
+      // Every tolerance a datasheet states at once (the cell's spread and inventory, the front end's
+      // voltage accuracy, as the arms above): what a configured product would run.
+      {"best-datasheet", "--settings best " SET4_SPREAD_CLI " --inventory-sd 0.00577 --voltage-offset-sd-mv 0.2887",
+       P::best,
+       [](O& o) {
+         state_set4_spread(o);
+         o.inventory_sd = 0.00577;
+         o.voltage_offset_sd_mv = 0.2887;
+       }},
+      // The stated spread's level alone combined with the prior, the fit's growth on top (--fuse-level-only).
+      {"best-stated-spread-level-only", "--settings best " SET4_SPREAD_CLI " --fuse-level-only", P::best,
+       [](O& o) {
+         state_set4_spread(o);
+         o.fuse_level_only = true;
+       }},
+      {"best-datasheet-level-only",
+       "--settings best " SET4_SPREAD_CLI " --inventory-sd 0.00577 --voltage-offset-sd-mv 0.2887 --fuse-level-only",
+       P::best,
+       [](O& o) {
+         state_set4_spread(o);
+         o.inventory_sd = 0.00577;
+         o.voltage_offset_sd_mv = 0.2887;
+         o.fuse_level_only = true;
+       }},
       {"paper", "--settings paper", P::paper, [](O&) {}},
       {"paper-no-learning", "--settings paper --no-learning", P::paper, [](O& o) { o.learning = false; }},
       {"nominal-growth", "--settings nominal-growth", P::nominal_growth, [](O&) {}},

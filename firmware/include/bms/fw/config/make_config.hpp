@@ -209,6 +209,7 @@ struct Overrides {
   Given<double> spread_cathode_i0_rel;  // --spread-cathode-i0
   Given<double> spread_transport_rel;   // --spread-transport
   Given<double> spread_area_rel;        // --spread-area
+  Given<bool> fuse_level_only;          // --fuse-level-only (true): the prior combined with the fitted level alone
   // best: the voltage sensor's stated offset accuracy (1-sigma), default 0.
   Given<double> voltage_offset_sd_mv;   // --voltage-offset-sd-mv
   // best: the current sensor's stated gain accuracy (1-sigma, percent), default 0.
@@ -290,6 +291,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"spread-cathode-i0", o.spread_cathode_i0_rel.given, id, only_best},
       {"spread-transport", o.spread_transport_rel.given, id, only_best},
       {"spread-area", o.spread_area_rel.given, id, only_best},
+      {"fuse-level-only", o.fuse_level_only.given, id, only_best},
       {"voltage-offset-sd-mv", o.voltage_offset_sd_mv.given, id, only_best},
       {"current-gain-sd-pct", o.current_gain_sd_pct.given, id, only_best},
       {"voltage-offset", o.voltage_offset.given, id, only_best},
@@ -482,6 +484,7 @@ void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   set_if(o.spread_cathode_i0_rel, cfg.film_path.spread.cathode_i0_rel);
   set_if(o.spread_transport_rel, cfg.film_path.spread.transport_rel);
   set_if(o.spread_area_rel, cfg.film_path.spread.area_rel);
+  set_if(o.fuse_level_only, cfg.film_path.fuse_level_only);
   if (o.voltage_offset_sd_mv.given)
     cfg.film_path.voltage_offset_sd_v = static_cast<decltype(cfg.film_path.voltage_offset_sd_v)>(o.voltage_offset_sd_mv.value * 1e-3);
   if (o.current_gain_sd_pct.given)

@@ -123,6 +123,19 @@ class FilmGrowthIdentifier {
     const Real m = static_cast<Real>(config_.film_model_sd_rel * prior_film_ohm_m2());
     return static_cast<Scalar>(std::sqrt(pr * pr + g * g * pg * pg + m * m));
   }
+  // The prior's level with this fit's growth: the nominal initial film plus the fitted gain's G,
+  // and its 1-sigma (the prior's level, the fitted gain's regression sd over G, the model bound).
+  // What a stated cell-to-cell spread leaves the prior to inform: the spread offsets the film's
+  // level for the cell's whole life (collinear with theta_R0), not its growth.
+  Scalar prior_level_film_ohm_m2() const {
+    return admissible_film_ohm_m2(config_.r_film_nominal_ohm_m2 + theta_(1) * growth_);
+  }
+  Scalar prior_level_film_sd_ohm_m2() const {
+    const Real g = static_cast<Real>(growth_), pr = static_cast<Real>(config_.prior_r0_ohm_m2),
+               su = static_cast<Real>(config_.sigma_u_ohm_m2), vg = rls_.p()(1, 1) * su * su;
+    const Real m = static_cast<Real>(config_.film_model_sd_rel * prior_level_film_ohm_m2());
+    return static_cast<Scalar>(std::sqrt(pr * pr + g * g * (vg > Real(0) ? vg : Real(0)) + m * m));
+  }
   // Whether the film's regression variance (what the data since the last relinearise() left
   // open) is within the stated model bound: the estimate no longer moves by more than the
   // model's own error as the next samples come in.

@@ -127,6 +127,13 @@ class IdentifierFilmPath {
     // model's closed form at each learning tick, ReducedCell::spread_voltage_sd_v). A stated
     // tolerance, never learned; 0 (a characterised cell) leaves it out.
     StatedSpread<Scalar> spread{};
+    // With a stated spread, what the prior is combined with: the whole fitted film (false, the
+    // default), whose growth then leans to the nominal law as the spread widens; or the fitted
+    // level alone (true), against the prior's level carrying the fit's growth
+    // (FilmGrowthIdentifier::prior_level_film_ohm_m2): a spread offsets a cell's level for its
+    // whole life, not its growth, so the growth stays the fit's. Better only where the fit's
+    // growth is (the paper cell; docs/results/envelope.md): off by default.
+    bool fuse_level_only = false;
     // 1-sigma of the voltage sensor's offset [V] (the analog front end's stated accuracy, never
     // this unit's actual offset): in CC charge a constant voltage offset is read as a resistance
     // (measured about 30 % of the paper cell's film per mV at 1C), so it enters the fitted level's
@@ -316,9 +323,12 @@ class IdentifierFilmPath {
     Scalar sd_ohm_m2;
   };
   // (sd_f^2 prior + sd_p^2 fit) / (sd_p^2 + sd_f^2), sd_p sd_f / sqrt(sd_p^2 + sd_f^2): the
-  // inverse-variance mean and its 1-sigma. A prior sd that is not positive and finite: the fit.
+  // inverse-variance mean and its 1-sigma (Config::fuse_level_only says which prior). A prior sd
+  // that is not positive and finite: the fit.
   Level fused_with_prior(Scalar fit_ohm_m2, Scalar fit_sd_ohm_m2) const {
-    const Scalar p = identifier_.prior_film_ohm_m2(), sp = identifier_.prior_film_sd_ohm_m2();
+    const bool level = c_.fuse_level_only;
+    const Scalar p = level ? reported().prior_level_film_ohm_m2() : identifier_.prior_film_ohm_m2();
+    const Scalar sp = level ? reported().prior_level_film_sd_ohm_m2() : identifier_.prior_film_sd_ohm_m2();
     const Scalar vp = sp * sp, vf = fit_sd_ohm_m2 * fit_sd_ohm_m2;
     if (!(sp > Scalar(0)) || !std::isfinite(vp) || !std::isfinite(vf) || !(vp + vf > Scalar(0)))
       return Level{fit_ohm_m2, fit_sd_ohm_m2};
