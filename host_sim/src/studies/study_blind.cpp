@@ -213,6 +213,15 @@ void state_set4_spread(fw::Overrides& o) {
   o.spread_area_rel = 0.01732;
 }
 
+// Every tolerance of the blind sets stated as a datasheet's: set 4's spread, the inventory's
+// +-1 % and the voltage sensor's +-0.5 mV, each a uniform bound's 1-sigma.
+#define DATASHEET_CLI SET4_SPREAD_CLI " --inventory-sd 0.00577 --voltage-offset-sd-mv 0.2887"
+void state_datasheet(fw::Overrides& o) {
+  state_set4_spread(o);
+  o.inventory_sd = 0.00577;
+  o.voltage_offset_sd_mv = 0.2887;
+}
+
 const std::vector<Arm>& arms() {
   using P = fw::Profile;
   using O = fw::Overrides;
@@ -259,26 +268,11 @@ const std::vector<Arm>& arms() {
        [](O& o) { o.voltage_offset_sd_mv = 0.2887; }},
       // Every tolerance a datasheet states at once (the cell's spread and inventory, the front end's
       // voltage accuracy, as the arms above): what a configured product would run.
-      {"best-datasheet", "--settings best " SET4_SPREAD_CLI " --inventory-sd 0.00577 --voltage-offset-sd-mv 0.2887",
-       P::best,
+      {"best-datasheet", "--settings best " DATASHEET_CLI, P::best, state_datasheet},
+      // The same with the prior combined with the fitted level alone, the fit's growth on top.
+      {"best-datasheet-level-only", "--settings best " DATASHEET_CLI " --fuse-level-only", P::best,
        [](O& o) {
-         state_set4_spread(o);
-         o.inventory_sd = 0.00577;
-         o.voltage_offset_sd_mv = 0.2887;
-       }},
-      // The stated spread's level alone combined with the prior, the fit's growth on top (--fuse-level-only).
-      {"best-stated-spread-level-only", "--settings best " SET4_SPREAD_CLI " --fuse-level-only", P::best,
-       [](O& o) {
-         state_set4_spread(o);
-         o.fuse_level_only = true;
-       }},
-      {"best-datasheet-level-only",
-       "--settings best " SET4_SPREAD_CLI " --inventory-sd 0.00577 --voltage-offset-sd-mv 0.2887 --fuse-level-only",
-       P::best,
-       [](O& o) {
-         state_set4_spread(o);
-         o.inventory_sd = 0.00577;
-         o.voltage_offset_sd_mv = 0.2887;
+         state_datasheet(o);
          o.fuse_level_only = true;
        }},
       {"paper", "--settings paper", P::paper, [](O&) {}},
