@@ -79,6 +79,20 @@ assert abs(s - float(sys.argv[3])) < 1e-12, s
 PY
 }
 stated_accuracy voltage-offset-sd-mv 11 0.2887 voltage_offset_sd_mv
+# The initial film's stated tolerance is the prior's sd where a prior is combined with the fit:
+# refused where RCSI learns and, under best, without a stated spread (nothing is combined there);
+# out of range exit 2 naming it; recorded in summary.json.
+for p in paper nominal-growth best; do refused "$p" film-initial-sd 0.1155; done
+for bad in -0.1 0.95; do
+  check_input_error "best-film-initial-sd-range-$bad" "--film-initial-sd" "$WORK/o" -- \
+    "$BMSSIM" estimate --data short.csv --settings best --spread-anode-i0 0.17 --film-initial-sd "$bad" --quiet --out "$WORK/o"
+done
+accepted best --spread-anode-i0 0.17 --film-initial-sd 0.1155
+python3 - "$WORK/a/summary.json" <<'PY' && pass "summary records the initial film's tolerance" || fail "film tolerance" "see above"
+import json, sys
+o = json.load(open(sys.argv[1]))["options"]
+assert o["stated_film_initial_sd_rel"] == 0.1155 and o["stated_spread_rel"]["anode_i0"] == 0.17, o
+PY
 stated_accuracy current-gain-sd-pct 6 0.2887 current_gain_sd_pct
 # --settings nominal-growth: H from the model, no identifier.
 for o in "h 0.02" "no-inventory" "model-bias-ohm 0" "relinearise 1"; do

@@ -236,3 +236,51 @@ TEST(StatedSpread, TheLevelAloneCombinedReportsTheFitsGrowth) {
 }
 
 }  // namespace
+
+namespace {
+
+// With the initial film's stated tolerance (Config::stated_film_initial_sd_rel) the prior's sd
+// in the combination is that tolerance, not the regression's weak prior: the fit is the same
+// bit for bit, the reported film leans further to the prior and its sd is sharper. Both the whole
+// film's prior and the level-alone prior take it.
+TEST(StatedSpread, TheInitialFilmsStatedToleranceIsThePriorsSd) {
+  for (const bool level_only : {false, true}) {
+    Path::Config weak = path_config(true), stated = path_config(true);
+    weak.fuse_level_only = stated.fuse_level_only = level_only;
+    stated.identifier.stated_film_initial_sd_rel = 0.1155;
+    Path a(weak, kDtS), b(stated, kDtS);
+    const SpreadModel model{2.0 * kFilmOhmM2 * kH};
+    const double truth = 1.1 * kFilmOhmM2;
+    fw::test::learn_ticks(a, model, 200, truth);
+    fw::test::learn_ticks(b, model, 200, truth);
+    ASSERT_FALSE(b.holding());
+    EXPECT_EQ(a.identifier().film_ohm_m2(), b.identifier().film_ohm_m2()) << "the fit is the data's";
+    EXPECT_EQ(a.fitted_sd_ohm_m2(), b.fitted_sd_ohm_m2());
+    const fw::FilmGrowthIdentifier<double>& id = b.identifier();
+    const double g = id.growth_ohm_m2(), r0_sd = 0.1155 * kFilmOhmM2;
+    const double m = id.prior_film_ohm_m2() * stated.identifier.film_model_sd_rel;
+    // The whole film's prior: the stated initial film, the nominal gain's prior over G, the model bound.
+    EXPECT_NEAR(id.prior_film_sd_ohm_m2(), std::sqrt(r0_sd * r0_sd + g * g + m * m), 1e-12 * kFilmOhmM2);
+    EXPECT_LT(id.prior_film_sd_ohm_m2(), a.identifier().prior_film_sd_ohm_m2());
+    EXPECT_LT(id.prior_level_film_sd_ohm_m2(), a.identifier().prior_level_film_sd_ohm_m2());
+    // The report is nearer the prior and sharper; still the inverse-variance mean.
+    const double prior = level_only ? id.prior_level_film_ohm_m2() : id.prior_film_ohm_m2();
+    const double sp = level_only ? id.prior_level_film_sd_ohm_m2() : id.prior_film_sd_ohm_m2();
+    const double sf = b.fitted_sd_ohm_m2(), wp = 1.0 / (sp * sp), wf = 1.0 / (sf * sf);
+    EXPECT_NEAR(b.r_film_ohm_m2(), (wp * prior + wf * id.film_ohm_m2()) / (wp + wf), 1e-12 * kFilmOhmM2);
+    EXPECT_NEAR(b.film_sd_ohm_m2(), 1.0 / std::sqrt(wp + wf), 1e-12 * sp);
+    EXPECT_LT(std::fabs(b.r_film_ohm_m2() - prior), std::fabs(a.r_film_ohm_m2() - prior)) << level_only;
+    EXPECT_LT(b.film_sd_ohm_m2(), 0.6 * a.film_sd_ohm_m2()) << level_only;
+  }
+  // Without a stated spread nothing is combined: the tolerance changes nothing reported.
+  Path::Config plain = path_config(false), told = path_config(false);
+  told.identifier.stated_film_initial_sd_rel = 0.1155;
+  Path p(plain, kDtS), q(told, kDtS);
+  const SpreadModel model{0.0};
+  fw::test::learn_ticks(p, model, 200, 1.1 * kFilmOhmM2);
+  fw::test::learn_ticks(q, model, 200, 1.1 * kFilmOhmM2);
+  EXPECT_EQ(p.r_film_ohm_m2(), q.r_film_ohm_m2());
+  EXPECT_EQ(p.film_sd_ohm_m2(), q.film_sd_ohm_m2());
+}
+
+}  // namespace

@@ -35,6 +35,7 @@ nlohmann::json options_json(const EstimateConfigSummary& c, const EstimateOption
     j["stated_spread_rel"] = {{"anode_i0", c.spread.anode_i0_rel}, {"cathode_i0", c.spread.cathode_i0_rel},
                               {"transport", c.spread.transport_rel}, {"area", c.spread.area_rel}};
     j["fuse_level_only"] = c.fuse_level_only;
+    j["stated_film_initial_sd_rel"] = c.film_initial_sd_rel;
     j["voltage_offset_sd_mv"] = c.voltage_offset_sd_v * 1e3;
     j["current_gain_sd_pct"] = c.current_gain_sd * 1e2;
     j["voltage_offset"] = c.voltage_offset;

@@ -115,6 +115,7 @@ struct EstimateConfigSummary {
   double propagated_growth_ohm_m2_per_a_m3_s = 0, model_bias_ohm = 0, relinearise_inventory = 0;
   fw::StatedSpread<double> spread{};  // the cell's stated parameter spread (relative 1-sigma)
   bool fuse_level_only = false;       // with a spread: the prior combined with the fitted level alone
+  double film_initial_sd_rel = 0;     // the initial film's stated tolerance (relative 1-sigma; 0: none)
   fw::ModelBiasTables<double> model_bias_table{};  // the bias's state-of-charge and inventory part (off: none)
   double voltage_offset_sd_v = 0;     // the voltage sensor's stated offset accuracy (1-sigma)
   double current_gain_sd = 0;         // the current sensor's stated gain accuracy (relative 1-sigma)
@@ -160,6 +161,7 @@ EstimateConfigSummary summarise_config(const Config& c, int nc) {
     s.spread = {double(p.spread.anode_i0_rel), double(p.spread.cathode_i0_rel), double(p.spread.transport_rel),
                 double(p.spread.area_rel)};
     s.fuse_level_only = p.fuse_level_only;
+    s.film_initial_sd_rel = double(p.identifier.stated_film_initial_sd_rel);
     s.voltage_offset_sd_v = double(p.voltage_offset_sd_v);
     s.current_gain_sd = double(p.current_gain_sd);
   }

@@ -275,6 +275,20 @@ const std::vector<Arm>& arms() {
          state_datasheet(o);
          o.fuse_level_only = true;
        }},
+      // The datasheet's tolerances and the initial film's (set 1's draw: +-20 % uniform, 1-sigma 0.1155)
+      // as the prior's sd where it is combined with the fit, without and with the level alone.
+      {"best-datasheet-film", "--settings best " DATASHEET_CLI " --film-initial-sd 0.1155", P::best,
+       [](O& o) {
+         state_datasheet(o);
+         o.film_initial_sd_rel = 0.1155;
+       }},
+      {"best-datasheet-film-level-only", "--settings best " DATASHEET_CLI " --film-initial-sd 0.1155 --fuse-level-only",
+       P::best,
+       [](O& o) {
+         state_datasheet(o);
+         o.film_initial_sd_rel = 0.1155;
+         o.fuse_level_only = true;
+       }},
       {"paper", "--settings paper", P::paper, [](O&) {}},
       {"paper-no-learning", "--settings paper --no-learning", P::paper, [](O& o) { o.learning = false; }},
       {"nominal-growth", "--settings nominal-growth", P::nominal_growth, [](O&) {}},

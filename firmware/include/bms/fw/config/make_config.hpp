@@ -210,6 +210,7 @@ struct Overrides {
   Given<double> spread_transport_rel;   // --spread-transport
   Given<double> spread_area_rel;        // --spread-area
   Given<bool> fuse_level_only;          // --fuse-level-only (true): the prior combined with the fitted level alone
+  Given<double> film_initial_sd_rel;    // --film-initial-sd: the initial film's stated tolerance (relative 1-sigma)
   // best: the voltage sensor's stated offset accuracy (1-sigma), default 0.
   Given<double> voltage_offset_sd_mv;   // --voltage-offset-sd-mv
   // best: the current sensor's stated gain accuracy (1-sigma, percent), default 0.
@@ -227,6 +228,13 @@ struct Refusal {
 inline bool observer_on(Profile p, const Overrides& o) { return o.resync.or_else(p != Profile::paper); }
 inline bool markov_from_model_on(Profile p, const Overrides& o) { return o.h_from_model.or_else(p != Profile::paper); }
 
+/// Whether the overrides state a parameter spread (any --spread-* above 0): a prior is then
+/// combined with the fitted film (IdentifierFilmPath::fuses_with_prior).
+inline bool stated_spread(const Overrides& o) {
+  return o.spread_anode_i0_rel.or_else(0.0) > 0.0 || o.spread_cathode_i0_rel.or_else(0.0) > 0.0 ||
+         o.spread_transport_rel.or_else(0.0) > 0.0 || o.spread_area_rel.or_else(0.0) > 0.0;
+}
+
 /// The first override the profile does not use (with the others given), or {nullptr, nullptr}.
 inline Refusal unused_override(Profile p, const Overrides& o) {
   const bool rcsi = p != Profile::best;
@@ -237,6 +245,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
   const char* not_rcsi = "--settings best identifies the film with its growth law (FilmGrowthIdentifier), not with RCSI";
   const char* only_best = "only --settings best identifies the growth law (FilmGrowthIdentifier)";
   const char* no_observer = "the state observer (re-synchronisation) is off";
+  const char* no_spread = "the prior is combined with the fitted film only where a spread is stated (--spread-*)";
   struct Use {
     const char* option;
     bool given, used;
@@ -292,6 +301,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"spread-transport", o.spread_transport_rel.given, id, only_best},
       {"spread-area", o.spread_area_rel.given, id, only_best},
       {"fuse-level-only", o.fuse_level_only.given, id, only_best},
+      {"film-initial-sd", o.film_initial_sd_rel.given, id && stated_spread(o), id ? no_spread : only_best},
       {"voltage-offset-sd-mv", o.voltage_offset_sd_mv.given, id, only_best},
       {"current-gain-sd-pct", o.current_gain_sd_pct.given, id, only_best},
       {"voltage-offset", o.voltage_offset.given, id, only_best},
@@ -485,6 +495,7 @@ void apply_identifier(const Overrides& o, typename Core::Config& cfg) {
   set_if(o.spread_transport_rel, cfg.film_path.spread.transport_rel);
   set_if(o.spread_area_rel, cfg.film_path.spread.area_rel);
   set_if(o.fuse_level_only, cfg.film_path.fuse_level_only);
+  set_if(o.film_initial_sd_rel, cfg.film_path.identifier.stated_film_initial_sd_rel);
   if (o.voltage_offset_sd_mv.given)
     cfg.film_path.voltage_offset_sd_v = static_cast<decltype(cfg.film_path.voltage_offset_sd_v)>(o.voltage_offset_sd_mv.value * 1e-3);
   if (o.current_gain_sd_pct.given)

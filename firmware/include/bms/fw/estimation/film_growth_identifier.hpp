@@ -82,6 +82,12 @@ class FilmGrowthIdentifier {
     // further off than this: the level is then not separable from the film (the physics).
     Scalar film_model_sd_rel = Scalar(0.006);
     Scalar inventory_model_sd = Scalar(5e-4);
+    // The cell's stated tolerance of its initial film (relative 1-sigma of the nominal one; a lot
+    // tolerance, never learned), the prior's initial-film sd where the prior is combined with a fit
+    // (prior_film_sd_ohm_m2, prior_level_film_sd_ohm_m2). 0: the regression's weak prior
+    // prior_r0_ohm_m2, which says the data decide and is no statement about the cell. The
+    // regression itself keeps prior_r0_ohm_m2: the fit stays the data's, so the prior is counted once.
+    Scalar stated_film_initial_sd_rel = Scalar(0);
   };
 
   struct State {
@@ -118,7 +124,7 @@ class FilmGrowthIdentifier {
   // same model bound): the nominal cell's film grown by the nominal law.
   Scalar prior_film_ohm_m2() const { return admissible_film_ohm_m2(config_.r_film_nominal_ohm_m2 + growth_); }
   Scalar prior_film_sd_ohm_m2() const {
-    const Real g = static_cast<Real>(growth_), pr = static_cast<Real>(config_.prior_r0_ohm_m2),
+    const Real g = static_cast<Real>(growth_), pr = prior_initial_film_sd_ohm_m2(),
                pg = static_cast<Real>(config_.prior_gain);
     const Real m = static_cast<Real>(config_.film_model_sd_rel * prior_film_ohm_m2());
     return static_cast<Scalar>(std::sqrt(pr * pr + g * g * pg * pg + m * m));
@@ -131,7 +137,7 @@ class FilmGrowthIdentifier {
     return admissible_film_ohm_m2(config_.r_film_nominal_ohm_m2 + theta_(1) * growth_);
   }
   Scalar prior_level_film_sd_ohm_m2() const {
-    const Real g = static_cast<Real>(growth_), pr = static_cast<Real>(config_.prior_r0_ohm_m2),
+    const Real g = static_cast<Real>(growth_), pr = prior_initial_film_sd_ohm_m2(),
                su = static_cast<Real>(config_.sigma_u_ohm_m2), vg = rls_.p()(1, 1) * su * su;
     const Real m = static_cast<Real>(config_.film_model_sd_rel * prior_level_film_ohm_m2());
     return static_cast<Scalar>(std::sqrt(pr * pr + g * g * (vg > Real(0) ? vg : Real(0)) + m * m));
@@ -269,6 +275,12 @@ class FilmGrowthIdentifier {
     if (!std::isfinite(r)) return config_.r_film_nominal_ohm_m2;
     return r < config_.r_film_min_ohm_m2 ? config_.r_film_min_ohm_m2
                                          : (r > config_.r_film_max_ohm_m2 ? config_.r_film_max_ohm_m2 : r);
+  }
+  // The prior's initial-film 1-sigma where it is combined with a fit: the stated tolerance, else
+  // the regression's weak prior (Config::stated_film_initial_sd_rel).
+  Real prior_initial_film_sd_ohm_m2() const {
+    const Scalar stated = config_.stated_film_initial_sd_rel * config_.r_film_nominal_ohm_m2;
+    return static_cast<Real>(stated > Scalar(0) ? stated : config_.prior_r0_ohm_m2);
   }
   static typename RlsType::Config make_rls_config(const Config& c) {
     typename RlsType::Config rc;
