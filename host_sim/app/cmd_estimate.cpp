@@ -363,11 +363,12 @@ Runner add_estimate(CLI::App& app) {
                 "whole fitted film; helps where the fitted growth is good (the paper cell), not where it is not "
                 "(off by default)");
   sub->add_option("--film-initial-sd", c->o.overrides.film_initial_sd_rel.value,
-                  "--settings best with a stated spread: the cell's stated tolerance of its initial film (a lot "
-                  "tolerance, relative 1-sigma of the nominal film in [0, 0.9], e.g. 0.1155 for +-20 % uniform; "
-                  "default 0: the regression's weak prior, 29 % of the paper cell's film). It is the prior's "
-                  "initial-film sd where the prior is combined with the fit, so a stated spread no longer leaves "
-                  "the level to that weak prior; the fit itself is unchanged");
+                  "--settings best only: the cell's stated tolerance of its initial film (a lot tolerance, "
+                  "relative 1-sigma of the nominal film in [0, 0.9], e.g. 0.1155 for +-20 % uniform; default 0: "
+                  "the regression's weak prior, 29 % of the paper cell's film). It is the prior's initial-film sd "
+                  "wherever the prior is reported: held before a fit settles, and combined with the fit under a "
+                  "stated spread (--spread-*), whose level is then the prior's with this sd, not the weak "
+                  "prior's; the fit itself is unchanged");
   sub->add_option("--voltage-offset-sd-mv", c->o.overrides.voltage_offset_sd_mv.value,
                   "--settings best only: the voltage sensor's stated offset accuracy (the front end's datasheet "
                   "1-sigma in mV, in [0, 10], default 0); in CC charge an offset reads as film, so this over "

@@ -79,14 +79,14 @@ assert abs(s - float(sys.argv[3])) < 1e-12, s
 PY
 }
 stated_accuracy voltage-offset-sd-mv 11 0.2887 voltage_offset_sd_mv
-# The initial film's stated tolerance is the prior's sd where a prior is combined with the fit:
-# refused where RCSI learns and, under best, without a stated spread (nothing is combined there);
-# out of range exit 2 naming it; recorded in summary.json.
-for p in paper nominal-growth best; do refused "$p" film-initial-sd 0.1155; done
+# The initial film's stated tolerance is the prior's sd wherever the prior is reported: refused
+# where RCSI learns; out of range exit 2 naming it; recorded in summary.json.
+for p in paper nominal-growth; do refused "$p" film-initial-sd 0.1155; done
 for bad in -0.1 0.95; do
   check_input_error "best-film-initial-sd-range-$bad" "--film-initial-sd" "$WORK/o" -- \
     "$BMSSIM" estimate --data short.csv --settings best --spread-anode-i0 0.17 --film-initial-sd "$bad" --quiet --out "$WORK/o"
 done
+accepted best --film-initial-sd 0.1155
 accepted best --spread-anode-i0 0.17 --film-initial-sd 0.1155
 python3 - "$WORK/a/summary.json" <<'PY' && pass "summary records the initial film's tolerance" || fail "film tolerance" "see above"
 import json, sys

@@ -242,7 +242,7 @@ namespace {
 // With the initial film's stated tolerance (Config::stated_film_initial_sd_rel) the prior's sd
 // in the combination is that tolerance, not the regression's weak prior: the fit is the same
 // bit for bit, the reported film leans further to the prior and its sd is sharper. Both the whole
-// film's prior and the level-alone prior take it.
+// film's prior and the level-alone prior take it, and so does the prior held before a fit.
 TEST(StatedSpread, TheInitialFilmsStatedToleranceIsThePriorsSd) {
   for (const bool level_only : {false, true}) {
     Path::Config weak = path_config(true), stated = path_config(true);
@@ -272,13 +272,21 @@ TEST(StatedSpread, TheInitialFilmsStatedToleranceIsThePriorsSd) {
     EXPECT_LT(std::fabs(b.r_film_ohm_m2() - prior), std::fabs(a.r_film_ohm_m2() - prior)) << level_only;
     EXPECT_LT(b.film_sd_ohm_m2(), 0.6 * a.film_sd_ohm_m2()) << level_only;
   }
-  // Without a stated spread nothing is combined: the tolerance changes nothing reported.
+  // Without a stated spread nothing is combined: the tolerance is the held prior's sd before a fit
+  // settles (the stated initial film, the nominal gain's prior over G, the model bound) and changes
+  // nothing reported after.
   Path::Config plain = path_config(false), told = path_config(false);
   told.identifier.stated_film_initial_sd_rel = 0.1155;
   Path p(plain, kDtS), q(told, kDtS);
+  ASSERT_TRUE(q.holding());
+  EXPECT_EQ(p.r_film_ohm_m2(), q.r_film_ohm_m2());
+  const double m0 = kFilmOhmM2 * told.identifier.film_model_sd_rel, r0_sd = 0.1155 * kFilmOhmM2;
+  EXPECT_NEAR(q.film_sd_ohm_m2(), std::sqrt(r0_sd * r0_sd + m0 * m0), 1e-12 * kFilmOhmM2);
+  EXPECT_NEAR(p.film_sd_ohm_m2(), std::sqrt(1e-6 + m0 * m0), 1e-12 * kFilmOhmM2) << "the weak prior, 1e-3 ohm m2";
   const SpreadModel model{0.0};
   fw::test::learn_ticks(p, model, 200, 1.1 * kFilmOhmM2);
   fw::test::learn_ticks(q, model, 200, 1.1 * kFilmOhmM2);
+  ASSERT_FALSE(q.holding());
   EXPECT_EQ(p.r_film_ohm_m2(), q.r_film_ohm_m2());
   EXPECT_EQ(p.film_sd_ohm_m2(), q.film_sd_ohm_m2());
 }

@@ -228,13 +228,6 @@ struct Refusal {
 inline bool observer_on(Profile p, const Overrides& o) { return o.resync.or_else(p != Profile::paper); }
 inline bool markov_from_model_on(Profile p, const Overrides& o) { return o.h_from_model.or_else(p != Profile::paper); }
 
-/// Whether the overrides state a parameter spread (any --spread-* above 0): a prior is then
-/// combined with the fitted film (IdentifierFilmPath::fuses_with_prior).
-inline bool stated_spread(const Overrides& o) {
-  return o.spread_anode_i0_rel.or_else(0.0) > 0.0 || o.spread_cathode_i0_rel.or_else(0.0) > 0.0 ||
-         o.spread_transport_rel.or_else(0.0) > 0.0 || o.spread_area_rel.or_else(0.0) > 0.0;
-}
-
 /// The first override the profile does not use (with the others given), or {nullptr, nullptr}.
 inline Refusal unused_override(Profile p, const Overrides& o) {
   const bool rcsi = p != Profile::best;
@@ -245,7 +238,6 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
   const char* not_rcsi = "--settings best identifies the film with its growth law (FilmGrowthIdentifier), not with RCSI";
   const char* only_best = "only --settings best identifies the growth law (FilmGrowthIdentifier)";
   const char* no_observer = "the state observer (re-synchronisation) is off";
-  const char* no_spread = "the prior is combined with the fitted film only where a spread is stated (--spread-*)";
   struct Use {
     const char* option;
     bool given, used;
@@ -301,7 +293,7 @@ inline Refusal unused_override(Profile p, const Overrides& o) {
       {"spread-transport", o.spread_transport_rel.given, id, only_best},
       {"spread-area", o.spread_area_rel.given, id, only_best},
       {"fuse-level-only", o.fuse_level_only.given, id, only_best},
-      {"film-initial-sd", o.film_initial_sd_rel.given, id && stated_spread(o), id ? no_spread : only_best},
+      {"film-initial-sd", o.film_initial_sd_rel.given, id, only_best},
       {"voltage-offset-sd-mv", o.voltage_offset_sd_mv.given, id, only_best},
       {"current-gain-sd-pct", o.current_gain_sd_pct.given, id, only_best},
       {"voltage-offset", o.voltage_offset.given, id, only_best},

@@ -83,10 +83,11 @@ class FilmGrowthIdentifier {
     Scalar film_model_sd_rel = Scalar(0.006);
     Scalar inventory_model_sd = Scalar(5e-4);
     // The cell's stated tolerance of its initial film (relative 1-sigma of the nominal one; a lot
-    // tolerance, never learned), the prior's initial-film sd where the prior is combined with a fit
-    // (prior_film_sd_ohm_m2, prior_level_film_sd_ohm_m2). 0: the regression's weak prior
-    // prior_r0_ohm_m2, which says the data decide and is no statement about the cell. The
-    // regression itself keeps prior_r0_ohm_m2: the fit stays the data's, so the prior is counted once.
+    // tolerance, never learned), the prior's initial-film sd wherever the prior is reported: held
+    // before a fit settles, or combined with a fit under a stated spread (prior_film_sd_ohm_m2,
+    // prior_level_film_sd_ohm_m2). 0: the regression's weak prior prior_r0_ohm_m2, which says the
+    // data decide and is no statement about the cell. The regression itself keeps prior_r0_ohm_m2:
+    // the fit stays the data's, so the prior is counted once.
     Scalar stated_film_initial_sd_rel = Scalar(0);
   };
 

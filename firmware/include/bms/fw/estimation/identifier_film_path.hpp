@@ -300,7 +300,7 @@ class IdentifierFilmPath {
   // reported film is fitted to the voltage (their collinear share is the fit's); the held prior's
   // sd is the prior's.
   Scalar fitted_sd_ohm_m2() const {
-    const Scalar sd = reported().film_sd_ohm_m2();
+    const Scalar sd = held_prior_stated() ? held_.prior_film_sd_ohm_m2() : reported().film_sd_ohm_m2();
     const Scalar t = film_per_kelvin_ohm_m2_ * c_.temperature_sd_k;
     const Scalar with_t = std::isfinite(t) ? std::sqrt(sd * sd + t * t) : sd;
     const bool spread = film_spread_ohm_m2_ > Scalar(0), voltage = film_voltage_offset_ohm_m2_ > Scalar(0);
@@ -309,6 +309,12 @@ class IdentifierFilmPath {
     if (spread) v += film_spread_ohm_m2_ * film_spread_ohm_m2_;
     if (voltage) v += film_voltage_offset_ohm_m2_ * film_voltage_offset_ohm_m2_;
     return std::sqrt(v);
+  }
+  // The held prior with the initial film's stated tolerance: its sd is the stated prior's
+  // (FilmGrowthIdentifier::prior_film_sd_ohm_m2), not the regression's weak prior, which a held
+  // prior that never learned otherwise reports.
+  bool held_prior_stated() const {
+    return holding_ && held_is_prior_ && c_.identifier.stated_film_initial_sd_rel > Scalar(0);
   }
   // With a stated spread the fitted level is told from the prior only to within the spread's
   // collinear share: where that is wider than the prior's own sd the fit says less than the
