@@ -276,7 +276,7 @@ const std::vector<Arm>& arms() {
          o.fuse_level_only = true;
        }},
       // The datasheet's tolerances and the initial film's (set 1's draw: +-20 % uniform, 1-sigma 0.1155)
-      // as the prior's sd where it is combined with the fit, without and with the level alone.
+      // as the prior's sd wherever the prior is reported, without and with the level alone.
       {"best-datasheet-film", "--settings best " DATASHEET_CLI " --film-initial-sd 0.1155", P::best,
        [](O& o) {
          state_datasheet(o);

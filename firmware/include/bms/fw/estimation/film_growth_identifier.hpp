@@ -277,7 +277,7 @@ class FilmGrowthIdentifier {
     return r < config_.r_film_min_ohm_m2 ? config_.r_film_min_ohm_m2
                                          : (r > config_.r_film_max_ohm_m2 ? config_.r_film_max_ohm_m2 : r);
   }
-  // The prior's initial-film 1-sigma where it is combined with a fit: the stated tolerance, else
+  // The prior's initial-film 1-sigma wherever the prior is reported: the stated tolerance, else
   // the regression's weak prior (Config::stated_film_initial_sd_rel).
   Real prior_initial_film_sd_ohm_m2() const {
     const Scalar stated = config_.stated_film_initial_sd_rel * config_.r_film_nominal_ohm_m2;
