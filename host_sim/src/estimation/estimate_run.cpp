@@ -466,12 +466,11 @@ void check_estimate_options(const EstimateOptions& o) {
   const std::pair<const char*, const fw::Given<double>*> spreads[] = {{"spread-anode-i0", &v.spread_anode_i0_rel},
                                                                       {"spread-cathode-i0", &v.spread_cathode_i0_rel},
                                                                       {"spread-transport", &v.spread_transport_rel},
-                                                                      {"spread-area", &v.spread_area_rel}};
+                                                                      {"spread-area", &v.spread_area_rel},
+                                                                      {"film-initial-sd", &v.film_initial_sd_rel}};
   for (const auto& [name, g] : spreads)
     if (bad(*g, [](double x) { return x >= 0.0 && x <= 0.9; }))
       throw InputError(fmt::format("--{} must be a relative 1-sigma in [0, 0.9] (got {})", name, g->value));
-  if (bad(v.film_initial_sd_rel, [](double x) { return x >= 0.0 && x <= 0.9; }))
-    throw InputError(fmt::format("--film-initial-sd must be a relative 1-sigma in [0, 0.9] (got {})", v.film_initial_sd_rel.value));
   if (bad(v.voltage_offset_sd_mv, [](double x) { return x >= 0.0 && x <= 10.0; }))
     throw InputError(fmt::format("--voltage-offset-sd-mv must be a 1-sigma in [0, 10] mV (got {})", v.voltage_offset_sd_mv.value));
   if (bad(v.current_gain_sd_pct, [](double x) { return x >= 0.0 && x <= 5.0; }))

@@ -222,6 +222,13 @@ void state_datasheet(fw::Overrides& o) {
   o.voltage_offset_sd_mv = 0.2887;
 }
 
+// The datasheet and the initial film's tolerance: set 1's draw, +-20 % uniform, 1-sigma 0.1155.
+#define DATASHEET_FILM_CLI DATASHEET_CLI " --film-initial-sd 0.1155"
+void state_datasheet_film(fw::Overrides& o) {
+  state_datasheet(o);
+  o.film_initial_sd_rel = 0.1155;
+}
+
 const std::vector<Arm>& arms() {
   using P = fw::Profile;
   using O = fw::Overrides;
@@ -275,18 +282,12 @@ const std::vector<Arm>& arms() {
          state_datasheet(o);
          o.fuse_level_only = true;
        }},
-      // The datasheet's tolerances and the initial film's (set 1's draw: +-20 % uniform, 1-sigma 0.1155)
-      // as the prior's sd wherever the prior is reported, without and with the level alone.
-      {"best-datasheet-film", "--settings best " DATASHEET_CLI " --film-initial-sd 0.1155", P::best,
+      // The datasheet's tolerances and the initial film's as the prior's sd wherever the prior is
+      // reported, without and with the level alone.
+      {"best-datasheet-film", "--settings best " DATASHEET_FILM_CLI, P::best, state_datasheet_film},
+      {"best-datasheet-film-level-only", "--settings best " DATASHEET_FILM_CLI " --fuse-level-only", P::best,
        [](O& o) {
-         state_datasheet(o);
-         o.film_initial_sd_rel = 0.1155;
-       }},
-      {"best-datasheet-film-level-only", "--settings best " DATASHEET_CLI " --film-initial-sd 0.1155 --fuse-level-only",
-       P::best,
-       [](O& o) {
-         state_datasheet(o);
-         o.film_initial_sd_rel = 0.1155;
+         state_datasheet_film(o);
          o.fuse_level_only = true;
        }},
       {"paper", "--settings paper", P::paper, [](O&) {}},
